@@ -1,0 +1,41 @@
+"""The ``quadsitl`` console script: dispatches to the simulator, the autopilot or both.
+
+``sim`` and ``autopilot`` never import each other (SPEC §2), so this dispatcher imports
+the chosen side only by name: ``quadsitl sim`` runs ``sim.cli``, ``quadsitl autopilot``
+runs ``autopilot.cli`` and ``quadsitl up`` runs ``autopilot.launcher``, which starts both as
+separate processes.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+_COMMANDS = {
+    "sim": ("sim.cli", "run the lockstep simulator (UDP server)"),
+    "autopilot": ("autopilot.cli", "run the autopilot (client of the simulator, GCS and API links)"),
+    "up": ("autopilot.launcher", "start sim and autopilot as two processes; stop both on SIGINT/SIGTERM"),
+}
+
+
+def _usage() -> str:
+    lines = ["usage: quadsitl {sim,autopilot,up} [options]   (quadsitl CMD --help for options)", ""]
+    lines += [f"  {name:<10} {help_text}" for name, (_, help_text) in _COMMANDS.items()]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = sys.argv[1:] if argv is None else argv
+    if not args or args[0] in ("-h", "--help"):
+        print(_usage())
+        return 0 if args else 2
+    name, rest = args[0], args[1:]
+    if name not in _COMMANDS:
+        print(f"quadsitl: unknown command {name!r}\n\n{_usage()}", file=sys.stderr)
+        return 2
+    module = importlib.import_module(_COMMANDS[name][0])
+    return int(module.main(rest) or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,62 @@
+"""``make bench``: run every benchmark suite, print one table, write ``bench/results.json``.
+
+Usage: ``python -m tools.bench [--quick] [--only SUITE ...] [--out bench/results.json]``.
+Numbers are measured in one run on one machine; compare ratios, not absolutes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import pkgutil
+import platform
+import sys
+import time
+from pathlib import Path
+
+from tools import benchmarks
+from tools.benchmarks import BenchResult
+
+
+def _suites() -> list[str]:
+    return sorted(m.name for m in pkgutil.iter_modules(benchmarks.__path__) if not m.name.startswith("_"))
+
+
+def _print_table(rows: list[tuple[str, BenchResult]]) -> None:
+    header = f"{'suite':<12} {'key':<40} {'value':>14}  {'target':<12} {'met':<4} note"
+    print(header)
+    print("-" * len(header))
+    for suite, r in rows:
+        met = "" if r.met is None else ("yes" if r.met else "NO")
+        value = f"{r.value:.6g}" if isinstance(r.value, float) else str(r.value)
+        print(f"{suite:<12} {r.key:<40} {value:>14}  {r.target:<12} {met:<4} {r.note}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m tools.bench", description=__doc__)
+    parser.add_argument("--quick", action="store_true", help="shorter runs (smoke check, noisier numbers)")
+    parser.add_argument("--only", nargs="*", default=None, help=f"suites to run (default all: {_suites()})")
+    parser.add_argument("--out", default="bench/results.json", help="where to write the flat JSON results")
+    args = parser.parse_args(argv)
+    names = args.only or _suites()
+    rows: list[tuple[str, BenchResult]] = []
+    for name in names:
+        module = importlib.import_module(f"tools.benchmarks.{name}")
+        t0 = time.perf_counter()
+        print(f"[bench] {name} ...", file=sys.stderr, flush=True)
+        rows += [(name, r) for r in module.run(quick=args.quick)]
+        print(f"[bench] {name} done in {time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
+    _print_table(rows)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    results: dict[str, object] = {r.key: r.value for _, r in rows}
+    results["machine"] = f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}"
+    results["quick"] = args.quick
+    out.write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
+    print(f"\nwrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
