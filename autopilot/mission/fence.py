@@ -1,0 +1,268 @@
+"""Geofence zones from FENCE mission items, in local NED, with the checks the planner reuses (SPEC §7, §8).
+
+Zones are vertical prisms (horizontal shape, any altitude). MAVLink semantics
+(MAV_CMD_NAV_FENCE_*): the vehicle must stay outside every exclusion zone and, when
+inclusion zones exist, inside *all* inclusion zones of at least one inclusion group
+(param2 of inclusion items). A polygon is ``param1`` consecutive vertex items of the
+same command. Polygons are assumed simple (not self-intersecting).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from autopilot.mission.commands import FENCE_COMMANDS, GLOBAL_FRAMES, MavCmd, MavFrame, command_name
+from mavlink_bridge.frames import GeoPoint, LocalNedFrame
+from mavlink_bridge.gcs_types import MissionItem, MissionType
+
+Vec2 = tuple[float, float]
+Vec3 = tuple[float, float, float]
+
+
+class FenceError(ValueError):
+    """A FENCE item list that does not describe valid zones; ``item_index`` names the culprit."""
+
+    def __init__(self, item_index: int, message: str, field: str = "") -> None:
+        super().__init__(f"fence item {item_index}: {message}")
+        self.item_index = item_index
+        self.field = field
+        self.message = message
+
+
+def _point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance from point(s) ``p`` to segments ``a``-``b`` (2D, broadcast on leading axes)."""
+    ab = b - a
+    denom = np.einsum("...i,...i->...", ab, ab)
+    t = np.einsum("...i,...i->...", p - a, ab) / np.where(denom > 0.0, denom, 1.0)
+    t = np.clip(t, 0.0, 1.0)
+    closest = a + t[..., None] * ab
+    return np.linalg.norm(p - closest, axis=-1)
+
+
+def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+
+
+def segment_to_segments_distance(a: np.ndarray, b: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """Minimum 2D distance between segment ``a``-``b`` and each segment ``starts[i]``-``ends[i]`` (0 if crossing)."""
+    d = np.minimum(
+        np.minimum(_point_segment_distance(a, starts, ends), _point_segment_distance(b, starts, ends)),
+        np.minimum(_point_segment_distance(starts, a, b), _point_segment_distance(ends, a, b)),
+    )
+    r, s = b - a, ends - starts
+    qp = starts - a
+    rxs = _cross(np.broadcast_to(r, s.shape), s)
+    safe = np.where(rxs != 0.0, rxs, 1.0)
+    t = _cross(qp, s) / safe
+    u = _cross(qp, np.broadcast_to(r, s.shape)) / safe
+    crossing = (rxs != 0.0) & (t >= 0.0) & (t <= 1.0) & (u >= 0.0) & (u <= 1.0)
+    return np.where(crossing, 0.0, d)
+
+
+@dataclass(frozen=True, slots=True)
+class CircleZone:
+    """A circular zone centred at ``center_ne_m`` (north, east, m) of ``radius_m``."""
+
+    center_ne_m: Vec2
+    radius_m: float
+    inclusion: bool
+    group: int = 0
+
+    def contains(self, pos_ned: Sequence[float]) -> bool:
+        """True when the horizontal position is inside the circle (boundary included)."""
+        return math.hypot(pos_ned[0] - self.center_ne_m[0], pos_ned[1] - self.center_ne_m[1]) <= self.radius_m
+
+    def boundary_distance_m(self, pos_ned: Sequence[float]) -> float:
+        """Horizontal distance to the circle's boundary."""
+        d = math.hypot(pos_ned[0] - self.center_ne_m[0], pos_ned[1] - self.center_ne_m[1])
+        return abs(d - self.radius_m)
+
+    def segment_clear(self, a_ned: Sequence[float], b_ned: Sequence[float], margin_m: float = 0.0) -> bool:
+        """Exclusion: the segment stays more than ``margin_m`` outside. Inclusion: it stays ``margin_m`` inside."""
+        c = np.asarray(self.center_ne_m)
+        a, b = np.asarray(a_ned[:2], dtype=float), np.asarray(b_ned[:2], dtype=float)
+        if self.inclusion:
+            limit = self.radius_m - margin_m
+            return bool(np.linalg.norm(a - c) <= limit and np.linalg.norm(b - c) <= limit)
+        return bool(_point_segment_distance(c, a, b) > self.radius_m + margin_m)
+
+
+@dataclass(frozen=True, slots=True)
+class PolygonZone:
+    """A polygonal zone; ``vertices_ne_m`` are (north, east) in metres, in order, not closed."""
+
+    vertices_ne_m: tuple[Vec2, ...]
+    inclusion: bool
+    group: int = 0
+
+    def _edges(self) -> tuple[np.ndarray, np.ndarray]:
+        v = np.asarray(self.vertices_ne_m, dtype=float)
+        return v, np.roll(v, -1, axis=0)
+
+    def contains(self, pos_ned: Sequence[float]) -> bool:
+        """Even-odd ray casting on the horizontal position."""
+        x, y = float(pos_ned[0]), float(pos_ned[1])
+        inside = False
+        verts = self.vertices_ne_m
+        j = len(verts) - 1
+        for i in range(len(verts)):
+            xi, yi = verts[i]
+            xj, yj = verts[j]
+            if (yi > y) != (yj > y) and x < (xj - xi) * (y - yi) / (yj - yi) + xi:
+                inside = not inside
+            j = i
+        return inside
+
+    def boundary_distance_m(self, pos_ned: Sequence[float]) -> float:
+        """Horizontal distance to the nearest edge."""
+        starts, ends = self._edges()
+        return float(np.min(_point_segment_distance(np.asarray(pos_ned[:2], dtype=float), starts, ends)))
+
+    def segment_clear(self, a_ned: Sequence[float], b_ned: Sequence[float], margin_m: float = 0.0) -> bool:
+        """Exclusion: the segment stays more than ``margin_m`` outside. Inclusion: it stays ``margin_m`` inside."""
+        a, b = np.asarray(a_ned[:2], dtype=float), np.asarray(b_ned[:2], dtype=float)
+        starts, ends = self._edges()
+        gap = float(np.min(segment_to_segments_distance(a, b, starts, ends)))
+        if gap <= 0.0 or gap < margin_m:
+            return False
+        inside_a, inside_b = self.contains(a_ned), self.contains(b_ned)
+        return (inside_a and inside_b) if self.inclusion else not (inside_a or inside_b)
+
+
+FenceZone = CircleZone | PolygonZone
+
+
+@dataclass(frozen=True, slots=True)
+class Geofence:
+    """All zones of one FENCE mission. Empty means "no fence": nothing is ever violated."""
+
+    zones: tuple[FenceZone, ...] = ()
+
+    @property
+    def exclusions(self) -> tuple[FenceZone, ...]:
+        return tuple(z for z in self.zones if not z.inclusion)
+
+    def _inclusion_groups(self) -> list[list[FenceZone]]:
+        groups: dict[int, list[FenceZone]] = {}
+        for z in self.zones:
+            if z.inclusion:
+                groups.setdefault(z.group, []).append(z)
+        return list(groups.values())
+
+    def violates(self, pos_ned: Sequence[float], margin_m: float = 0.0) -> bool:
+        """True when the position is inside (or within ``margin_m`` of) an exclusion zone, or outside
+        (or within ``margin_m`` of the edge of) every inclusion group."""
+        for z in self.exclusions:
+            if z.contains(pos_ned) or z.boundary_distance_m(pos_ned) < margin_m:
+                return True
+        groups = self._inclusion_groups()
+        if not groups:
+            return False
+        return not any(
+            all(z.contains(pos_ned) and z.boundary_distance_m(pos_ned) >= margin_m for z in g) for g in groups
+        )
+
+    def segment_clear(self, a_ned: Sequence[float], b_ned: Sequence[float], margin_m: float = 0.0) -> bool:
+        """True when the straight segment a→b keeps ``margin_m`` from every exclusion zone and stays
+        ``margin_m`` inside all zones of some inclusion group (when there are any)."""
+        if not all(z.segment_clear(a_ned, b_ned, margin_m) for z in self.exclusions):
+            return False
+        groups = self._inclusion_groups()
+        return not groups or any(all(z.segment_clear(a_ned, b_ned, margin_m) for z in g) for g in groups)
+
+
+def _check_latlon(index: int, item: MissionItem) -> None:
+    lat, lon = item.x_lat_deg, item.y_lon_deg
+    if not (math.isfinite(lat) and -90.0 <= lat <= 90.0):
+        raise FenceError(index, f"latitude {lat} outside [-90, 90]", "x_lat_deg")
+    if not (math.isfinite(lon) and -180.0 <= lon <= 180.0):
+        raise FenceError(index, f"longitude {lon} outside [-180, 180]", "y_lon_deg")
+
+
+def geofence_from_items(items: Sequence[MissionItem], home: GeoPoint) -> Geofence:
+    """Parse FENCE items into zones about ``home``. Raises :class:`FenceError` naming the item."""
+    frame = LocalNedFrame(home)
+    zones: list[FenceZone] = []
+    i = 0
+    while i < len(items):
+        item = items[i]
+        if item.command not in FENCE_COMMANDS:
+            raise FenceError(i, f"command {command_name(item.command)} is not a fence item", "command")
+        if item.frame not in GLOBAL_FRAMES:
+            raise FenceError(i, f"frame {item.frame} unsupported (use a global frame: 0, 3, 5 or 6)", "frame")
+        _check_latlon(i, item)
+        if item.command in (MavCmd.NAV_FENCE_CIRCLE_INCLUSION, MavCmd.NAV_FENCE_CIRCLE_EXCLUSION):
+            radius = item.param1
+            if not (math.isfinite(radius) and radius > 0.0):
+                raise FenceError(i, f"circle radius (param1) {radius} must be > 0 m", "param1")
+            n, e, _ = frame.ned_from_geodetic(item.x_lat_deg, item.y_lon_deg, home.alt_amsl_m)
+            inclusion = item.command == MavCmd.NAV_FENCE_CIRCLE_INCLUSION
+            zones.append(CircleZone((n, e), radius, inclusion, int(item.param2) if inclusion else 0))
+            i += 1
+            continue
+        count = item.param1
+        if not (math.isfinite(count) and count == int(count) and count >= 3):
+            raise FenceError(i, f"polygon vertex count (param1) {count} must be an integer >= 3", "param1")
+        count = int(count)
+        if i + count > len(items):
+            raise FenceError(i, f"polygon declares {count} vertices but only {len(items) - i} items follow")
+        verts: list[Vec2] = []
+        for k in range(i, i + count):
+            v = items[k]
+            if v.command != item.command or v.param1 != item.param1:
+                raise FenceError(
+                    k,
+                    f"polygon vertex {k - i + 1} of {count}: expected {command_name(item.command)} "
+                    f"with vertex count {count}, got {command_name(v.command)} count {v.param1}",
+                )
+            _check_latlon(k, v)
+            n, e, _ = frame.ned_from_geodetic(v.x_lat_deg, v.y_lon_deg, home.alt_amsl_m)
+            verts.append((n, e))
+        inclusion = item.command == MavCmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION
+        zones.append(PolygonZone(tuple(verts), inclusion, int(item.param2) if inclusion else 0))
+        i += count
+    return Geofence(tuple(zones))
+
+
+def circle_fence_items(
+    seq: int, lat_deg: float, lon_deg: float, radius_m: float, *, inclusion: bool, group: int = 0
+) -> list[MissionItem]:
+    """The one FENCE item of a circle zone."""
+    cmd = MavCmd.NAV_FENCE_CIRCLE_INCLUSION if inclusion else MavCmd.NAV_FENCE_CIRCLE_EXCLUSION
+    return [
+        MissionItem(
+            seq=seq,
+            command=int(cmd),
+            frame=int(MavFrame.GLOBAL),
+            param1=float(radius_m),
+            param2=float(group) if inclusion else 0.0,
+            x_lat_deg=float(lat_deg),
+            y_lon_deg=float(lon_deg),
+            mission_type=MissionType.FENCE,
+        )
+    ]
+
+
+def polygon_fence_items(
+    seq: int, vertices_lat_lon_deg: Sequence[tuple[float, float]], *, inclusion: bool, group: int = 0
+) -> list[MissionItem]:
+    """The vertex FENCE items of a polygon zone, starting at ``seq``."""
+    cmd = MavCmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION if inclusion else MavCmd.NAV_FENCE_POLYGON_VERTEX_EXCLUSION
+    count = float(len(vertices_lat_lon_deg))
+    return [
+        MissionItem(
+            seq=seq + k,
+            command=int(cmd),
+            frame=int(MavFrame.GLOBAL),
+            param1=count,
+            param2=float(group) if inclusion else 0.0,
+            x_lat_deg=float(lat),
+            y_lon_deg=float(lon),
+            mission_type=MissionType.FENCE,
+        )
+        for k, (lat, lon) in enumerate(vertices_lat_lon_deg)
+    ]
