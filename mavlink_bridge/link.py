@@ -1,0 +1,172 @@
+"""UDP datagram links addressed by pymavlink connection strings (SPEC §3, §12).
+
+``UdpLink.from_url`` accepts the pymavlink forms:
+
+- ``udpin:HOST:PORT`` (and ``udp:HOST:PORT``): bind HOST:PORT, reply to the last sender;
+- ``udpout:HOST:PORT``: bind an ephemeral port on the matching loopback/any address and send to HOST:PORT;
+  replies come back on the same socket.
+
+The link moves whole datagrams only: it knows nothing of MAVLink (framing, signing and
+decoding belong to ``mavlink_bridge.codec``). ``recv`` never raises on what a peer sends;
+socket errors caused by a vanished peer (ICMP port unreachable) are swallowed and counted.
+"""
+
+from __future__ import annotations
+
+import errno
+import select
+import socket
+from dataclasses import dataclass
+from enum import Enum
+
+Address = tuple[str, int]
+
+_MAX_DATAGRAM_BYTES = 65535
+_TRANSIENT_ERRNOS = frozenset({errno.EAGAIN, errno.EWOULDBLOCK, errno.ECONNREFUSED, errno.EINTR, errno.ENOBUFS})
+
+
+class LinkUrlError(ValueError):
+    """A connection string that is not ``udpin:``, ``udpout:`` or ``udp:`` HOST:PORT."""
+
+
+class LinkMode(Enum):
+    """Which side of a UDP link this is."""
+
+    LISTEN = "udpin"  # bound to a known port, replies to whoever talks to it
+    CONNECT = "udpout"  # sends to a known address
+
+
+@dataclass(frozen=True, slots=True)
+class LinkUrl:
+    """A parsed pymavlink-style UDP connection string."""
+
+    mode: LinkMode
+    host: str
+    port: int
+
+    @classmethod
+    def parse(cls, url: str) -> LinkUrl:
+        """Parse ``udpin:HOST:PORT``, ``udpout:HOST:PORT`` or ``udp:HOST:PORT`` (= udpin)."""
+        scheme, sep, rest = url.partition(":")
+        host, sep2, port_text = rest.rpartition(":")
+        modes = {"udpin": LinkMode.LISTEN, "udp": LinkMode.LISTEN, "udpout": LinkMode.CONNECT}
+        if not sep or not sep2 or scheme not in modes or not host:
+            raise LinkUrlError(f"expected udpin:HOST:PORT, udpout:HOST:PORT or udp:HOST:PORT, got {url!r}")
+        try:
+            port = int(port_text)
+        except ValueError:
+            raise LinkUrlError(f"port of {url!r} is not an integer") from None
+        if not 0 <= port <= 65535:
+            raise LinkUrlError(f"port of {url!r} is out of range 0..65535")
+        return cls(modes[scheme], host, port)
+
+    def with_port_offset(self, offset: int) -> LinkUrl:
+        """The same URL with the port shifted by ``offset`` (``--instance N``)."""
+        return LinkUrl(self.mode, self.host, self.port + offset)
+
+    def __str__(self) -> str:
+        return f"{self.mode.value}:{self.host}:{self.port}"
+
+
+class UdpLink:
+    """A non-blocking UDP socket that sends and receives whole datagrams.
+
+    In LISTEN mode the reply address (``peer``) follows the last sender when
+    ``follow_sender`` is true (pymavlink ``udpin`` behaviour); a protocol layer that
+    wants to choose its peer itself (e.g. only after a valid MAVLink frame) passes
+    ``follow_sender=False`` and calls ``set_peer``.
+    """
+
+    __slots__ = ("_buf", "_poll", "_sock", "_view", "follow_sender", "last_sender", "peer", "send_errors", "url")
+
+    def __init__(self, url: LinkUrl, *, follow_sender: bool = True) -> None:
+        self.url = url
+        self.follow_sender = follow_sender
+        self.send_errors = 0
+        self.last_sender: Address | None = None
+        self.peer: Address | None = None
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            if url.mode is LinkMode.LISTEN:
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+                sock.bind((url.host, url.port))
+            else:
+                local = "127.0.0.1" if url.host.startswith("127.") or url.host == "localhost" else "0.0.0.0"
+                sock.bind((local, 0))
+                self.peer = (socket.gethostbyname(url.host), url.port)
+            sock.setblocking(False)
+        except OSError:
+            sock.close()
+            raise
+        self._sock = sock
+        self._poll = select.poll()
+        self._poll.register(sock.fileno(), select.POLLIN)
+        self._buf = bytearray(_MAX_DATAGRAM_BYTES)
+        self._view = memoryview(self._buf)
+
+    @classmethod
+    def from_url(cls, url: str, *, follow_sender: bool = True) -> UdpLink:
+        """Open a link from a pymavlink connection string (see module docstring)."""
+        return cls(LinkUrl.parse(url), follow_sender=follow_sender)
+
+    @property
+    def local_address(self) -> Address:
+        """The (host, port) this socket is bound to."""
+        host, port = self._sock.getsockname()[:2]
+        return (host, port)
+
+    def fileno(self) -> int:
+        """The socket's file descriptor (for callers that multiplex several links)."""
+        return self._sock.fileno()
+
+    def set_peer(self, address: Address | None) -> None:
+        """Send future datagrams to ``address``."""
+        self.peer = address
+
+    def recv(self, timeout_s: float) -> bytes | None:
+        """The next whole datagram, waiting at most ``timeout_s`` (0 = poll); None on timeout.
+
+        ``last_sender`` is set to its source; in LISTEN mode with ``follow_sender`` the
+        peer follows it.
+        """
+        try:
+            n, address = self._sock.recvfrom_into(self._buf)
+        except OSError as exc:
+            if exc.errno not in _TRANSIENT_ERRNOS:
+                raise
+            if timeout_s <= 0.0 or not self._poll.poll(timeout_s * 1000.0):
+                return None
+            try:
+                n, address = self._sock.recvfrom_into(self._buf)
+            except OSError as exc2:
+                if exc2.errno not in _TRANSIENT_ERRNOS:
+                    raise
+                return None
+        self.last_sender = address
+        if self.follow_sender and self.url.mode is LinkMode.LISTEN:
+            self.peer = address
+        return bytes(self._view[:n])
+
+    def send(self, data: bytes) -> bool:
+        """Send one datagram to the peer; False when there is no peer yet or the kernel refused it."""
+        peer = self.peer
+        if peer is None:
+            return False
+        try:
+            self._sock.sendto(data, peer)
+        except OSError:
+            self.send_errors += 1
+            return False
+        return True
+
+    def close(self) -> None:
+        """Close the socket (idempotent)."""
+        if self._sock.fileno() >= 0:
+            self._poll.unregister(self._sock.fileno())
+            self._sock.close()
+
+    def __enter__(self) -> UdpLink:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
