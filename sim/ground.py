@@ -1,0 +1,73 @@
+"""Ground contact at z = 0 (NED, down positive; the ground is z ≥ 0) (SPEC §5).
+
+A vehicle is *in contact* when it starts a physics step with ``z ≥ 0`` and ``v_z ≥ 0``. In contact the
+ground pushes back with a normal force ``N = max(0, F_z)`` (``F`` the net NED force on the vehicle), so
+it never sinks and, since the reaction is never larger than the load, never launches. While loaded
+(``N > 0``) the gear holds the attitude (torques are reacted) and Coulomb friction ``μN`` acts on the
+horizontal motion (static when at rest). When thrust exceeds the load, ``N = 0``: the vehicle lifts off
+with a continuous acceleration. A step that ends below the surface is a touchdown: perfectly inelastic
+(no bounce), and a vertical speed above the vehicle's limit is a ground impact.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+_REST_SPEED_M_S = 1e-9
+
+
+@njit(cache=True)
+def ground_reaction_ned(
+    in_contact: bool,
+    f_x: float,
+    f_y: float,
+    f_z: float,
+    vel_x: float,
+    vel_y: float,
+    mu: float,
+) -> tuple[float, float, float, float]:
+    """Ground reaction force (N, NED) for a net force ``f`` on a vehicle moving at ``vel`` (horizontal).
+
+    Returns ``(r_x, r_y, r_z, N)``: the normal force ``N = max(0, f_z)`` pushes up (``r_z = −N``);
+    friction cancels a horizontal force up to ``μN`` at rest and is ``−μN v̂`` while sliding.
+    """
+    if not in_contact or f_z <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0
+    normal = f_z
+    limit = mu * normal
+    speed = math.sqrt(vel_x * vel_x + vel_y * vel_y)
+    if speed > _REST_SPEED_M_S:
+        return -limit * vel_x / speed, -limit * vel_y / speed, -normal, normal
+    f_h = math.sqrt(f_x * f_x + f_y * f_y)
+    if f_h <= limit:
+        return -f_x, -f_y, -normal, normal
+    return -limit * f_x / f_h, -limit * f_y / f_h, -normal, normal
+
+
+@njit(cache=True)
+def resolve_touchdown(x: np.ndarray, was_loaded: bool, impact_speed_m_s: float, friction_dv_m_s: float) -> bool:
+    """Enforce ``z ≤ 0`` after a physics step on state ``x`` (in place). Returns True on a ground impact.
+
+    A step ending below ground puts the vehicle on the surface with ``v_z = 0`` (inelastic) unless it
+    arrived faster than ``impact_speed_m_s``. A loaded vehicle (``was_loaded``) has its body rates
+    zeroed (gear holds it) and a horizontal speed below one step of friction ``friction_dv_m_s`` stopped.
+    """
+    if x[2] < 0.0:
+        return False
+    if x[5] > impact_speed_m_s:
+        x[2] = 0.0
+        return True
+    x[2] = 0.0
+    if x[5] > 0.0:
+        x[5] = 0.0
+    if was_loaded:
+        x[10] = 0.0
+        x[11] = 0.0
+        x[12] = 0.0
+        if math.sqrt(x[3] * x[3] + x[4] * x[4]) <= friction_dv_m_s:
+            x[3] = 0.0
+            x[4] = 0.0
+    return False
