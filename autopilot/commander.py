@@ -1,0 +1,563 @@
+"""The commander: arming, flight modes, landed state and what the vehicle is asked to do (SPEC §3, §8).
+
+An explicit state machine with no I/O and no clock: the runner feeds it the vehicle state
+(sim time inside), decoded GCS commands and failsafe events; it answers each command with
+an honest :class:`CommandResult` (and :attr:`Commander.last_reason` when refused) and
+produces one :class:`NavTarget` per step for the setpoint generator.
+
+State: ``armed``; ``mode`` (PX4-encoded :class:`FlightMode`); ``landed_state``
+(:class:`LandedState`); ``home`` (set at arming); ``gripper_release``. Modes:
+
+- AUTO_LOITER (HOLD) and POSCTL (no RC here, so it holds too): hold a point.
+- AUTO_TAKEOFF: climb to the takeoff altitude above home at ``MPC_TKO_SPEED``, then HOLD.
+- AUTO_LAND: descend (``MPC_Z_VEL_MAX_DN``, then ``MPC_LAND_SPEED`` below ``MPC_LAND_ALT2``)
+  until the land detector sees touchdown, then auto-disarm after ``COM_DISARM_LAND``.
+- AUTO_RTL: climb to ``RTL_RETURN_ALT`` (if lower), fly home, wait ``RTL_LAND_DELAY``, land.
+- AUTO_MISSION: the target comes from the mission executor (:meth:`set_mission_target`).
+- OFFBOARD: the target is the latest external position setpoint (:meth:`set_offboard_target`).
+
+Land detector (PX4 ``MulticopterLandDetector`` in spirit): vertical speed below
+``LNDMC_Z_VEL_MAX``, horizontal speed below ``LNDMC_XY_VEL_MAX`` and collective thrust
+below ``LNDMC_LOW_T_THR`` of hover, all for ``LNDMC_TRIG_TIME`` seconds.
+
+Altitudes in commands follow PX4: COMMAND_LONG positional altitudes are AMSL; COMMAND_INT
+altitudes are in its ``frame`` (3/6 = relative to home, 0/5 = AMSL); NaN means "default"
+(takeoff: ``MIS_TAKEOFF_ALT``; reposition: keep the current altitude).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import Enum
+
+from autopilot.estimator import VehicleState
+from autopilot.failsafe import FailsafeAction, FailsafeEvent
+from autopilot.params import ParamStore
+from autopilot.setpoints import NavTarget, TargetKind
+from mavlink_bridge.frames import GeoPoint, LocalNedFrame
+from mavlink_bridge.gcs_types import CommandRequest, CommandResult, FlightMode, LandedState, Severity, StatusText
+from mavlink_bridge.wire import Vec3
+
+#: COMPONENT_ARM_DISARM param2 magic that forces arming/disarming (PX4/ArduPilot).
+FORCE_MAGIC = 21196.0
+#: MAV_MODE_FLAG_CUSTOM_MODE_ENABLED (DO_SET_MODE param1).
+_CUSTOM_MODE_ENABLED = 1
+#: An armed vehicle on the ground takes off when its target is this far above it (m).
+_TAKEOFF_TRIGGER_M = 0.5
+#: Face the target only when it is at least this far away horizontally (m).
+_FACE_TARGET_MIN_M = 2.0
+#: Outside AUTO_TAKEOFF, a climbing vehicle counts as in the air above this height over home (m).
+_AIRBORNE_ALT_M = 1.0
+_RELATIVE_ALT_FRAMES = frozenset({3, 6, 11})
+
+CMD_NAV_RETURN_TO_LAUNCH = 20
+CMD_NAV_LAND = 21
+CMD_NAV_TAKEOFF = 22
+CMD_DO_SET_MODE = 176
+CMD_DO_CHANGE_SPEED = 178
+CMD_DO_REPOSITION = 192
+CMD_DO_GRIPPER = 211
+CMD_MISSION_START = 300
+CMD_COMPONENT_ARM_DISARM = 400
+
+_ARMABLE_MODES = frozenset(
+    {FlightMode.POSCTL, FlightMode.AUTO_LOITER, FlightMode.AUTO_TAKEOFF, FlightMode.AUTO_MISSION, FlightMode.OFFBOARD}
+)
+_SUPPORTED_MODES = _ARMABLE_MODES | {FlightMode.AUTO_LAND, FlightMode.AUTO_RTL}
+
+
+class RtlPhase(Enum):
+    """Where an RTL is."""
+
+    CLIMB = "climb"
+    RETURN = "return"
+    LOITER = "loiter"
+    LAND = "land"
+
+
+@dataclass(frozen=True, slots=True)
+class Home:
+    """The home position: where the vehicle was armed (local NED about the origin, and geodetic)."""
+
+    pos_ned_m: Vec3
+    geo: GeoPoint
+    yaw_rad: float
+
+
+class Commander:
+    """Arming, modes, landed state, land detector; one :class:`NavTarget` per :meth:`update`."""
+
+    def __init__(self, params: ParamStore) -> None:
+        self.params = params
+        self.armed = False
+        self.mode = FlightMode.AUTO_LOITER
+        self.landed_state = LandedState.ON_GROUND
+        self.home: Home | None = None
+        self.gripper_release = False
+        self.local_frame: LocalNedFrame | None = None
+        self.failsafe_reasons: set[str] = set()
+        self.mission_ready = False  # set by the runner: a valid mission is loaded
+        self.last_reason = ""
+        self.mode_history: list[tuple[int, FlightMode]] = []
+        self._texts: list[StatusText] = []
+        self._state: VehicleState | None = None
+        self._hold_ned: Vec3 = (0.0, 0.0, 0.0)
+        self._hold_yaw = math.nan
+        self._goto_ned: Vec3 = (0.0, 0.0, 0.0)
+        self._goto_yaw = math.nan
+        self._takeoff_down_m = 0.0
+        self._takeoff_alt_rel_m = 0.0
+        self._land_ne: tuple[float, float] = (0.0, 0.0)
+        self._rtl_phase = RtlPhase.CLIMB
+        self._rtl_down_m = 0.0
+        self._rtl_loiter_until_us = 0
+        self._speed_xy_m_s: float | None = None  # DO_CHANGE_SPEED override
+        self._mission_target: NavTarget | None = None
+        self._offboard_target: NavTarget | None = None
+        self._landed_since_us: int | None = None
+        self._touchdown_us: int | None = None
+        self._armed_at_us = 0
+
+    # ------------------------------------------------------------------ helpers
+    def drain_texts(self) -> list[StatusText]:
+        """STATUSTEXT events since the last call."""
+        out, self._texts = self._texts, []
+        return out
+
+    def _say(self, text: str, severity: Severity = Severity.INFO) -> None:
+        self._texts.append(StatusText(severity, text))
+
+    def _refuse(self, result: CommandResult, reason: str) -> CommandResult:
+        self.last_reason = reason
+        self._say(reason, Severity.WARNING)
+        return result
+
+    @property
+    def in_air(self) -> bool:
+        return self.landed_state in (LandedState.IN_AIR, LandedState.TAKEOFF, LandedState.LANDING)
+
+    @property
+    def speed_xy_m_s(self) -> float:
+        """Horizontal cruise speed in force (DO_CHANGE_SPEED override or MPC_XY_CRUISE), capped."""
+        p = self.params.get
+        speed = self._speed_xy_m_s if self._speed_xy_m_s is not None else p("MPC_XY_CRUISE")
+        return min(speed, p("MPC_XY_VEL_MAX"))
+
+    def _home_down_m(self) -> float:
+        """Down of home; before arming, of the vehicle (where home will be)."""
+        if self.home is not None:
+            return self.home.pos_ned_m[2]
+        return self._state.pos_ned_m[2] if self._state is not None else 0.0
+
+    def alt_rel_home_m(self, state: VehicleState) -> float:
+        return self._home_down_m() - state.pos_ned_m[2]
+
+    def _set_mode(self, mode: FlightMode) -> None:
+        if mode is self.mode:
+            return
+        self.mode = mode
+        t_us = self._state.time_us if self._state is not None else 0
+        self.mode_history.append((t_us, mode))
+        self._say(f"Mode {mode.name}")
+
+    def _hold_here(self, state: VehicleState) -> None:
+        """Hold where the vehicle can stop: its position plus the braking distance at MPC_ACC_HOR."""
+        acc = self.params.get("MPC_ACC_HOR")
+        vn, ve, _ = state.vel_ned_m_s
+        speed = math.hypot(vn, ve)
+        k = speed / (2.0 * acc)
+        n, e, d = state.pos_ned_m
+        self._hold_ned = (n + vn * k, e + ve * k, d)
+        self._hold_yaw = math.nan
+
+    def _face(self, state: VehicleState, target_ned: Vec3) -> float:
+        if self.params.get("MPC_YAW_MODE") >= 0.5:
+            return math.nan
+        dn, de = target_ned[0] - state.pos_ned_m[0], target_ned[1] - state.pos_ned_m[1]
+        return math.atan2(de, dn) if math.hypot(dn, de) >= _FACE_TARGET_MIN_M else math.nan
+
+    def _down_from_alt(self, alt_m: float, request: CommandRequest) -> float:
+        """Local down (m) of a command altitude (see the module docstring for frames)."""
+        if request.is_int and request.frame in _RELATIVE_ALT_FRAMES:
+            return self._home_down_m() - alt_m
+        origin_alt = self.local_frame.home.alt_amsl_m if self.local_frame is not None else 0.0
+        return origin_alt - alt_m
+
+    def _ne_from_latlon(self, lat_deg: float, lon_deg: float, state: VehicleState) -> tuple[float, float] | None:
+        """Local NE (m) of lat/lon in degrees; NaN (or 0/0 for COMMAND_LONG) = the current position."""
+        if math.isnan(lat_deg) or math.isnan(lon_deg) or (lat_deg == 0.0 and lon_deg == 0.0):
+            return state.pos_ned_m[0], state.pos_ned_m[1]
+        if self.local_frame is None or not (-90.0 <= lat_deg <= 90.0 and -180.0 <= lon_deg <= 180.0):
+            return None
+        n, e, _ = self.local_frame.ned_from_geodetic(lat_deg, lon_deg, self.local_frame.home.alt_amsl_m)
+        return n, e
+
+    # ------------------------------------------------------------------ mode entry
+    def _enter_takeoff(self, state: VehicleState, alt_rel_m: float) -> None:
+        self._takeoff_alt_rel_m = alt_rel_m
+        self._takeoff_down_m = self._home_down_m() - alt_rel_m
+        self._hold_ned = (state.pos_ned_m[0], state.pos_ned_m[1], self._takeoff_down_m)
+        self._hold_yaw = math.nan
+        self._set_mode(FlightMode.AUTO_TAKEOFF)
+
+    def _enter_land(self, state: VehicleState, ne: tuple[float, float] | None = None) -> None:
+        self._land_ne = ne if ne is not None else (state.pos_ned_m[0], state.pos_ned_m[1])
+        self._set_mode(FlightMode.AUTO_LAND)
+
+    def _enter_rtl(self, state: VehicleState) -> None:
+        self._rtl_phase = RtlPhase.CLIMB
+        self._rtl_down_m = min(state.pos_ned_m[2], self._home_down_m() - self.params.get("RTL_RETURN_ALT"))
+        self._set_mode(FlightMode.AUTO_RTL)
+
+    def _enter_hold(self, state: VehicleState, mode: FlightMode = FlightMode.AUTO_LOITER) -> None:
+        self._hold_here(state)
+        self._set_mode(mode)
+
+    def request_mode(self, mode: FlightMode) -> CommandResult:
+        """Switch mode (DO_SET_MODE, failsafes, mission RTL/LAND items); refusal reason in last_reason."""
+        state = self._state
+        if mode not in _SUPPORTED_MODES:
+            return self._refuse(CommandResult.DENIED, f"mode {mode.name} is not supported (no RC input)")
+        if state is None:
+            return self._refuse(CommandResult.TEMPORARILY_REJECTED, "no vehicle state yet")
+        if mode is self.mode:
+            return CommandResult.ACCEPTED
+        if mode is FlightMode.AUTO_RTL:
+            if self.home is None:
+                return self._refuse(CommandResult.DENIED, "RTL: no home position (arm first)")
+            if not (self.armed and self.in_air):
+                return self._refuse(CommandResult.DENIED, "RTL: not flying")
+            self._enter_rtl(state)
+        elif mode is FlightMode.AUTO_LAND:
+            if not (self.armed and self.in_air):
+                return self._refuse(CommandResult.DENIED, "LAND: not flying")
+            self._enter_land(state)
+        elif mode is FlightMode.AUTO_TAKEOFF:
+            self._enter_takeoff(state, self.params.get("MIS_TAKEOFF_ALT"))
+        elif mode is FlightMode.AUTO_MISSION:
+            if not self.mission_ready:
+                return self._refuse(CommandResult.DENIED, "MISSION: no valid mission uploaded")
+            self._mission_target = None
+            self._set_mode(mode)
+        elif mode is FlightMode.OFFBOARD:
+            if self._offboard_target is None:
+                return self._refuse(CommandResult.DENIED, "OFFBOARD: stream position setpoints first")
+            self._set_mode(mode)
+        else:
+            self._enter_hold(state, mode)
+        return CommandResult.ACCEPTED
+
+    # ------------------------------------------------------------------ arming
+    def arming_refusal(self, state: VehicleState | None) -> str | None:
+        """Why arming is refused now, or None (checks: estimate, GPS 3D fix, on ground, failsafe, mode)."""
+        if state is None or not state.valid:
+            return "estimator not ready"
+        if state.gps_fix_type < 3 and self.params.get("COM_ARM_WO_GPS") < 0.5:
+            return "no 3D GPS fix"
+        if self.in_air:
+            return "not on the ground"
+        if self.failsafe_reasons:
+            return f"failsafe active ({', '.join(sorted(self.failsafe_reasons))})"
+        if self.mode not in _ARMABLE_MODES:
+            return f"cannot arm in mode {self.mode.name}"
+        if self.mode is FlightMode.AUTO_MISSION and not self.mission_ready:
+            return "mission mode without a valid mission"
+        return None
+
+    def arm(self, force: bool = False) -> CommandResult:
+        state = self._state
+        if self.armed:
+            return CommandResult.ACCEPTED
+        if state is None:
+            return self._refuse(CommandResult.TEMPORARILY_REJECTED, "Arming denied: no vehicle state yet")
+        reason = None if force else self.arming_refusal(state)
+        if reason is not None:
+            return self._refuse(CommandResult.DENIED, f"Arming denied: {reason}")
+        self.armed = True
+        self._armed_at_us = state.time_us
+        self._touchdown_us = None
+        self.home = Home(state.pos_ned_m, GeoPoint(state.lat_deg, state.lon_deg, state.alt_amsl_m), state.yaw_rad)
+        if self.mode is FlightMode.AUTO_TAKEOFF:  # takeoff requested before arming: climb above the new home
+            self._enter_takeoff(state, self._takeoff_alt_rel_m)
+        elif self.mode in (FlightMode.AUTO_LOITER, FlightMode.POSCTL):
+            self._hold_ned = state.pos_ned_m
+        self._say("Armed" + (" (forced)" if force else ""))
+        return CommandResult.ACCEPTED
+
+    def disarm(self, force: bool = False, reason: str = "") -> CommandResult:
+        if not self.armed:
+            return CommandResult.ACCEPTED
+        if self.in_air and not force:
+            return self._refuse(CommandResult.DENIED, "Disarming denied: in air (force with 21196)")
+        self.armed = False
+        self._say("Disarmed" + (f" ({reason})" if reason else ""))
+        if self.in_air:  # forced in the air: motors stop, the vehicle falls
+            self.landed_state = LandedState.IN_AIR
+        if self.mode in (FlightMode.AUTO_LAND, FlightMode.AUTO_RTL, FlightMode.AUTO_TAKEOFF):
+            self._set_mode(FlightMode.AUTO_LOITER)
+        return CommandResult.ACCEPTED
+
+    # ------------------------------------------------------------------ commands
+    def handle_command(self, request: CommandRequest) -> CommandResult:
+        """Execute one COMMAND_LONG/COMMAND_INT; ``last_reason`` says why when not ACCEPTED."""
+        self.last_reason = ""
+        p = request.params
+        if any(math.isinf(v) for v in p):
+            return self._refuse(CommandResult.DENIED, "command parameter is infinite")
+        cmd = request.command
+        state = self._state
+        if cmd == CMD_COMPONENT_ARM_DISARM:
+            force = p[1] == FORCE_MAGIC
+            if p[0] == 1.0:
+                return self.arm(force)
+            if p[0] == 0.0:
+                return self.disarm(force)
+            return self._refuse(CommandResult.DENIED, f"ARM_DISARM param1 must be 0 or 1, got {p[0]:g}")
+        if state is None:
+            return self._refuse(CommandResult.TEMPORARILY_REJECTED, "no vehicle state yet")
+        if cmd == CMD_NAV_TAKEOFF:
+            return self._cmd_takeoff(request, state)
+        if cmd == CMD_NAV_LAND:
+            if not (self.armed and self.in_air):
+                return self._refuse(CommandResult.DENIED, "LAND: not flying")
+            ne = self._ne_from_latlon(p[4], p[5], state)
+            if ne is None:
+                return self._refuse(CommandResult.DENIED, "LAND: latitude/longitude out of range")
+            self._enter_land(state, ne)
+            return CommandResult.ACCEPTED
+        if cmd == CMD_NAV_RETURN_TO_LAUNCH:
+            return self.request_mode(FlightMode.AUTO_RTL)
+        if cmd == CMD_MISSION_START:
+            return self.request_mode(FlightMode.AUTO_MISSION)
+        if cmd == CMD_DO_SET_MODE:
+            return self._cmd_set_mode(p)
+        if cmd == CMD_DO_CHANGE_SPEED:
+            return self._cmd_change_speed(p)
+        if cmd == CMD_DO_GRIPPER:
+            if p[1] not in (0.0, 1.0):
+                return self._refuse(CommandResult.DENIED, f"GRIPPER: action must be 0 release or 1 grab, not {p[1]:g}")
+            self.set_gripper(release=p[1] == 0.0)
+            return CommandResult.ACCEPTED
+        if cmd == CMD_DO_REPOSITION:
+            return self._cmd_reposition(request, state)
+        return self._refuse(CommandResult.UNSUPPORTED, f"command {cmd} is not supported")
+
+    def _cmd_takeoff(self, request: CommandRequest, state: VehicleState) -> CommandResult:
+        alt = request.params[6]
+        if self.in_air and not self.armed:
+            return self._refuse(CommandResult.DENIED, "TAKEOFF: disarmed in the air")
+        if math.isnan(alt):
+            alt_rel = self.params.get("MIS_TAKEOFF_ALT")
+        else:
+            alt_rel = self._home_down_m() - self._down_from_alt(alt, request)
+        spec = self.params.specs["MIS_TAKEOFF_ALT"]
+        if not (spec.min <= alt_rel <= spec.max):
+            return self._refuse(
+                CommandResult.DENIED,
+                f"TAKEOFF: {alt_rel:.1f} m above home is outside [{spec.min:g}, {spec.max:g}] m "
+                "(COMMAND_LONG param7 is AMSL; send NaN for MIS_TAKEOFF_ALT)",
+            )
+        self._enter_takeoff(state, alt_rel)
+        return CommandResult.ACCEPTED
+
+    def _cmd_set_mode(self, p: tuple[float, ...]) -> CommandResult:
+        if not int(p[0]) & _CUSTOM_MODE_ENABLED:
+            return self._refuse(CommandResult.DENIED, "DO_SET_MODE: only PX4 custom modes are supported")
+        try:
+            mode = FlightMode.from_px4(int(p[1]), int(p[2]))
+        except ValueError:
+            return self._refuse(CommandResult.DENIED, f"DO_SET_MODE: unknown PX4 mode {int(p[1])}/{int(p[2])}")
+        return self.request_mode(mode)
+
+    def _cmd_change_speed(self, p: tuple[float, ...]) -> CommandResult:
+        speed_type, speed = int(p[0]), p[1]
+        if speed == -1.0:
+            return CommandResult.ACCEPTED
+        if speed == -2.0:
+            self._speed_xy_m_s = None
+            return CommandResult.ACCEPTED
+        if speed_type not in (0, 1):
+            return self._refuse(CommandResult.UNSUPPORTED, f"DO_CHANGE_SPEED: speed type {speed_type} not supported")
+        vmax = self.params.get("MPC_XY_VEL_MAX")
+        if not (0.0 < speed <= vmax):
+            return self._refuse(CommandResult.DENIED, f"DO_CHANGE_SPEED: {speed:g} m/s outside (0, {vmax:g}]")
+        self.set_speed_xy(speed)
+        return CommandResult.ACCEPTED
+
+    def _cmd_reposition(self, request: CommandRequest, state: VehicleState) -> CommandResult:
+        p = request.params
+        if not (self.armed and self.in_air):
+            return self._refuse(CommandResult.TEMPORARILY_REJECTED, "REPOSITION: take off first")
+        ne = self._ne_from_latlon(p[4], p[5], state)
+        if ne is None:
+            return self._refuse(CommandResult.DENIED, "REPOSITION: latitude/longitude out of range")
+        down = state.pos_ned_m[2] if math.isnan(p[6]) else self._down_from_alt(p[6], request)
+        if self._home_down_m() - down < 0.0:
+            return self._refuse(CommandResult.DENIED, "REPOSITION: altitude below home")
+        if p[0] > 0.0:
+            vmax = self.params.get("MPC_XY_VEL_MAX")
+            if p[0] > vmax:
+                return self._refuse(CommandResult.DENIED, f"REPOSITION: speed {p[0]:g} m/s above {vmax:g}")
+            self._speed_xy_m_s = p[0]
+        self.goto(state, (ne[0], ne[1], down), math.nan if math.isnan(p[3]) else math.radians(p[3]))
+        return CommandResult.ACCEPTED
+
+    # ------------------------------------------------------------------ inputs from the runner
+    def goto(self, state: VehicleState, pos_ned_m: Vec3, yaw_rad: float = math.nan) -> None:
+        """Fly to a point and hold it there (DO_REPOSITION): HOLD mode with a new hold point."""
+        self._hold_ned = pos_ned_m
+        self._hold_yaw = yaw_rad if not math.isnan(yaw_rad) else self._face(state, pos_ned_m)
+        self._set_mode(FlightMode.AUTO_LOITER)
+
+    def set_speed_xy(self, speed_m_s: float | None) -> None:
+        """Cruise speed override (DO_CHANGE_SPEED, mission speed items); None = MPC_XY_CRUISE."""
+        self._speed_xy_m_s = speed_m_s
+
+    def set_gripper(self, release: bool) -> None:
+        if release != self.gripper_release:
+            self._say("Payload released" if release else "Gripper closed")
+        self.gripper_release = release
+
+    def set_mission_target(self, target: NavTarget | None) -> None:
+        """The executor's current target in AUTO_MISSION (None: hold where it is)."""
+        self._mission_target = target
+
+    def set_offboard_target(self, pos_ned_m: Vec3, yaw_rad: float = math.nan) -> None:
+        """An external position setpoint (SET_POSITION_TARGET_LOCAL_NED); used in OFFBOARD."""
+        self._offboard_target = NavTarget(TargetKind.POSITION, pos_ned_m, yaw_rad, *self._speeds())
+
+    def apply_failsafe(self, event: FailsafeEvent) -> None:
+        """React to a failsafe that just triggered (action from its parameter)."""
+        self._say(event.message, Severity.CRITICAL if event.action >= FailsafeAction.HOLD else Severity.WARNING)
+        if not (self.armed and self.in_air) or event.action <= FailsafeAction.WARN or self._state is None:
+            return
+        if event.action is FailsafeAction.RTL and self.home is not None:
+            self.request_mode(FlightMode.AUTO_RTL)
+        elif event.action in (FailsafeAction.RTL, FailsafeAction.LAND):
+            self.request_mode(FlightMode.AUTO_LAND)
+        elif self.mode is not FlightMode.AUTO_LAND:
+            self._enter_hold(self._state)
+
+    # ------------------------------------------------------------------ per step
+    def _speeds(self) -> tuple[float, float, float]:
+        p = self.params.get
+        return self.speed_xy_m_s, p("MPC_Z_VEL_MAX_UP"), p("MPC_Z_VEL_MAX_DN")
+
+    def _land_target(self, state: VehicleState) -> NavTarget:
+        p = self.params.get
+        speed_dn = p("MPC_LAND_SPEED") if self.alt_rel_home_m(state) < p("MPC_LAND_ALT2") else p("MPC_Z_VEL_MAX_DN")
+        pos = (self._land_ne[0], self._land_ne[1], state.pos_ned_m[2])
+        return NavTarget(TargetKind.LAND, pos, math.nan, self.speed_xy_m_s, p("MPC_Z_VEL_MAX_UP"), speed_dn)
+
+    def _mode_target(self, state: VehicleState) -> NavTarget:
+        """The target of the current mode, as if airborne."""
+        p = self.params.get
+        mode = self.mode
+        if mode is FlightMode.AUTO_TAKEOFF:
+            if abs(state.pos_ned_m[2] - self._takeoff_down_m) < p("NAV_MC_ALT_RAD") and self.in_air:
+                self._say("Takeoff complete")
+                self._set_mode(FlightMode.AUTO_LOITER)
+            else:
+                vxy = self.speed_xy_m_s
+                return NavTarget(TargetKind.POSITION, self._hold_ned, math.nan, vxy, p("MPC_TKO_SPEED"), vxy)
+        if mode is FlightMode.AUTO_LAND:
+            return self._land_target(state)
+        if mode is FlightMode.AUTO_RTL:
+            return self._rtl_target(state)
+        if mode is FlightMode.AUTO_MISSION and self._mission_target is not None:
+            return self._mission_target
+        if mode is FlightMode.OFFBOARD and self._offboard_target is not None:
+            return self._offboard_target
+        return NavTarget(TargetKind.POSITION, self._hold_ned, self._hold_yaw, *self._speeds())
+
+    def _rtl_target(self, state: VehicleState) -> NavTarget:
+        p = self.params.get
+        home = self.home
+        assert home is not None  # RTL is entered only with a home
+        n, e, d = state.pos_ned_m
+        if self._rtl_phase is RtlPhase.CLIMB:
+            if d - self._rtl_down_m < p("NAV_MC_ALT_RAD"):
+                self._rtl_phase = RtlPhase.RETURN
+                self._goto_ned = (home.pos_ned_m[0], home.pos_ned_m[1], self._rtl_down_m)
+                self._goto_yaw = self._face(state, self._goto_ned)
+            else:
+                self._hold_ned = (n, e, self._rtl_down_m)
+                return NavTarget(TargetKind.POSITION, self._hold_ned, math.nan, *self._speeds())
+        if self._rtl_phase is RtlPhase.RETURN:
+            if math.hypot(n - home.pos_ned_m[0], e - home.pos_ned_m[1]) < p("NAV_ACC_RAD"):
+                self._rtl_phase = RtlPhase.LOITER
+                self._rtl_loiter_until_us = state.time_us + int(p("RTL_LAND_DELAY") * 1e6)
+            else:
+                return NavTarget(TargetKind.POSITION, self._goto_ned, self._goto_yaw, *self._speeds())
+        if self._rtl_phase is RtlPhase.LOITER:
+            if state.time_us >= self._rtl_loiter_until_us:
+                self._rtl_phase = RtlPhase.LAND
+                self._land_ne = (home.pos_ned_m[0], home.pos_ned_m[1])
+            else:
+                return NavTarget(TargetKind.POSITION, self._goto_ned, math.nan, *self._speeds())
+        return self._land_target(state)
+
+    def _detect_landing(self, state: VehicleState, thrust_ratio: float) -> bool:
+        """Touchdown: slow and low thrust for LNDMC_TRIG_TIME (sim time)."""
+        p = self.params.get
+        vn, ve, vd = state.vel_ned_m_s
+        quiet = (
+            abs(vd) < p("LNDMC_Z_VEL_MAX")
+            and math.hypot(vn, ve) < p("LNDMC_XY_VEL_MAX")
+            and thrust_ratio < p("LNDMC_LOW_T_THR")
+        )
+        if not quiet:
+            self._landed_since_us = None
+            return False
+        if self._landed_since_us is None:
+            self._landed_since_us = state.time_us
+        return state.time_us - self._landed_since_us >= p("LNDMC_TRIG_TIME") * 1e6
+
+    def _auto_disarm_on_ground(self, state: VehicleState) -> None:
+        """COM_DISARM_LAND after a touchdown, COM_DISARM_PRFLT after arming without takeoff."""
+        p = self.params.get
+        if self._touchdown_us is not None:
+            delay_s, since_us, why = p("COM_DISARM_LAND"), self._touchdown_us, "landed"
+        else:
+            delay_s, since_us, why = p("COM_DISARM_PRFLT"), self._armed_at_us, "no takeoff"
+        if delay_s >= 0.0 and state.time_us - since_us >= delay_s * 1e6:
+            self.disarm(reason=why)
+
+    def update(self, state: VehicleState, thrust_ratio: float) -> NavTarget:
+        """Advance the state machine one step; ``thrust_ratio`` = last collective thrust / hover thrust."""
+        self._state = state
+        if self.local_frame is None:
+            return NavTarget(TargetKind.IDLE)
+        p = self.params.get
+        if not self.armed:  # motors off: on the ground unless still falling after a forced disarm
+            falling = abs(state.vel_ned_m_s[2]) >= p("LNDMC_Z_VEL_MAX")
+            self.landed_state = LandedState.IN_AIR if falling else LandedState.ON_GROUND
+            return NavTarget(TargetKind.IDLE)
+        if self.landed_state is LandedState.ON_GROUND:
+            target = self._mode_target(state)
+            climb_m = state.pos_ned_m[2] - target.pos_ned_m[2]
+            if target.kind is not TargetKind.POSITION or climb_m < _TAKEOFF_TRIGGER_M:
+                self._auto_disarm_on_ground(state)
+                return NavTarget(TargetKind.IDLE)
+            self.landed_state = LandedState.TAKEOFF
+            self._touchdown_us = None
+            self._landed_since_us = None
+            self._say("Takeoff")
+            return target
+        target = self._mode_target(state)
+        if target.kind is TargetKind.LAND:
+            self.landed_state = LandedState.LANDING
+        elif self.landed_state is LandedState.TAKEOFF:
+            if self.mode is not FlightMode.AUTO_TAKEOFF and self.alt_rel_home_m(state) > _AIRBORNE_ALT_M:
+                self.landed_state = LandedState.IN_AIR
+            return target  # no land detection before leaving the ground
+        elif self.landed_state is LandedState.LANDING:
+            self.landed_state = LandedState.IN_AIR
+        if self._detect_landing(state, thrust_ratio):
+            self.landed_state = LandedState.ON_GROUND
+            self._touchdown_us = state.time_us
+            self._say("Landing detected")
+            self._hold_ned = state.pos_ned_m
+            return NavTarget(TargetKind.IDLE)
+        return target

@@ -1,0 +1,163 @@
+"""Smooth position setpoints toward a navigation target, within speed, acceleration and jerk limits.
+
+The commander says *where* to go (:class:`NavTarget`); :class:`SetpointGenerator` says how
+the reference moves there, one control step at a time, as the trajectory the cascade
+tracks: ``pos_sp_ned``, ``vel_sp_ned`` and the acceleration feed-forward ``acc_sp_ned``
+(paper eq. 11, ``U_x = ẍ_desire + …``).
+
+Per step (horizontal plane and vertical axis shaped separately, as PX4 does):
+
+1. desired velocity toward the target with a braking profile
+   ``v_des = min(v_max, −a·T + sqrt((a·T)² + 2·a·d), K_APPROACH·d)`` (``d`` = remaining
+   distance, ``T`` = :data:`BRAKE_LAG_S`, the time the jerk-limited reference needs to start
+   braking), so the reference stops at the target within the acceleration limit;
+2. desired acceleration toward ``v_des`` with its own jerk-aware profile
+   ``|a_des| = min(a_max, sqrt(2·j_max·|Δv|), |Δv|/TAU_VEL_S)``, so the velocity does not
+   overshoot ``v_des`` (hence never exceeds the speed limit) while the acceleration ramps down;
+3. the acceleration moves toward it by at most ``j_max·dt`` (jerk limit);
+4. ``v_sp`` and ``pos_sp`` integrate it (semi-implicit Euler).
+
+``LAND`` targets descend at a fixed speed instead of stopping; the reference is kept at
+most :data:`LAND_MAX_LEAD_M` below the vehicle so that, on the ground, the controller asks
+for less-than-hover thrust (what the land detector looks for) without winding up.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import Enum
+
+from mavlink_bridge.wire import Vec3
+
+#: Slope of the final approach, 1/s: ``v_des <= K_APPROACH · distance``.
+K_APPROACH = 1.0
+#: Reaction time (s) budgeted in the braking profile for the jerk-limited deceleration ramp.
+BRAKE_LAG_S = 0.5
+#: Time constant (s) of the velocity reference's pull toward ``v_des``.
+TAU_VEL_S = 0.3
+#: In LAND, the reference stays at most this far below the vehicle (m).
+LAND_MAX_LEAD_M = 1.0
+
+
+class TargetKind(Enum):
+    """What the vehicle is asked to do."""
+
+    IDLE = "idle"  # armed or not, on the ground: motors idle, controller off
+    POSITION = "position"  # reach ``pos_ned_m`` and hold it
+    LAND = "land"  # hold xy of ``pos_ned_m``, descend at ``speed_down_m_s`` until touchdown
+
+
+@dataclass(frozen=True, slots=True)
+class NavTarget:
+    """A navigation target: where to go and how fast (NED about the local origin, SI)."""
+
+    kind: TargetKind
+    pos_ned_m: Vec3 = (0.0, 0.0, 0.0)
+    yaw_rad: float = math.nan  # NaN: keep the current yaw setpoint
+    speed_xy_m_s: float = 5.0
+    speed_up_m_s: float = 3.0
+    speed_down_m_s: float = 1.5
+
+
+@dataclass(frozen=True, slots=True)
+class SetpointLimits:
+    """Acceleration, jerk and yaw-rate limits of the reference (MPC_ACC_*, MPC_JERK_AUTO, MPC_YAWRAUTO_MAX)."""
+
+    acc_xy_m_s2: float = 3.0
+    acc_up_m_s2: float = 3.0
+    acc_down_m_s2: float = 2.0
+    jerk_m_s3: float = 8.0
+    yaw_rate_rad_s: float = math.radians(45.0)
+
+
+def _approach_speed(distance_m: float, v_max: float, acc_max: float) -> float:
+    a_t = acc_max * BRAKE_LAG_S
+    return min(v_max, math.sqrt(a_t * a_t + 2.0 * acc_max * distance_m) - a_t, K_APPROACH * distance_m)
+
+
+def _accel_toward(dv: float, acc_max: float, jerk_max: float) -> float:
+    """Magnitude of the acceleration that closes a velocity gap ``dv >= 0`` without overshoot."""
+    return min(acc_max, math.sqrt(2.0 * jerk_max * dv), dv / TAU_VEL_S)
+
+
+def _toward(value: float, goal: float, max_step: float) -> float:
+    if goal > value + max_step:
+        return value + max_step
+    if goal < value - max_step:
+        return value - max_step
+    return goal
+
+
+class SetpointGenerator:
+    """A jerk-limited reference that flies toward :class:`NavTarget` s; state is scalars (no allocation).
+
+    Attributes ``pos_ned``, ``vel_ned``, ``acc_ned`` (lists of 3 floats, written in place)
+    and ``yaw_rad`` are the reference after the latest :meth:`update`.
+    """
+
+    def __init__(self, limits: SetpointLimits | None = None) -> None:
+        self.limits = limits or SetpointLimits()
+        self.pos_ned = [0.0, 0.0, 0.0]
+        self.vel_ned = [0.0, 0.0, 0.0]
+        self.acc_ned = [0.0, 0.0, 0.0]
+        self.yaw_rad = 0.0
+
+    def reset(self, pos_ned: Vec3, vel_ned: Vec3, yaw_rad: float) -> None:
+        """Restart the reference at the vehicle's state (at takeoff, or after the controller was off)."""
+        self.pos_ned[:] = pos_ned
+        self.vel_ned[:] = vel_ned
+        self.acc_ned[:] = (0.0, 0.0, 0.0)
+        self.yaw_rad = yaw_rad
+
+    def update(self, target: NavTarget, dt_s: float, vehicle_pos_ned: Vec3) -> None:
+        """Advance the reference by ``dt_s`` toward ``target``."""
+        if target.kind is TargetKind.IDLE:
+            self.reset(vehicle_pos_ned, (0.0, 0.0, 0.0), self.yaw_rad)
+            return
+        lim = self.limits
+        pos, vel = self.pos_ned, self.vel_ned
+        # horizontal: desired velocity along the line to the target
+        dn, de = target.pos_ned_m[0] - pos[0], target.pos_ned_m[1] - pos[1]
+        d_xy = math.hypot(dn, de)
+        if d_xy > 1e-9:
+            v = _approach_speed(d_xy, target.speed_xy_m_s, lim.acc_xy_m_s2) / d_xy
+            vn_des, ve_des = dn * v, de * v
+        else:
+            vn_des = ve_des = 0.0
+        dvn, dve = vn_des - vel[0], ve_des - vel[1]
+        dv_xy = math.hypot(dvn, dve)
+        if dv_xy > 1e-12:
+            a = _accel_toward(dv_xy, lim.acc_xy_m_s2, lim.jerk_m_s3) / dv_xy
+            an_des, ae_des = dvn * a, dve * a
+        else:
+            an_des = ae_des = 0.0
+        # vertical (down positive): a braking profile, or a constant descent when landing
+        if target.kind is TargetKind.LAND:
+            vd_des = target.speed_down_m_s
+        else:
+            dd = target.pos_ned_m[2] - pos[2]
+            v_lim = target.speed_down_m_s if dd > 0.0 else target.speed_up_m_s
+            a_lim = lim.acc_down_m_s2 if dd > 0.0 else lim.acc_up_m_s2
+            vd_des = math.copysign(_approach_speed(abs(dd), v_lim, a_lim), dd)
+        dvd = vd_des - vel[2]
+        ad_des = math.copysign(
+            _accel_toward(abs(dvd), lim.acc_down_m_s2 if dvd > 0.0 else lim.acc_up_m_s2, lim.jerk_m_s3), dvd
+        )
+        # jerk limit, then integrate
+        dj = lim.jerk_m_s3 * dt_s
+        acc = self.acc_ned
+        acc[0] = _toward(acc[0], an_des, dj)
+        acc[1] = _toward(acc[1], ae_des, dj)
+        acc[2] = _toward(acc[2], ad_des, dj)
+        for i in range(3):
+            vel[i] += acc[i] * dt_s
+            pos[i] += vel[i] * dt_s
+        if target.kind is TargetKind.LAND and pos[2] > vehicle_pos_ned[2] + LAND_MAX_LEAD_M:
+            pos[2] = vehicle_pos_ned[2] + LAND_MAX_LEAD_M
+        # yaw: rate-limited turn toward the target heading along the shorter way
+        if not math.isnan(target.yaw_rad):
+            err = (target.yaw_rad - self.yaw_rad + math.pi) % (2.0 * math.pi) - math.pi
+            step = lim.yaw_rate_rad_s * dt_s
+            self.yaw_rad += max(-step, min(step, err))
+            self.yaw_rad = (self.yaw_rad + math.pi) % (2.0 * math.pi) - math.pi

@@ -1,0 +1,91 @@
+"""Setpoint generator: speed, acceleration, jerk and yaw-rate limits hold; it stops at the target; LAND descends."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from autopilot.setpoints import LAND_MAX_LEAD_M, NavTarget, SetpointGenerator, SetpointLimits, TargetKind
+
+DT = 0.004
+LIMITS = SetpointLimits(acc_xy_m_s2=3.0, acc_up_m_s2=2.5, acc_down_m_s2=1.5, jerk_m_s3=8.0, yaw_rate_rad_s=0.5)
+
+
+def _fly(target: NavTarget, seconds: float, gen: SetpointGenerator | None = None) -> tuple[SetpointGenerator, dict]:
+    gen = gen or SetpointGenerator(LIMITS)
+    worst = {"v_xy": 0.0, "v_up": 0.0, "v_dn": 0.0, "a_xy": 0.0, "a_up": 0.0, "a_dn": 0.0, "jerk": 0.0, "yaw_rate": 0.0}
+    prev_acc = list(gen.acc_ned)
+    prev_yaw = gen.yaw_rad
+    for _ in range(round(seconds / DT)):
+        gen.update(target, DT, (0.0, 0.0, 0.0))
+        v, a = gen.vel_ned, gen.acc_ned
+        worst["v_xy"] = max(worst["v_xy"], math.hypot(v[0], v[1]))
+        worst["v_up"] = max(worst["v_up"], -v[2])
+        worst["v_dn"] = max(worst["v_dn"], v[2])
+        worst["a_xy"] = max(worst["a_xy"], math.hypot(a[0], a[1]))
+        worst["a_up"] = max(worst["a_up"], -a[2])
+        worst["a_dn"] = max(worst["a_dn"], a[2])
+        worst["jerk"] = max(worst["jerk"], max(abs(x - y) for x, y in zip(a, prev_acc, strict=True)) / DT)
+        dyaw = (gen.yaw_rad - prev_yaw + math.pi) % (2 * math.pi) - math.pi
+        worst["yaw_rate"] = max(worst["yaw_rate"], abs(dyaw) / DT)
+        prev_acc, prev_yaw = list(a), gen.yaw_rad
+    return gen, worst
+
+
+@pytest.mark.parametrize(
+    ("goal", "speed_xy"),
+    [((60.0, -25.0, -20.0), 5.0), ((3.0, 1.0, -1.0), 12.0), ((-200.0, 0.0, 10.0), 12.0), ((0.0, 0.0, -0.3), 5.0)],
+)
+def test_limits_hold_and_the_reference_stops_at_the_target(goal: tuple[float, float, float], speed_xy: float) -> None:
+    target = NavTarget(TargetKind.POSITION, goal, 1.0, speed_xy, 3.0, 1.5)
+    gen = SetpointGenerator(LIMITS)
+    gen.reset((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), -2.0)
+    gen, worst = _fly(target, 120.0, gen)
+    eps = 1e-9
+    assert worst["v_xy"] <= speed_xy + eps and worst["v_up"] <= 3.0 + eps and worst["v_dn"] <= 1.5 + eps
+    assert worst["a_xy"] <= LIMITS.acc_xy_m_s2 + eps
+    assert worst["a_up"] <= LIMITS.acc_up_m_s2 + eps and worst["a_dn"] <= LIMITS.acc_down_m_s2 + eps
+    assert worst["jerk"] <= LIMITS.jerk_m_s3 * 1.0001
+    assert worst["yaw_rate"] <= LIMITS.yaw_rate_rad_s * 1.0001
+    assert gen.pos_ned == pytest.approx(goal, abs=1e-3)
+    assert gen.vel_ned == pytest.approx((0.0, 0.0, 0.0), abs=1e-3)
+    assert gen.yaw_rad == pytest.approx(1.0)
+
+
+def test_no_overshoot_and_cruise_speed_reached_on_a_long_leg() -> None:
+    gen = SetpointGenerator(LIMITS)
+    target = NavTarget(TargetKind.POSITION, (100.0, 0.0, 0.0), math.nan, 8.0)
+    furthest, top_speed = 0.0, 0.0
+    for _ in range(round(40.0 / DT)):
+        gen.update(target, DT, (0.0, 0.0, 0.0))
+        furthest = max(furthest, gen.pos_ned[0])
+        top_speed = max(top_speed, gen.vel_ned[0])
+    assert furthest - 100.0 < 0.02
+    assert top_speed == pytest.approx(8.0, abs=1e-6)
+
+
+def test_target_change_in_flight_keeps_velocity_continuous() -> None:
+    gen = SetpointGenerator(LIMITS)
+    _fly(NavTarget(TargetKind.POSITION, (100.0, 0.0, 0.0), math.nan, 6.0), 10.0, gen)
+    v_before = list(gen.vel_ned)
+    gen, worst = _fly(NavTarget(TargetKind.POSITION, (0.0, 100.0, 0.0), math.nan, 6.0), 0.2, gen)
+    dv = math.dist(v_before, gen.vel_ned)
+    assert dv <= LIMITS.acc_xy_m_s2 * 0.2 + 1e-9
+    assert worst["jerk"] <= LIMITS.jerk_m_s3 * 1.0001
+
+
+def test_land_descends_at_speed_and_stays_near_a_vehicle_on_the_ground() -> None:
+    gen = SetpointGenerator(LIMITS)
+    gen.reset((0.0, 0.0, -5.0), (0.0, 0.0, 0.0), 0.0)
+    land = NavTarget(TargetKind.LAND, (0.0, 0.0, -5.0), math.nan, 5.0, 3.0, 0.7)
+    for _ in range(round(5.0 / DT)):
+        gen.update(land, DT, (0.0, 0.0, -5.0 + 0.0))
+    assert gen.vel_ned[2] == pytest.approx(0.7, abs=1e-6)
+    assert gen.pos_ned[2] == pytest.approx(-5.0 + LAND_MAX_LEAD_M)  # vehicle held at -5: lead clamped
+
+
+def test_idle_follows_the_vehicle() -> None:
+    gen = SetpointGenerator(LIMITS)
+    gen.update(NavTarget(TargetKind.IDLE), DT, (1.0, 2.0, 3.0))
+    assert gen.pos_ned == [1.0, 2.0, 3.0] and gen.vel_ned == [0.0, 0.0, 0.0]
