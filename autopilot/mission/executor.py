@@ -1,0 +1,445 @@
+"""The vehicle-agnostic mission executor (SPEC §8; ArduPilot ``AP_Mission`` style, STYLE §5).
+
+Items are data; the executor is a pure state machine stepped with the sim time and the
+vehicle's local NED state (about ``home``). Each :meth:`MissionExecutor.step` returns an
+:class:`ExecutorOutput`: the :class:`NavTarget` the setpoint generator should fly, the items
+reached during the step (MISSION_ITEM_REACHED), one-shot :class:`MissionAction` s (gripper),
+and the MISSION_CURRENT values (``current_seq``, ``state``).
+
+Semantics:
+
+- NAV_TAKEOFF climbs at the current (or given) horizontal position; done within
+  ``alt_accept_m`` of the altitude (a vehicle already higher is done at once).
+- NAV_WAYPOINT is reached inside the acceptance radius (param2, else ``accept_radius_m``)
+  horizontally and ``alt_accept_m`` vertically, then holds param1 seconds. With no hold and
+  a following waypoint the target is pass-through and carries ``next_pos_ned_m`` (lookahead
+  through DO items and DO_JUMPs) so the setpoint generator can blend corners.
+- NAV_LOITER_TIME flies to its position (lat = lon = 0: where it starts) and holds param1 s;
+  NAV_DELAY holds where it starts for param1 s.
+- NAV_LAND descends at its position (lat = lon = 0: current) until the vehicle reports landed.
+- NAV_RETURN_TO_LAUNCH climbs to ``rtl_alt_m`` if lower, flies home at that altitude, lands.
+- DO_CHANGE_SPEED (param2 > 0 sets, -2 restores the default, -1 keeps), DO_GRIPPER (an action)
+  and DO_JUMP (param1 target, param2 repeats, -1 forever) complete in the step they start.
+- Pause holds where the vehicle is and freezes hold timers; resume continues the same item.
+  Once complete the target holds where the mission ended (IDLE when landed); with no mission
+  or before start the target is None (the commander decides what to fly).
+- A mission replaced while ACTIVE or PAUSED continues the item being flown when the new list
+  has the identical item at the same seq (no restart), else at the first identical item,
+  else restarts at seq 0 (a takeoff below the current altitude then completes at once).
+  Jump counters restart with every new mission.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from enum import IntEnum
+
+from autopilot.mission.commands import GripperAction, MavCmd, MissionState
+from autopilot.mission.plan import item_position_ned, items_match, uses_current_position
+from autopilot.params import ParamStore
+from mavlink_bridge.frames import GeoPoint, LocalNedFrame
+from mavlink_bridge.gcs_types import MissionItem
+
+Vec3 = tuple[float, float, float]
+_NAN = float("nan")
+
+
+@dataclass(frozen=True, slots=True)
+class ExecutorConfig:
+    """Executor settings (MIS_ACC_RAD, MIS_ALT_ACC_RAD, MIS_CRUISE_SPD, MIS_RTL_ALT)."""
+
+    accept_radius_m: float = 1.0
+    alt_accept_m: float = 0.8
+    cruise_speed_m_s: float = 5.0
+    rtl_alt_m: float = 30.0
+
+    @classmethod
+    def from_params(cls, params: ParamStore) -> ExecutorConfig:
+        return cls(
+            accept_radius_m=params.get("MIS_ACC_RAD"),
+            alt_accept_m=params.get("MIS_ALT_ACC_RAD"),
+            cruise_speed_m_s=params.get("MIS_CRUISE_SPD"),
+            rtl_alt_m=params.get("MIS_RTL_ALT"),
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class VehicleSample:
+    """What the executor needs of the vehicle each step: sim time, local NED state about home, landed flag."""
+
+    time_us: int
+    pos_ned_m: Vec3
+    vel_ned_m_s: Vec3
+    landed: bool
+
+
+class NavKind(IntEnum):
+    """What the setpoint generator is asked to do."""
+
+    IDLE = 0  # nothing to fly (on the ground, no mission running)
+    TAKEOFF = 1  # climb vertically to pos_ned_m
+    WAYPOINT = 2  # fly to pos_ned_m (pass-through when pass_through)
+    LOITER = 3  # hold at pos_ned_m (loiter, delay, waypoint hold, pause, mission complete)
+    RETURN = 4  # RTL transit: climb, then fly home at pos_ned_m's altitude
+    LAND = 5  # descend at pos_ned_m's horizontal position until landed
+
+
+@dataclass(frozen=True, slots=True)
+class NavTarget:
+    """A navigation setpoint target in local NED (m). ``yaw_deg`` NaN: the vehicle chooses (along the path)."""
+
+    kind: NavKind
+    seq: int  # mission item it serves; -1 when not from an item (pause, complete)
+    pos_ned_m: Vec3
+    yaw_deg: float
+    speed_m_s: float
+    accept_radius_m: float
+    pass_through: bool = False
+    next_pos_ned_m: Vec3 | None = None
+
+
+class ActionKind(IntEnum):
+    """One-shot actions the autopilot turns into actuator channels."""
+
+    GRIPPER_RELEASE = 0  # payload release -> wire.GRIPPER_CHANNEL = 1
+    GRIPPER_GRAB = 1
+
+
+@dataclass(frozen=True, slots=True)
+class MissionAction:
+    """An action raised by a DO item at ``time_us``."""
+
+    kind: ActionKind
+    seq: int
+    time_us: int
+    gripper_instance: int = 1
+
+
+@dataclass(frozen=True, slots=True)
+class ExecutorOutput:
+    """Result of one step: the MISSION_CURRENT values, the target, and this step's events."""
+
+    state: MissionState
+    current_seq: int
+    target: NavTarget | None
+    reached: tuple[int, ...]
+    actions: tuple[MissionAction, ...]
+    speed_m_s: float
+
+
+class _Phase(IntEnum):
+    START = 0
+    CLIMB = 1
+    APPROACH = 2
+    HOLD = 3
+    RETURN = 4
+    DESCEND = 5
+
+
+def _hdist(a: Sequence[float], b: Sequence[float]) -> float:
+    return math.hypot(a[0] - b[0], a[1] - b[1])
+
+
+class MissionExecutor:
+    """Steps a MISSION item list; see the module docstring for the semantics."""
+
+    def __init__(self, home: GeoPoint, config: ExecutorConfig | None = None) -> None:
+        self._frame = LocalNedFrame(home)
+        self.config = config or ExecutorConfig()
+        self._items: list[MissionItem] = []
+        self._pos_ned: list[Vec3 | None] = []
+        self._jumps_done: list[int] = []
+        self._state = MissionState.NO_MISSION
+        self._cur = 0
+        self._phase = _Phase.START
+        self._goal: Vec3 = (0.0, 0.0, 0.0)
+        self._hold_start_us = 0
+        self._hold_s = 0.0
+        self._jump_to = -1
+        self._speed_override: float | None = None
+        self._target: NavTarget | None = None
+        self._paused_at_us = 0
+        self._hold_pos: Vec3 | None = None
+
+    # ------------------------------------------------------------------ queries
+
+    @property
+    def state(self) -> MissionState:
+        return self._state
+
+    @property
+    def current_seq(self) -> int:
+        """MISSION_CURRENT.seq: the item being flown (the last item once complete)."""
+        return self._cur
+
+    @property
+    def items(self) -> list[MissionItem]:
+        return list(self._items)
+
+    @property
+    def speed_m_s(self) -> float:
+        return self._speed_override if self._speed_override is not None else self.config.cruise_speed_m_s
+
+    # ------------------------------------------------------------------ commands
+
+    def configure(self, config: ExecutorConfig) -> None:
+        """New settings (parameters changed in flight); the current target is rebuilt."""
+        self.config = config
+        self._target = None
+
+    def set_home(self, home: GeoPoint) -> None:
+        """Move the local NED origin (positions of the items are recomputed)."""
+        self._frame = LocalNedFrame(home)
+        self._pos_ned = [self._item_pos(it) for it in self._items]
+        self._target = None
+
+    def _item_pos(self, item: MissionItem) -> Vec3 | None:
+        if item.command not in (MavCmd.NAV_WAYPOINT, MavCmd.NAV_LOITER_TIME, MavCmd.NAV_TAKEOFF, MavCmd.NAV_LAND):
+            return None
+        if uses_current_position(item):
+            return None
+        return item_position_ned(item, self._frame)
+
+    def set_mission(self, items: Sequence[MissionItem]) -> int:
+        """Install a validated item list; returns the seq that will be flown next (policy in the module doc)."""
+        old, old_cur, old_phase = self._items, self._cur, self._phase
+        self._items = list(items)
+        self._pos_ned = [self._item_pos(it) for it in self._items]
+        self._jumps_done = [0] * len(self._items)
+        self._target = None
+        flying = self._state in (MissionState.ACTIVE, MissionState.PAUSED)
+        if not self._items:
+            self._cur, self._phase = 0, _Phase.START
+            self._state = MissionState.NO_MISSION
+            return 0
+        if not flying:
+            self._cur, self._phase = 0, _Phase.START
+            self._state = MissionState.NOT_STARTED
+            return 0
+        current = old[old_cur] if old_cur < len(old) else None
+        if current is not None and old_cur < len(self._items) and items_match([self._items[old_cur]], [current]):
+            self._cur, self._phase = old_cur, old_phase
+            return self._cur
+        same = [
+            k
+            for k, it in enumerate(self._items)
+            if current is not None and items_match([replace(it, seq=0)], [replace(current, seq=0)])
+        ]
+        self._cur = same[0] if same else 0
+        self._phase = _Phase.START
+        return self._cur
+
+    def start(self, time_us: int, seq: int | None = None) -> bool:
+        """MISSION_START: run from ``seq`` (default: the current item, or 0 after completion). False if impossible."""
+        if not self._items:
+            return False
+        if seq is None:
+            seq = 0 if self._state == MissionState.COMPLETE else self._cur
+        if not 0 <= seq < len(self._items):
+            return False
+        if self._state in (MissionState.NOT_STARTED, MissionState.COMPLETE):
+            self._jumps_done = [0] * len(self._items)
+            self._speed_override = None
+        if self._state == MissionState.PAUSED and seq == self._cur:
+            return self.resume(time_us)
+        self._cur, self._phase = seq, _Phase.START
+        self._state = MissionState.ACTIVE
+        self._target = None
+        return True
+
+    def set_current(self, seq: int) -> bool:
+        """MISSION_SET_CURRENT: fly ``seq`` next (restarting that item). False when out of range."""
+        if not 0 <= seq < len(self._items):
+            return False
+        self._cur, self._phase = seq, _Phase.START
+        if self._state == MissionState.COMPLETE:
+            self._state = MissionState.NOT_STARTED
+        self._target = None
+        return True
+
+    def pause(self, time_us: int) -> bool:
+        """Hold where the vehicle is; hold timers freeze. False unless ACTIVE."""
+        if self._state != MissionState.ACTIVE:
+            return False
+        self._state = MissionState.PAUSED
+        self._paused_at_us = time_us
+        self._hold_pos = None
+        self._target = None
+        return True
+
+    def resume(self, time_us: int) -> bool:
+        """Continue the paused item (hold timers resume where they stopped). False unless PAUSED."""
+        if self._state != MissionState.PAUSED:
+            return False
+        self._hold_start_us += time_us - self._paused_at_us
+        self._state = MissionState.ACTIVE
+        self._target = None
+        return True
+
+    # ------------------------------------------------------------------ stepping
+
+    def step(self, sample: VehicleSample) -> ExecutorOutput:
+        """Advance with the vehicle state at ``sample.time_us``; returns the target and this step's events."""
+        reached: list[int] = []
+        actions: list[MissionAction] = []
+        if self._state == MissionState.ACTIVE:
+            for _ in range(len(self._items) + 1):  # DO items and instant completions chain within one step
+                if self._phase == _Phase.START:
+                    self._begin(sample)
+                if not self._advance(sample, actions):
+                    break
+                reached.append(self._cur)
+                nxt = self._jump_to if self._jump_to >= 0 else self._cur + 1
+                self._jump_to = -1
+                if nxt >= len(self._items):
+                    self._state = MissionState.COMPLETE
+                    self._hold_pos = sample.pos_ned_m
+                    self._target = None
+                    break
+                self._cur, self._phase = nxt, _Phase.START
+        if self._target is None:
+            self._target = self._make_target(sample)
+        return ExecutorOutput(
+            self._state,
+            self._cur,
+            self._target,
+            tuple(reached) if reached else (),
+            tuple(actions) if actions else (),
+            self.speed_m_s,
+        )
+
+    def _begin(self, s: VehicleSample) -> None:
+        item = self._items[self._cur]
+        cmd = item.command
+        pos = self._pos_ned[self._cur]
+        p = s.pos_ned_m
+        self._target = None
+        if cmd == MavCmd.NAV_TAKEOFF:
+            n, e = (pos[0], pos[1]) if pos is not None else (p[0], p[1])
+            self._goal, self._phase = (n, e, -item.z_alt_m), _Phase.CLIMB
+        elif cmd == MavCmd.NAV_WAYPOINT:
+            assert pos is not None
+            self._goal, self._phase, self._hold_s = pos, _Phase.APPROACH, item.param1
+        elif cmd == MavCmd.NAV_LOITER_TIME:
+            self._goal = pos if pos is not None else p
+            self._phase, self._hold_s = _Phase.APPROACH, item.param1
+        elif cmd == MavCmd.NAV_DELAY:
+            self._goal, self._phase, self._hold_s, self._hold_start_us = p, _Phase.HOLD, item.param1, s.time_us
+        elif cmd == MavCmd.NAV_LAND:
+            n, e = (pos[0], pos[1]) if pos is not None else (p[0], p[1])
+            self._goal, self._phase = (n, e, 0.0), _Phase.DESCEND
+        elif cmd == MavCmd.NAV_RETURN_TO_LAUNCH:
+            alt = -p[2]
+            if s.landed and _hdist(p, (0.0, 0.0)) <= self.config.accept_radius_m:
+                self._goal, self._phase = (0.0, 0.0, 0.0), _Phase.DESCEND
+            elif alt < self.config.rtl_alt_m - self.config.alt_accept_m:
+                self._goal, self._phase = (p[0], p[1], -self.config.rtl_alt_m), _Phase.CLIMB
+            else:
+                self._goal, self._phase = (0.0, 0.0, min(p[2], -self.config.rtl_alt_m)), _Phase.RETURN
+        else:
+            self._phase = _Phase.HOLD  # DO items complete in _advance
+
+    def _accept_radius(self, item: MissionItem) -> float:
+        if item.command == MavCmd.NAV_WAYPOINT and item.param2 > 0.0:
+            return item.param2
+        return self.config.accept_radius_m
+
+    def _advance(self, s: VehicleSample, actions: list[MissionAction]) -> bool:
+        """Run the current item's phases as far as this sample allows; True when the item is complete."""
+        item = self._items[self._cur]
+        cmd = item.command
+        if cmd == MavCmd.DO_CHANGE_SPEED:
+            if item.param2 > 0.0:
+                self._speed_override = item.param2
+            elif item.param2 == -2.0:
+                self._speed_override = None
+            return True
+        if cmd == MavCmd.DO_GRIPPER:
+            kind = ActionKind.GRIPPER_RELEASE if item.param2 == GripperAction.RELEASE else ActionKind.GRIPPER_GRAB
+            actions.append(MissionAction(kind, self._cur, s.time_us, int(item.param1) or 1))
+            return True
+        if cmd == MavCmd.DO_JUMP:
+            repeat = int(item.param2)
+            if repeat < 0 or self._jumps_done[self._cur] < repeat:
+                self._jumps_done[self._cur] += 1
+                self._jump_to = int(item.param1)
+            return True
+        p, cfg, rtl = s.pos_ned_m, self.config, cmd == MavCmd.NAV_RETURN_TO_LAUNCH
+        while True:
+            phase = self._phase
+            if phase == _Phase.CLIMB:
+                if -p[2] < -self._goal[2] - cfg.alt_accept_m:
+                    return False
+                if not rtl:
+                    return True
+                self._goal, self._phase = (0.0, 0.0, self._goal[2]), _Phase.RETURN
+            elif phase == _Phase.RETURN:
+                if _hdist(p, self._goal) > cfg.accept_radius_m:
+                    return False
+                self._goal, self._phase = (0.0, 0.0, 0.0), _Phase.DESCEND
+            elif phase == _Phase.APPROACH:
+                if _hdist(p, self._goal) > self._accept_radius(item) or abs(p[2] - self._goal[2]) > cfg.alt_accept_m:
+                    return False
+                if self._hold_s <= 0.0:
+                    return True
+                self._phase, self._hold_start_us = _Phase.HOLD, s.time_us
+            elif phase == _Phase.HOLD:
+                return s.time_us - self._hold_start_us >= round(self._hold_s * 1e6)
+            elif phase == _Phase.DESCEND:
+                return s.landed
+            else:
+                return False
+            self._target = None
+
+    def _lookahead(self) -> Vec3 | None:
+        """Position of the next waypoint/loiter after the current item, following DO items and pending jumps."""
+        jumps = {}
+        k = self._cur + 1
+        for _ in range(2 * len(self._items) + 2):
+            if k >= len(self._items):
+                return None
+            item = self._items[k]
+            if item.command == MavCmd.DO_JUMP:
+                done = jumps.get(k, self._jumps_done[k])
+                if item.param2 < 0 or done < item.param2:
+                    jumps[k] = done + 1
+                    k = int(item.param1)
+                else:
+                    k += 1
+                continue
+            if item.command in (MavCmd.DO_CHANGE_SPEED, MavCmd.DO_GRIPPER):
+                k += 1
+                continue
+            if item.command in (MavCmd.NAV_WAYPOINT, MavCmd.NAV_LOITER_TIME):
+                return self._pos_ned[k]
+            return None
+        return None
+
+    def _make_target(self, s: VehicleSample) -> NavTarget | None:
+        speed, acc = self.speed_m_s, self.config.accept_radius_m
+        if self._state in (MissionState.PAUSED, MissionState.COMPLETE):
+            if self._hold_pos is None:
+                self._hold_pos = s.pos_ned_m
+            kind = NavKind.IDLE if s.landed else NavKind.LOITER
+            return NavTarget(kind, -1, self._hold_pos, _NAN, speed, acc)
+        if self._state != MissionState.ACTIVE:
+            return None
+        item = self._items[self._cur]
+        cmd, yaw = item.command, item.param4
+        if self._phase == _Phase.CLIMB:
+            kind = NavKind.TAKEOFF if cmd == MavCmd.NAV_TAKEOFF else NavKind.RETURN
+            return NavTarget(kind, self._cur, self._goal, yaw if kind == NavKind.TAKEOFF else _NAN, speed, acc)
+        if self._phase == _Phase.RETURN:
+            return NavTarget(NavKind.RETURN, self._cur, self._goal, _NAN, speed, acc)
+        if self._phase == _Phase.DESCEND:
+            return NavTarget(NavKind.LAND, self._cur, self._goal, yaw if cmd == MavCmd.NAV_LAND else _NAN, speed, acc)
+        if self._phase == _Phase.APPROACH:
+            radius = self._accept_radius(item)
+            nxt = self._lookahead() if self._hold_s <= 0.0 and cmd == MavCmd.NAV_WAYPOINT else None
+            return NavTarget(NavKind.WAYPOINT, self._cur, self._goal, yaw, speed, radius, nxt is not None, nxt)
+        if self._phase == _Phase.HOLD:
+            kind = NavKind.IDLE if s.landed else NavKind.LOITER
+            return NavTarget(kind, self._cur, self._goal, yaw if cmd != MavCmd.NAV_DELAY else _NAN, speed, acc)
+        return None
