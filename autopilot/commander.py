@@ -12,7 +12,7 @@ State: ``armed``; ``mode`` (PX4-encoded :class:`FlightMode`); ``landed_state``
 - AUTO_TAKEOFF: climb to the takeoff altitude above home at ``MPC_TKO_SPEED``, then HOLD.
 - AUTO_LAND: descend (``MPC_Z_VEL_MAX_DN``, then ``MPC_LAND_SPEED`` below ``MPC_LAND_ALT2``)
   until the land detector sees touchdown, then auto-disarm after ``COM_DISARM_LAND``.
-- AUTO_RTL: climb to ``RTL_RETURN_ALT`` (if lower), fly home, wait ``RTL_LAND_DELAY``, land.
+- AUTO_RTL: climb to ``MIS_RTL_ALT`` (if lower), fly home, wait ``RTL_LAND_DELAY``, land.
 - AUTO_MISSION: the target comes from the mission executor (:meth:`set_mission_target`).
 - OFFBOARD: the target is the latest external position setpoint (:meth:`set_offboard_target`).
 
@@ -139,9 +139,9 @@ class Commander:
 
     @property
     def speed_xy_m_s(self) -> float:
-        """Horizontal cruise speed in force (DO_CHANGE_SPEED override or MPC_XY_CRUISE), capped."""
+        """Horizontal cruise speed in force (DO_CHANGE_SPEED override or MIS_CRUISE_SPD), capped."""
         p = self.params.get
-        speed = self._speed_xy_m_s if self._speed_xy_m_s is not None else p("MPC_XY_CRUISE")
+        speed = self._speed_xy_m_s if self._speed_xy_m_s is not None else p("MIS_CRUISE_SPD")
         return min(speed, p("MPC_XY_VEL_MAX"))
 
     def _home_down_m(self) -> float:
@@ -207,7 +207,7 @@ class Commander:
 
     def _enter_rtl(self, state: VehicleState) -> None:
         self._rtl_phase = RtlPhase.CLIMB
-        self._rtl_down_m = min(state.pos_ned_m[2], self._home_down_m() - self.params.get("RTL_RETURN_ALT"))
+        self._rtl_down_m = min(state.pos_ned_m[2], self._home_down_m() - self.params.get("MIS_RTL_ALT"))
         self._set_mode(FlightMode.AUTO_RTL)
 
     def _enter_hold(self, state: VehicleState, mode: FlightMode = FlightMode.AUTO_LOITER) -> None:
@@ -411,7 +411,7 @@ class Commander:
         self._set_mode(FlightMode.AUTO_LOITER)
 
     def set_speed_xy(self, speed_m_s: float | None) -> None:
-        """Cruise speed override (DO_CHANGE_SPEED, mission speed items); None = MPC_XY_CRUISE."""
+        """Cruise speed override (DO_CHANGE_SPEED, mission speed items); None = MIS_CRUISE_SPD."""
         self._speed_xy_m_s = speed_m_s
 
     def set_gripper(self, release: bool) -> None:
@@ -455,7 +455,7 @@ class Commander:
         p = self.params.get
         mode = self.mode
         if mode is FlightMode.AUTO_TAKEOFF:
-            if abs(state.pos_ned_m[2] - self._takeoff_down_m) < p("NAV_MC_ALT_RAD") and self.in_air:
+            if abs(state.pos_ned_m[2] - self._takeoff_down_m) < p("MIS_ALT_ACC_RAD") and self.in_air:
                 self._say("Takeoff complete")
                 self._set_mode(FlightMode.AUTO_LOITER)
             else:
@@ -477,7 +477,7 @@ class Commander:
         assert home is not None  # RTL is entered only with a home
         n, e, d = state.pos_ned_m
         if self._rtl_phase is RtlPhase.CLIMB:
-            if d - self._rtl_down_m < p("NAV_MC_ALT_RAD"):
+            if d - self._rtl_down_m < p("MIS_ALT_ACC_RAD"):
                 self._rtl_phase = RtlPhase.RETURN
                 self._goto_ned = (home.pos_ned_m[0], home.pos_ned_m[1], self._rtl_down_m)
                 self._goto_yaw = self._face(state, self._goto_ned)
@@ -485,7 +485,7 @@ class Commander:
                 self._hold_ned = (n, e, self._rtl_down_m)
                 return NavTarget(TargetKind.POSITION, self._hold_ned, math.nan, *self._speeds())
         if self._rtl_phase is RtlPhase.RETURN:
-            if math.hypot(n - home.pos_ned_m[0], e - home.pos_ned_m[1]) < p("NAV_ACC_RAD"):
+            if math.hypot(n - home.pos_ned_m[0], e - home.pos_ned_m[1]) < p("MIS_ACC_RAD"):
                 self._rtl_phase = RtlPhase.LOITER
                 self._rtl_loiter_until_us = state.time_us + int(p("RTL_LAND_DELAY") * 1e6)
             else:

@@ -1,7 +1,9 @@
 """Parameters of navigation, commander, land detector and failsafes (SPEC §8, PX4 names).
 
 Declared once here; ``autopilot.param_schema`` aggregates them with the controller's and
-the mission's. Speeds and accelerations shape the setpoint generator
+the mission's. The commander also reads the mission's ``MIS_CRUISE_SPD`` (cruise speed in
+every auto mode), ``MIS_ACC_RAD``/``MIS_ALT_ACC_RAD`` (acceptance) and ``MIS_RTL_ALT`` (RTL
+altitude), so each of those has one knob. Speeds and accelerations shape the setpoint generator
 (:mod:`autopilot.setpoints`); the ``LNDMC_*`` ones are the land detector of
 :mod:`autopilot.commander`; ``COM_*``/``NAV_DLL_*``/``BAT_*``/``GF_*`` are the failsafes of
 :mod:`autopilot.failsafe`. Failsafe action values are :class:`autopilot.failsafe.FailsafeAction`.
@@ -20,8 +22,7 @@ def nav_param_specs() -> list[ParamSpec]:
         # -- takeoff, cruise, landing (setpoint generator limits) ------------------------------
         ParamSpec("MIS_TAKEOFF_ALT", 10.0, 0.5, 500.0, "m", "Default takeoff altitude above home"),
         ParamSpec("MPC_TKO_SPEED", 1.5, 0.3, 5.0, "m/s", "Climb speed during takeoff"),
-        ParamSpec("MPC_XY_CRUISE", 5.0, 0.5, 20.0, "m/s", "Default horizontal speed in auto modes"),
-        ParamSpec("MPC_XY_VEL_MAX", 12.0, 0.5, 20.0, "m/s", "Upper bound for any horizontal speed request"),
+        ParamSpec("MPC_XY_VEL_MAX", 12.0, 0.5, 30.0, "m/s", "Upper bound for any horizontal speed request"),
         ParamSpec("MPC_Z_VEL_MAX_UP", 3.0, 0.5, 8.0, "m/s", "Maximum climb speed in auto modes"),
         ParamSpec("MPC_Z_VEL_MAX_DN", 1.5, 0.5, 4.0, "m/s", "Maximum descent speed in auto modes"),
         ParamSpec("MPC_LAND_SPEED", 0.7, 0.2, 2.0, "m/s", "Final descent speed when landing"),
@@ -32,10 +33,7 @@ def nav_param_specs() -> list[ParamSpec]:
         ParamSpec("MPC_JERK_AUTO", 8.0, 1.0, 80.0, "m/s^3", "Jerk limit of the setpoint acceleration"),
         ParamSpec("MPC_YAWRAUTO_MAX", 45.0, 5.0, 360.0, "deg/s", "Yaw rate limit of the yaw setpoint"),
         ParamSpec("MPC_YAW_MODE", 0.0, 0.0, 1.0, "", "Yaw in auto modes: 0 face the target, 1 keep heading"),
-        ParamSpec("NAV_ACC_RAD", 2.0, 0.05, 200.0, "m", "Default horizontal acceptance radius"),
-        ParamSpec("NAV_MC_ALT_RAD", 0.8, 0.05, 200.0, "m", "Vertical acceptance radius"),
         # -- return to launch -----------------------------------------------------------------
-        ParamSpec("RTL_RETURN_ALT", 30.0, 0.0, 500.0, "m", "Minimum height above home while returning"),
         ParamSpec("RTL_LAND_DELAY", 0.0, 0.0, 300.0, "s", "Hover above home this long before landing"),
         # -- land detector and arming ---------------------------------------------------------
         ParamSpec("LNDMC_Z_VEL_MAX", 0.5, 0.05, 2.0, "m/s", "Landed: vertical speed below this"),

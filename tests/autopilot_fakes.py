@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 from autopilot.commander import Commander
 from autopilot.estimator import VehicleState
+from autopilot.mission.param_decls import mission_param_specs
 from autopilot.nav_params import nav_param_specs
 from autopilot.params import ParamStore
 from autopilot.setpoints import SetpointGenerator, SetpointLimits, TargetKind
@@ -53,7 +54,7 @@ def command(cmd: int, *params: float, is_int: bool = False, frame: int = 0) -> C
 
 
 def make_commander() -> Commander:
-    commander = Commander(ParamStore(nav_param_specs()))
+    commander = Commander(ParamStore(nav_param_specs() + mission_param_specs()))
     commander.local_frame = FRAME
     return commander
 

@@ -128,7 +128,7 @@ def _takeoff(loop: KinematicLoop, alt_m: float = 10.0) -> None:
     assert commander.handle_command(command(*ARM)) is CommandResult.ACCEPTED
     assert loop.run_until(lambda: commander.mode is FlightMode.AUTO_LOITER, 30.0)
     assert commander.landed_state is LandedState.IN_AIR
-    assert -loop.pos[2] == pytest.approx(alt_m, abs=commander.params.get("NAV_MC_ALT_RAD"))
+    assert -loop.pos[2] == pytest.approx(alt_m, abs=commander.params.get("MIS_ALT_ACC_RAD"))
 
 
 def test_takeoff_hold_land_touchdown_and_auto_disarm() -> None:
@@ -176,7 +176,7 @@ def test_reposition_flies_to_a_global_point_and_faces_it() -> None:
 def test_rtl_climbs_returns_and_lands_at_home() -> None:
     loop = KinematicLoop(make_commander())
     commander = loop.commander
-    commander.params.set("RTL_RETURN_ALT", 20.0)
+    commander.params.set("MIS_RTL_ALT", 20.0)
     _takeoff(loop)
     commander.goto(loop.state(), (40.0, -20.0, -10.0))
     assert loop.run_until(lambda: math.dist(loop.pos, (40.0, -20.0, -10.0)) < 0.1, 40.0)
@@ -193,7 +193,7 @@ def test_rtl_climbs_returns_and_lands_at_home() -> None:
     assert not commander.armed and commander.landed_state is LandedState.ON_GROUND
     assert max_alt == pytest.approx(20.0, abs=0.5)
     assert min(far_from_home_alt[len(far_from_home_alt) // 2 :]) > 19.0  # returned at the RTL altitude
-    assert math.hypot(loop.pos[0], loop.pos[1]) < commander.params.get("NAV_ACC_RAD")
+    assert math.hypot(loop.pos[0], loop.pos[1]) < commander.params.get("MIS_ACC_RAD")
 
 
 def test_change_speed_gripper_and_failsafe_actions() -> None:
@@ -205,7 +205,7 @@ def test_change_speed_gripper_and_failsafe_actions() -> None:
     assert commander.handle_command(command(CMD_DO_CHANGE_SPEED, 1, 99.0)) is CommandResult.DENIED
     assert commander.handle_command(command(CMD_DO_CHANGE_SPEED, 2, 1.0)) is CommandResult.UNSUPPORTED
     assert commander.handle_command(command(CMD_DO_CHANGE_SPEED, 1, -2.0)) is CommandResult.ACCEPTED
-    assert commander.speed_xy_m_s == commander.params.get("MPC_XY_CRUISE")
+    assert commander.speed_xy_m_s == commander.params.get("MIS_CRUISE_SPD")
     assert commander.handle_command(command(CMD_DO_GRIPPER, 1, 0)) is CommandResult.ACCEPTED
     assert commander.gripper_release
     assert commander.handle_command(command(CMD_DO_GRIPPER, 1, 7)) is CommandResult.DENIED

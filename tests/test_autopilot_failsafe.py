@@ -11,9 +11,8 @@ from autopilot.failsafe import (
     FailsafeInputs,
     FailsafeKind,
     FailsafeMonitor,
-    FenceError,
-    Geofence,
 )
+from autopilot.mission.fence import geofence_from_items
 from autopilot.nav_params import nav_param_specs
 from autopilot.params import ParamStore
 from mavlink_bridge.gcs_types import MissionItem, MissionType
@@ -66,7 +65,7 @@ def test_battery_low_warns_and_critical_takes_the_action() -> None:
     assert crit.action is FailsafeAction(round(params.get("COM_LOW_BAT_ACT")))
 
 
-def test_geofence_circles_polygons_and_max_distance() -> None:
+def test_geofence_breach_and_max_height_take_gf_action() -> None:
     items = [
         _fence_item(0, 5003, 0.0, 0.0, 100.0),  # inclusion circle r=100 about home
         _fence_item(1, 5004, 50.0, 0.0, 10.0),  # exclusion circle
@@ -75,21 +74,19 @@ def test_geofence_circles_polygons_and_max_distance() -> None:
         _fence_item(4, 5002, -60.0, 10.0, 4),
         _fence_item(5, 5002, -60.0, -10.0, 4),
     ]
-    fence = Geofence.from_items(items, FRAME)
-    assert fence.breach(0.0, 0.0) is None
-    assert "exclusion circle" in (fence.breach(55.0, 3.0) or "")
-    assert "exclusion polygon" in (fence.breach(-50.0, 0.0) or "")
-    assert fence.breach(-50.0, 15.0) is None
-    assert "outside every inclusion" in (fence.breach(0.0, 120.0) or "")
-    with pytest.raises(FenceError):
-        Geofence.from_items(items[:4], FRAME)  # polygon of 4 with only 3 vertices
+    fence = geofence_from_items(items, FRAME.home)
     params = ParamStore(nav_param_specs())
     params.set("GF_ACTION", 4)
     params.set("GF_MAX_VER_DIST", 50.0)
     mon = FailsafeMonitor(params)
     mon.geofence = fence
+    assert mon.update(_inputs(pos_ned_m=(-50.0, 15.0, -10.0))) == []
     (event,) = mon.update(_inputs(pos_ned_m=(55.0, 0.0, -10.0)))
     assert event.kind is FailsafeKind.GEOFENCE and event.action is FailsafeAction.LAND
+    assert mon.update(_inputs(pos_ned_m=(0.0, 0.0, -10.0))) == []
+    assert [e.kind for e in mon.update(_inputs(pos_ned_m=(-50.0, 0.0, -10.0)))] == [FailsafeKind.GEOFENCE]
+    assert mon.update(_inputs(pos_ned_m=(0.0, 0.0, -10.0))) == []
+    assert [e.kind for e in mon.update(_inputs(pos_ned_m=(0.0, 120.0, -10.0)))] == [FailsafeKind.GEOFENCE]
     mon2 = FailsafeMonitor(params)
     (event,) = mon2.update(_inputs(pos_ned_m=(0.0, 0.0, -60.0)))
     assert "above home" in event.message
