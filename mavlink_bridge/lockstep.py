@@ -54,6 +54,10 @@ class AutopilotLost(RuntimeError):  # noqa: N818 (name fixed by the lockstep con
     """The autopilot stopped answering for longer than the server's ``peer_lost_timeout_s``."""
 
 
+class LockstepInterrupted(RuntimeError):  # noqa: N818 (parallel to AutopilotLost)
+    """``LockstepServer.interrupt`` was called (e.g. from a SIGTERM handler) while waiting."""
+
+
 @dataclass(frozen=True, slots=True)
 class LockstepServerStats:
     """Counters of a ``LockstepServer``."""
@@ -110,6 +114,12 @@ class LockstepServer:
         self._frames = 0
         self._resends = 0
         self._stale = 0
+        self._interrupted = False
+
+    def interrupt(self) -> None:
+        """Make a waiting ``exchange`` raise ``LockstepInterrupted`` (and ``wait_for_autopilot`` return
+        False) within one ``resend_timeout_s``; safe to call from a signal handler."""
+        self._interrupted = True
 
     @property
     def local_address(self) -> tuple[str, int]:
@@ -127,9 +137,9 @@ class LockstepServer:
         deadline = None if timeout_s is None else time.monotonic() + timeout_s
         while True:
             remaining = 1.0 if deadline is None else deadline - time.monotonic()
-            if remaining <= 0.0:
+            if remaining <= 0.0 or self._interrupted:
                 return False
-            data = self._link.recv(remaining)
+            data = self._link.recv(min(remaining, self.resend_timeout_s))
             if data is None:
                 continue
             for msg in self._decoder.decode(data):
@@ -147,7 +157,8 @@ class LockstepServer:
 
         Re-sends after ``resend_timeout_s`` without the answer; raises ``AutopilotLost``
         after ``peer_lost_timeout_s`` without any valid message from the autopilot
-        (counted from the later of the last message heard and this call).
+        (counted from the later of the last message heard and this call), and
+        ``LockstepInterrupted`` after ``interrupt``.
         """
         frame_time_us = frame.sensor.time_us
         datagram = encode_frame(self._encoder, frame)
@@ -169,6 +180,8 @@ class LockstepServer:
                             return msg
                         self._stale += 1
             if now >= resend_at:
+                if self._interrupted:
+                    raise LockstepInterrupted(f"interrupted while waiting for the answer to t={frame_time_us} us")
                 if now - silent_since >= self.peer_lost_timeout_s:
                     raise AutopilotLost(
                         f"no answer from the autopilot for {now - silent_since:.1f} s "

@@ -1,0 +1,98 @@
+"""Lockstep messaging floor (SPEC §11): a null sim and a null autopilot, two processes over UDP.
+
+The null sim sends the same frames as ``quadsitl sim`` (HIL_GPS at 10 Hz, HIL_STATE_QUATERNION,
+HIL_SENSOR at 250 Hz) through ``LockstepServer``; the null autopilot, in another process, answers
+each with a constant HIL_ACTUATOR_CONTROLS through ``LockstepClient``. No physics, no control:
+the real-time factor measured here bounds any whole-flight ``lockstep_rtf``.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import time
+
+from mavlink_bridge.codec import Decoder, Encoder
+from mavlink_bridge.lockstep import LockstepClient, LockstepFrame, LockstepServer, encode_frame
+from mavlink_bridge.wire import ActuatorCommand, GpsSample, GroundTruth, SensorSample
+from tools.benchmarks import BenchResult
+
+CONTROL_HZ = 250
+GPS_EVERY = CONTROL_HZ // 10
+
+
+def null_frame(k: int) -> LockstepFrame:
+    """Frame ``k`` of a vehicle hovering at 10 m: the same message set and sizes as the real sim."""
+    t_us = k * 1_000_000 // CONTROL_HZ
+    z = 1e-4 * k
+    sensor = SensorSample(t_us, (0.01, -0.02, -9.81), (0.001, 0.002, z), (0.21, 0.01, 0.43), 1012.1, 10.0 + z, 20.0)
+    truth = GroundTruth(
+        t_us, (0.99, 0.01, 0.02, 0.1), (0.001, 0.002, z), 30.2635, 120.1233, 22.0 + z, (0.1, 0.2, z), (0.0, 0.0, -9.8)
+    )
+    gps = None
+    if k % GPS_EVERY == 0:
+        gps = GpsSample(t_us, 30.2635, 120.1233, 22.0 + z, (0.1, 0.2, z), 0.5, 0.8, 3, 12)
+    return LockstepFrame(sensor, gps, truth, ())
+
+
+def _null_autopilot(sim_url: str, idle_exit_s: float) -> None:
+    """Answer every frame with the same hover command until the sim has been silent for ``idle_exit_s``."""
+    with LockstepClient(sim_url, heartbeat_period_s=0.05) as client:
+        last_frame_s = time.monotonic()
+        while time.monotonic() - last_frame_s < idle_exit_s:
+            frame = client.next_frame(0.1)
+            if frame is not None:
+                last_frame_s = time.monotonic()
+                client.answer(ActuatorCommand(frame.time_us, (0.55, 0.55, 0.55, 0.55), True))
+
+
+def measure_floor(n_frames: int, warmup_frames: int = 200) -> tuple[float, float, int]:
+    """(real-time factor, mean wall µs per frame, resends) for ``n_frames`` exchanges after a warm-up."""
+    server = LockstepServer("udpin:127.0.0.1:0", resend_timeout_s=0.02, peer_lost_timeout_s=5.0)
+    host, port = server.local_address
+    proc = mp.get_context("spawn").Process(target=_null_autopilot, args=(f"udpout:{host}:{port}", 1.0), daemon=True)
+    proc.start()
+    try:
+        if not server.wait_for_autopilot(30.0):
+            raise RuntimeError("null autopilot did not start")
+        frames = [null_frame(k) for k in range(warmup_frames + n_frames)]
+        for k in range(warmup_frames):
+            server.exchange(frames[k])
+        t0 = time.perf_counter()
+        for k in range(warmup_frames, warmup_frames + n_frames):
+            server.exchange(frames[k])
+        wall_s = time.perf_counter() - t0
+        resends = server.stats.resends
+    finally:
+        server.close()
+        proc.join(5.0)
+        if proc.is_alive():
+            proc.terminate()
+    sim_s = n_frames / CONTROL_HZ
+    return sim_s / wall_s, wall_s / n_frames * 1e6, resends
+
+
+def measure_codec_us(n: int = 2000) -> float:
+    """Mean µs to encode a frame + decode it + encode and decode its answer (one process, no sockets)."""
+    enc, dec = Encoder(), Decoder()
+    frames = [null_frame(k) for k in range(n)]
+    cmd_enc = Encoder()
+    t0 = time.perf_counter()
+    for f in frames:
+        dec.decode(encode_frame(enc, f))
+        dec.decode(cmd_enc.actuators(ActuatorCommand(f.time_us, (0.5, 0.5, 0.5, 0.5), True)))
+    return (time.perf_counter() - t0) / n * 1e6
+
+
+def run(quick: bool) -> list[BenchResult]:
+    n_frames = 1500 if quick else 7500
+    rtf, frame_us, resends = measure_floor(n_frames)
+    return [
+        BenchResult(
+            "lockstep_floor_rtf",
+            rtf,
+            note=f"null sim + null autopilot, 2 processes, UDP, {CONTROL_HZ} Hz, {n_frames} frames",
+        ),
+        BenchResult("lockstep_floor_frame_us", frame_us, note="wall time per frame exchange"),
+        BenchResult("lockstep_floor_resends", float(resends), note="frames re-sent (should be 0 on loopback)"),
+        BenchResult("lockstep_codec_frame_us", measure_codec_us(), note="encode+decode frame and answer, in-process"),
+    ]
