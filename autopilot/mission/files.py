@@ -599,7 +599,7 @@ def _plan_num(v: Any, path: Path, idx: int, field: str) -> float:
         return _NAN
     if isinstance(v, bool) or not isinstance(v, int | float):
         raise MissionFileError(
-            path, f"expected a number or null, got {v!r}", section="mission item", item_index=idx, field=field
+            path, f"expected a number or null, got {v!r}", section="mission", item_index=idx, field=field
         )
     return float(v)
 
@@ -669,19 +669,19 @@ def _read_plan(path: Path) -> MissionPlan:
             raise MissionFileError(
                 path,
                 f"unsupported item type {kind!r} (only SimpleItem; convert complex items in QGC)",
-                section="mission item",
+                section="mission",
                 item_index=idx,
                 field="type",
             )
         params = it.get("params")
         if not isinstance(params, list) or len(params) != 7:
             raise MissionFileError(
-                path, "expected a list of 7 numbers", section="mission item", item_index=idx, field="params"
+                path, "expected a list of 7 numbers", section="mission", item_index=idx, field="params"
             )
         for key in ("command", "frame"):
             if not isinstance(it.get(key), int) or isinstance(it.get(key), bool):
                 raise MissionFileError(
-                    path, f"expected an integer, got {it.get(key)!r}", section="mission item", item_index=idx, field=key
+                    path, f"expected an integer, got {it.get(key)!r}", section="mission", item_index=idx, field=key
                 )
         p = [_plan_num(v, path, idx, f"params[{k}]") for k, v in enumerate(params)]
         auto = it.get("autoContinue", True)
