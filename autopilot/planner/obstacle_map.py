@@ -1,0 +1,207 @@
+"""The obstacle map: tracked obstacles built from sensor detections (merge, track, forget).
+
+A detection (``mavlink_bridge.wire.ObstacleDetection``, OBSTACLE_DISTANCE_3D on the wire) gives
+the nearest sensed surface point in body FRD and a radius estimate. The map turns it into a
+volume in local NED:
+
+- ``SPHERE`` (and ``UNKNOWN``): a sphere of that radius whose centre lies one radius behind the
+  surface point along the line of sight;
+- ``CYLINDER`` and ``BOX`` (world obstacles that stand on the ground, SPEC §8): a vertical
+  column of that radius (the sensor reports a box's circumscribed horizontal radius), from the
+  ground up with an unknown top, so the planner never plans *over* it.
+
+Detections with the same sensor id update one track (range-weighted mean: near, precise
+readings count more); a detection whose volume overlaps a track by more than ``merge_m`` is
+merged into it (enclosing volume); tracks not detected for ``forget_s`` are dropped.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+
+from mavlink_bridge.frames import rotate_frd_to_ned
+from mavlink_bridge.wire import ObstacleDetection, ObstacleShape
+
+from .geometry import cylinder_signed_distance, sphere_signed_distance
+
+
+class ObstacleKind(Enum):
+    """How the planner models an obstacle volume."""
+
+    SPHERE = "sphere"
+    COLUMN = "column"  # vertical cylinder from the ground up, top unknown
+
+
+@dataclass(frozen=True, slots=True)
+class TrackedObstacle:
+    """One obstacle in the map (local NED). ``top_down`` is ``-inf`` for a column of unknown top."""
+
+    obstacle_id: int
+    kind: ObstacleKind
+    center_ned: tuple[float, float, float]
+    radius_m: float
+    first_seen_us: int
+    last_seen_us: int
+    detections: int
+    top_down: float = -math.inf
+
+    def signed_distance(self, points_ned: np.ndarray) -> np.ndarray:
+        """Signed distance (m) of points ``(n, 3)`` to the obstacle surface."""
+        if self.kind is ObstacleKind.SPHERE:
+            return sphere_signed_distance(points_ned, np.array(self.center_ned), self.radius_m)
+        return cylinder_signed_distance(points_ned, np.array(self.center_ned[:2]), self.radius_m, self.top_down)
+
+
+@dataclass(slots=True)
+class _Track:
+    obstacle_id: int
+    kind: ObstacleKind
+    center_sum: np.ndarray
+    radius_sum: float
+    weight: float
+    first_seen_us: int
+    last_seen_us: int
+    detections: int
+
+    @property
+    def center(self) -> np.ndarray:
+        return self.center_sum / self.weight
+
+    @property
+    def radius(self) -> float:
+        return self.radius_sum / self.weight
+
+    def frozen(self) -> TrackedObstacle:
+        c = self.center
+        return TrackedObstacle(
+            self.obstacle_id,
+            self.kind,
+            (float(c[0]), float(c[1]), float(c[2])),
+            self.radius,
+            self.first_seen_us,
+            self.last_seen_us,
+            self.detections,
+        )
+
+
+def _kind_of(shape: ObstacleShape) -> ObstacleKind:
+    return ObstacleKind.COLUMN if shape in (ObstacleShape.CYLINDER, ObstacleShape.BOX) else ObstacleKind.SPHERE
+
+
+def detection_volume(
+    det: ObstacleDetection, pos_ned: np.ndarray, q_ned_frd: np.ndarray
+) -> tuple[ObstacleKind, np.ndarray, float, float]:
+    """(kind, centre NED, radius m, range m) of one detection seen from ``pos_ned`` with attitude ``q_ned_frd``."""
+    rel_ned = rotate_frd_to_ned(np.asarray(q_ned_frd, float), np.asarray(det.pos_frd_m, float))
+    rng = float(np.linalg.norm(rel_ned))
+    surface = np.asarray(pos_ned, float) + rel_ned
+    kind = _kind_of(det.shape)
+    radius = max(float(det.radius_m), 0.1)
+    if kind is ObstacleKind.SPHERE:
+        center = surface + radius * rel_ned / max(rng, 1e-6)
+    else:
+        h = math.hypot(rel_ned[0], rel_ned[1])
+        center = surface.copy()
+        if h > 1e-6:
+            center[:2] += radius * rel_ned[:2] / h
+    return kind, center, radius, rng
+
+
+class ObstacleMap:
+    """Tracks obstacles from detections; feed it every sensor frame with ``update``."""
+
+    def __init__(self, merge_m: float = 1.0, forget_s: float = 20.0) -> None:
+        self.merge_m = merge_m
+        self.forget_s = forget_s
+        self._tracks: dict[int, _Track] = {}
+        self._alias: dict[int, int] = {}  # sensor obstacle id -> track id
+        self._snapshot: tuple[TrackedObstacle, ...] = ()
+
+    @property
+    def obstacles(self) -> tuple[TrackedObstacle, ...]:
+        """The tracked obstacles (frozen snapshot, rebuilt on change)."""
+        return self._snapshot
+
+    def clear(self) -> None:
+        self._tracks.clear()
+        self._alias.clear()
+        self._snapshot = ()
+
+    def update(
+        self, time_us: int, pos_ned: np.ndarray, q_ned_frd: np.ndarray, detections: Iterable[ObstacleDetection]
+    ) -> set[int]:
+        """Fold detections into the map and forget stale tracks; returns ids of new or changed tracks.
+
+        A track "changes" when its centre moves more than 0.3 m or its radius grows more than 0.2 m.
+        """
+        changed: set[int] = set()
+        for det in detections:
+            kind, center, radius, rng = detection_volume(det, pos_ned, q_ned_frd)
+            weight = 1.0 / (1.0 + (rng / 10.0) ** 2)
+            track = self._find(det.obstacle_id, kind, center, radius)
+            if track is None:
+                self._tracks[det.obstacle_id] = _Track(
+                    det.obstacle_id, kind, center * weight, radius * weight, weight, time_us, time_us, 1
+                )
+                self._alias[det.obstacle_id] = det.obstacle_id
+                changed.add(det.obstacle_id)
+                continue
+            old_c, old_r = track.center, track.radius
+            self._alias[det.obstacle_id] = track.obstacle_id
+            if self._alias_is_native(det.obstacle_id, track):
+                track.center_sum += center * weight
+                track.radius_sum += radius * weight
+                track.weight += weight
+            else:  # merge: grow the track to enclose both volumes
+                self._enclose(track, center, radius)
+            track.last_seen_us = max(track.last_seen_us, time_us)
+            track.detections += 1
+            if float(np.linalg.norm(track.center - old_c)) > 0.3 or track.radius > old_r + 0.2:
+                changed.add(track.obstacle_id)
+        forget_us = self.forget_s * 1e6
+        stale = [k for k, t in self._tracks.items() if time_us - t.last_seen_us > forget_us]
+        for k in stale:
+            del self._tracks[k]
+        if stale:
+            self._alias = {s: t for s, t in self._alias.items() if t in self._tracks}
+        if changed or stale:
+            self._snapshot = tuple(t.frozen() for t in self._tracks.values())
+        return changed
+
+    @staticmethod
+    def _alias_is_native(sensor_id: int, track: _Track) -> bool:
+        return sensor_id == track.obstacle_id
+
+    def _find(self, sensor_id: int, kind: ObstacleKind, center: np.ndarray, radius: float) -> _Track | None:
+        track_id = self._alias.get(sensor_id)
+        if track_id is not None and track_id in self._tracks:
+            return self._tracks[track_id]
+        for track in self._tracks.values():
+            if track.kind is not kind:
+                continue
+            delta = center - track.center
+            gap = float(np.linalg.norm(delta if kind is ObstacleKind.SPHERE else delta[:2]))
+            if gap - radius - track.radius < -self.merge_m:
+                return track
+        return None
+
+    @staticmethod
+    def _enclose(track: _Track, center: np.ndarray, radius: float) -> None:
+        c0, r0 = track.center, track.radius
+        if track.kind is ObstacleKind.COLUMN:  # columns merge in the horizontal plane
+            center = np.array((center[0], center[1], c0[2]))
+        d = float(np.linalg.norm(center - c0))
+        if d + radius <= r0:
+            return
+        if d + r0 <= radius:
+            c1, r1 = center, radius
+        else:
+            r1 = 0.5 * (d + r0 + radius)
+            c1 = c0 + (center - c0) * (r1 - r0) / d
+        track.center_sum = c1 * track.weight
+        track.radius_sum = r1 * track.weight

@@ -1,0 +1,338 @@
+"""The stateful avoidance planner the autopilot runner calls every control step (SPEC §7, paper §3.3).
+
+Per ``update``: fold the detections into the obstacle map; while CLEAR, look for the largest
+threat on the route / velocity direction and, if there is one, plan a detour (``detour.plan_detour``)
+or, when no side is safe, brake to a hover (HOLD) and retry every ``CA_REPLAN_S``. While on a
+detour, its Bézier reference is the setpoint override; when new or grown obstacles make the rest
+of the detour unsafe it is replanned from the current reference state (continuous position and
+velocity). When the detour ends the route resumes (override None).
+
+Each decision is an :class:`AvoidanceDecision` with a STATUSTEXT-ready ``text``; the runner sends
+it (MAVLink 2 STATUSTEXT chunks long texts; ``short_text`` fits one 50-character message).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+
+from mavlink_bridge.wire import ObstacleDetection, Vec3
+
+from .bezier import BezierPath
+from .detour import (
+    CandidateReport,
+    CandidateStatus,
+    DetourLimits,
+    DetourPlan,
+    DetourSide,
+    brake_path,
+    check_path,
+    plan_detour,
+    sample_path,
+)
+from .geometry import FenceZone
+from .obstacle_map import ObstacleMap, TrackedObstacle
+from .param_decls import PlannerParams
+from .threat import Threat, assess_threat
+
+#: The velocity-direction check reaches the stopping distance plus this many seconds of flight.
+RAY_HORIZON_S = 2.0
+
+
+class PlannerState(Enum):
+    """What the planner is doing."""
+
+    CLEAR = "clear"  # route clear: no override
+    DETOUR = "detour"  # flying a Bézier detour
+    HOLD = "hold"  # no safe detour: braking / hovering, retrying
+    DISABLED = "disabled"  # CA_ENABLE = 0: obstacles are mapped only
+
+
+class DecisionReason(Enum):
+    """Why a decision was taken."""
+
+    THREAT = "threat"  # a conflict appeared on the route or velocity direction
+    REPLAN = "replan"  # new obstacles made the active detour unsafe
+    RETRY = "retry"  # retry from HOLD
+
+
+@dataclass(frozen=True, slots=True)
+class AvoidanceDecision:
+    """One avoidance decision: which way, why, and the cost of every candidate."""
+
+    time_us: int
+    obstacle_id: int
+    distance_m: float  # vehicle to obstacle surface
+    side: DetourSide
+    reason: DecisionReason
+    candidates: tuple[CandidateReport, ...]
+
+    @property
+    def text(self) -> str:
+        """e.g. ``avoid: obstacle 3 at 12.4 m, going LEFT (cost 18.2 m vs over 24.1 m, under ruled out: ground)``."""
+        head = "avoid: " + ("replan, " if self.reason is DecisionReason.REPLAN else "")
+        head += f"obstacle {self.obstacle_id} at {self.distance_m:.1f} m, "
+        others = []
+        chosen_cost = math.nan
+        for c in self.candidates:
+            name = c.side.value.lower()
+            if c.status is CandidateStatus.CHOSEN:
+                chosen_cost = c.cost_m
+            elif c.status is CandidateStatus.NOT_EVALUATED:
+                others.append(f"{name} {c.cost_m:.1f} m")
+            else:
+                others.append(f"{name} ruled out: {c.reason}")
+        if self.side is DetourSide.HOLD:
+            return head + "no safe detour, holding (" + ", ".join(others) + ")"
+        return head + f"going {self.side.value} (cost {chosen_cost:.1f} m vs " + ", ".join(others) + ")"
+
+    @property
+    def short_text(self) -> str:
+        """At most 50 characters (one MAVLink 1 STATUSTEXT)."""
+        return f"avoid obs {self.obstacle_id} {self.distance_m:.1f}m: {self.side.value}"[:50]
+
+
+@dataclass(frozen=True, slots=True)
+class DetourSetpoint:
+    """The reference override while avoiding (NED, SI): position, velocity and acceleration feed-forward."""
+
+    pos_ned_m: Vec3
+    vel_ned_m_s: Vec3
+    acc_ned_m_s2: Vec3
+
+
+@dataclass(frozen=True, slots=True)
+class PlannerOutput:
+    """Everything one ``update`` produced (for the runner, telemetry and STATUSTEXT)."""
+
+    time_us: int
+    state: PlannerState
+    setpoint: DetourSetpoint | None  # None: follow the route
+    detour: DetourPlan | None  # the active detour (Bézier control points + samples) or None
+    hold_path: BezierPath | None  # the braking path while in HOLD
+    decisions: tuple[AvoidanceDecision, ...]  # decisions taken this update
+    obstacles: tuple[TrackedObstacle, ...]
+    threat: Threat | None
+    clearance_m: float  # vehicle to the nearest tracked obstacle surface (inf if none)
+
+    @property
+    def planned_path_ned(self) -> np.ndarray | None:
+        """Sampled points of the active detour or braking path, (m, 3), for drawing."""
+        if self.detour is not None:
+            return self.detour.samples_ned
+        return sample_path(self.hold_path) if self.hold_path is not None else None
+
+
+def _vec3(v: np.ndarray) -> Vec3:
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
+class AvoidancePlanner:
+    """Obstacle map + threat + detour state machine. Pure: no clock or I/O; ``time_us`` is sim time."""
+
+    def __init__(
+        self,
+        params: PlannerParams,
+        fences: Iterable[FenceZone] = (),
+        alt_floor_m: float = 0.0,
+        alt_ceiling_m: float = math.inf,
+    ) -> None:
+        self.params = params
+        self._fences: tuple[FenceZone, ...] = tuple(fences)
+        self._alt_floor_m = alt_floor_m
+        self._alt_ceiling_m = alt_ceiling_m
+        self.map = ObstacleMap(params.merge_m, params.forget_s)
+        self._state = PlannerState.CLEAR if params.enable else PlannerState.DISABLED
+        self._path: BezierPath | None = None
+        self._plan: DetourPlan | None = None
+        self._t0_us = 0
+        self._last_try_us = -(10**18)
+
+    @property
+    def state(self) -> PlannerState:
+        return self._state
+
+    def set_params(self, params: PlannerParams) -> None:
+        """Apply new parameter values (in flight); an active detour is kept."""
+        self.params = params
+        self.map.merge_m, self.map.forget_s = params.merge_m, params.forget_s
+        if not params.enable:
+            self._clear(PlannerState.DISABLED)
+        elif self._state is PlannerState.DISABLED:
+            self._state = PlannerState.CLEAR
+
+    def set_fences(self, zones: Iterable[FenceZone]) -> None:
+        """Replace the geofence zones (exclusions kept out, inclusions never left)."""
+        self._fences = tuple(zones)
+
+    def set_altitude_limits(self, alt_floor_m: float, alt_ceiling_m: float) -> None:
+        """Altitude band (m above home) a detour must stay in, besides CA_MIN_AGL_M / CA_CEILING_M."""
+        self._alt_floor_m, self._alt_ceiling_m = alt_floor_m, alt_ceiling_m
+
+    def reset(self) -> None:
+        """Forget obstacles and any detour (e.g. on landing)."""
+        self.map.clear()
+        self._clear(PlannerState.CLEAR if self.params.enable else PlannerState.DISABLED)
+
+    def limits(self) -> DetourLimits:
+        p = self.params
+        return DetourLimits(
+            r_safe_m=p.r_safe_m,
+            margin_m=p.margin_m,
+            v_max_m_s=p.v_max_m_s,
+            a_max_m_s2=p.a_max_m_s2,
+            rejoin_m=p.rejoin_m,
+            min_agl_m=p.min_agl_m,
+            alt_floor_m=self._alt_floor_m,
+            alt_ceiling_m=min(self._alt_ceiling_m, p.ceiling_m),
+            fences=self._fences,
+        )
+
+    def _clear(self, state: PlannerState) -> None:
+        self._state = state
+        self._path = None
+        self._plan = None
+
+    def update(
+        self,
+        time_us: int,
+        pos_ned: Sequence[float],
+        vel_ned: Sequence[float],
+        q_ned_frd: Sequence[float],
+        detections: Iterable[ObstacleDetection],
+        route_target_ned: Sequence[float],
+        route_next_ned: Sequence[float] | None = None,
+    ) -> PlannerOutput:
+        """One planner step at sim time ``time_us`` with the vehicle state and this step's detections.
+
+        ``route_target_ned`` is the current mission target, ``route_next_ned`` the one after it
+        (None if none); the detour rejoins the route they define.
+        """
+        pos = np.asarray(pos_ned, float)
+        vel = np.asarray(vel_ned, float)
+        changed = self.map.update(time_us, pos, np.asarray(q_ned_frd, float), detections)
+        obstacles = self.map.obstacles
+        route = np.asarray(route_target_ned, float)[None, :]
+        if route_next_ned is not None:
+            route = np.vstack((route, np.asarray(route_next_ned, float)))
+        decisions: list[AvoidanceDecision] = []
+        threat: Threat | None = None
+        if self._state is not PlannerState.DISABLED:
+            threat = self._step(time_us, pos, vel, route, obstacles, changed, decisions)
+        clearance = min((float(o.signed_distance(pos[None, :])[0]) for o in obstacles), default=math.inf)
+        setpoint = None
+        if self._path is not None:
+            p, v, a = self._path.state_at((time_us - self._t0_us) * 1e-6)
+            setpoint = DetourSetpoint(_vec3(p), _vec3(v), _vec3(a))
+        return PlannerOutput(
+            time_us,
+            self._state,
+            setpoint,
+            self._plan,
+            self._path if self._state is PlannerState.HOLD else None,
+            tuple(decisions),
+            obstacles,
+            threat,
+            clearance,
+        )
+
+    def _step(
+        self,
+        time_us: int,
+        pos: np.ndarray,
+        vel: np.ndarray,
+        route: np.ndarray,
+        obstacles: tuple[TrackedObstacle, ...],
+        changed: set[int],
+        decisions: list[AvoidanceDecision],
+    ) -> Threat | None:
+        p = self.params
+        if self._state is PlannerState.DETOUR and self._path is not None:
+            t_s = (time_us - self._t0_us) * 1e-6
+            if t_s >= self._path.duration_s:
+                self._clear(PlannerState.CLEAR)
+            elif changed and time_us - self._last_try_us >= p.replan_s * 1e6:
+                sp_pos, sp_vel, _ = self._path.state_at(t_s)
+                remaining = self._remaining_samples(t_s)
+                why = check_path(remaining, sp_pos, obstacles, self.limits())
+                if why:
+                    threat = self._threat(sp_pos, sp_vel, route, obstacles) or self._blocking(why, sp_pos, obstacles)
+                    if threat is not None:
+                        self._plan_from(time_us, sp_pos, sp_vel, route, threat, DecisionReason.REPLAN, decisions)
+                        return threat
+                return None
+            else:
+                return None
+        if self._state is PlannerState.HOLD and self._path is not None:
+            if time_us - self._last_try_us < p.replan_s * 1e6:
+                return None
+            sp_pos, sp_vel, _ = self._path.state_at((time_us - self._t0_us) * 1e-6)
+            threat = self._threat(sp_pos, sp_vel, route, obstacles)
+            if threat is None:
+                self._clear(PlannerState.CLEAR)
+                return None
+            self._plan_from(time_us, sp_pos, sp_vel, route, threat, DecisionReason.RETRY, decisions)
+            return threat
+        threat = self._threat(pos, vel, route, obstacles)
+        if threat is not None:
+            self._plan_from(time_us, pos, vel, route, threat, DecisionReason.THREAT, decisions)
+        return threat
+
+    def _threat(
+        self, pos: np.ndarray, vel: np.ndarray, route: np.ndarray, obstacles: tuple[TrackedObstacle, ...]
+    ) -> Threat | None:
+        p = self.params
+        speed = float(np.linalg.norm(vel))
+        ray_m = min(p.lookahead_m, speed * speed / (2.0 * p.a_max_m_s2) + RAY_HORIZON_S * speed)
+        return assess_threat(pos, vel, route, obstacles, p.r_safe_m, p.lookahead_m, ray_m)
+
+    @staticmethod
+    def _blocking(why: str, pos: np.ndarray, obstacles: tuple[TrackedObstacle, ...]) -> Threat | None:
+        """The obstacle named by a failed ``check_path`` ("obstacle N") as a threat, else None."""
+        if not why.startswith("obstacle "):
+            return None
+        oid = int(why.split()[1])
+        obs = next((o for o in obstacles if o.obstacle_id == oid), None)
+        if obs is None:
+            return None
+        d = float(obs.signed_distance(pos[None, :])[0])
+        return Threat(obs, d, d, math.inf, False)
+
+    def _remaining_samples(self, t_s: float) -> np.ndarray:
+        assert self._plan is not None
+        samples = self._plan.samples_ned
+        frac = min(max(t_s / self._plan.path.duration_s, 0.0), 1.0)
+        return samples[min(int(frac * (len(samples) - 1)), len(samples) - 2) :]
+
+    def _plan_from(
+        self,
+        time_us: int,
+        pos: np.ndarray,
+        vel: np.ndarray,
+        route: np.ndarray,
+        threat: Threat,
+        reason: DecisionReason,
+        decisions: list[AvoidanceDecision],
+    ) -> None:
+        self._last_try_us = time_us
+        result = plan_detour(pos, vel, route, threat.obstacle, self.map.obstacles, self.limits())
+        distance = float(threat.obstacle.signed_distance(pos[None, :])[0])
+        if result.plan is not None:
+            self._state, self._plan, self._path = PlannerState.DETOUR, result.plan, result.plan.path
+            self._t0_us = time_us
+            side = result.plan.side
+        else:
+            if self._state is not PlannerState.HOLD:
+                self._path = brake_path(pos, vel, self.params.a_max_m_s2)
+                self._t0_us = time_us
+            if self._state is PlannerState.HOLD:
+                return  # still no safe detour: already reported
+            self._state, self._plan = PlannerState.HOLD, None
+            side = DetourSide.HOLD
+        decisions.append(
+            AvoidanceDecision(time_us, threat.obstacle.obstacle_id, distance, side, reason, result.candidates)
+        )
