@@ -2,7 +2,8 @@
 
 URL forms follow pymavlink connection strings (SPEC §3, §12). A ``udpin`` endpoint may be
 given a default peer (``udpout:H:P``) that it sends to until someone talks to it (PX4's
-"local 18570 -> 127.0.0.1:14550"); after that it replies to whoever talked last.
+"local 18570 -> 127.0.0.1:14550"); after that it replies to the last sender of a valid
+(and, when signing is required, correctly signed) message, so garbage cannot hijack it.
 
 :class:`MavlinkEndpoint` turns datagrams into decoded messages. Malformed, truncated or
 random bytes, and packets refused by signing, are counted and dropped; it never raises
@@ -17,13 +18,13 @@ from dataclasses import dataclass
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavlink_bridge.link import LinkUrl, UdpLink
+from mavlink_bridge.link import LinkMode, LinkUrl, UdpLink
 from mavlink_bridge.signing import RejectReason, classify_bad_data, enable_signing
 
 
 def open_link(url: str, default_peer_url: str | None = None) -> UdpLink:
     """A :class:`UdpLink` for ``url``; a ``udpin`` link sends to ``default_peer_url`` until someone talks to it."""
-    link = UdpLink.from_url(url)
+    link = UdpLink.from_url(url, follow_sender=False)
     if default_peer_url is not None and link.peer is None:
         default = LinkUrl.parse(default_peer_url)
         link.set_peer((socket.gethostbyname(default.host), default.port))
@@ -66,6 +67,7 @@ class MavlinkEndpoint:
         require_signing: bool = False,
     ) -> None:
         self.link = open_link(url, default_peer_url)
+        self._listening = self.link.url.mode is LinkMode.LISTEN
         self.mav = mavlink2.MAVLink(_DatagramWriter(self.link), srcSystem=system_id, srcComponent=component_id)
         self.mav.robust_parsing = True
         if require_signing and signing_key is None:
@@ -88,7 +90,10 @@ class MavlinkEndpoint:
         if data is None:
             return None
         self.counters.datagrams_in += 1
-        return self._decode(data)
+        msgs = self._decode(data)
+        if msgs and self._listening:
+            self.link.set_peer(self.link.last_sender)  # only a valid (and, if required, signed) sender is followed
+        return msgs
 
     def _decode(self, data: bytes) -> list[mavlink2.MAVLink_message]:
         mav = self.mav

@@ -153,6 +153,11 @@ class GcsServer:
         return max(0.0, self._wall_time_s - self._last_gcs_heartbeat_wall_s)
 
     @property
+    def peer_address(self) -> tuple[str, int] | None:
+        """Where replies and telemetry go: the default target until a valid message arrives, then its sender."""
+        return self._endpoint.link.peer
+
+    @property
     def local_port(self) -> int:
         return self._endpoint.link.local_address[1]
 
