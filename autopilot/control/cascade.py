@@ -1,0 +1,349 @@
+"""The NLVG-PID cascade (SPEC §6.2, paper eq. 11): position → acceleration → attitude → torques → mixer.
+
+Per vehicle and control step (all in normalised units, so one gain set flies every wheelbase):
+
+1. Position NLVG-PID per axis (NED, output m/s², D on measured velocity: ė = v_sp − v):
+   a = a_ff + U_xyz (U_x = ẍ_desire + f_Kp·e + f_Ki·∫e + f_Kd·ė, eq. 11).
+2. Limits: vertical a ∈ [−acc_up, +acc_down] (NED, down positive), horizontal |a| ≤ acc_xy_max.
+3. Thrust vector f = a − g·ẑ (specific force), tilted at most tilt_max from vertical (horizontal part
+   scaled); collective thrust T = m·|f|; desired body z = −f/|f|.
+4. Desired attitude: roll, pitch from body z and the yaw setpoint (PX4 bodyz-to-attitude), ψ_sp as given.
+5. Attitude NLVG-PID on ZYX Euler errors (yaw error wrapped to [−π, π)), D on the measured Euler rates
+   (from the body rates), output Euler angular accelerations (rad/s²) in the attitude loop's normalised
+   time (time scale ``att_time_scale_s``, see pid.py), limited per axis.
+6. Body angular acceleration from the Euler accelerations, torque τ = J·ω̇ (+ ω×Jω if gyroscopic).
+7. Quad-X mixer with saturation priority roll/pitch > thrust > yaw (mixer.py) → u ∈ [0, 1].
+
+NaN guard: a vehicle whose state, position or yaw setpoint, mass or gains are not finite keeps its last
+motor command (zeros before the first valid step); non-finite velocity/acceleration feed-forwards count
+as zero (PX4: NaN = not controlled). Nothing non-finite can reach a motor.
+
+One implementation serves n = 1 and n = 1000: numba kernels loop over vehicles.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from autopilot.control.airframe import Airframe
+from autopilot.control.gains import CascadeGains, CascadeLimits
+from autopilot.control.mixer import QuadXMixer, mix_one
+from autopilot.control.pid import N_STATE_COLS, nlvg_pid_step
+
+GRAVITY_M_S2 = 9.80665
+# packed parameter vector: CascadeLimits.as_array() then airframe constants, then A⁻¹ (row-major)
+L_TILT, L_ACC_XY, L_ACC_UP, L_ACC_DOWN, L_AA_RP, L_AA_YAW, L_I_POS, L_I_ATT, L_T_POS, L_T_ATT, L_GYRO = range(11)
+P_FMAX, P_KF, P_WMAX, P_DT, P_IX, P_IY, P_IZ, P_AINV = range(11, 19)
+N_PARAMS = P_AINV + 16
+# work array columns per vehicle: PID states, live gains, errors, setpoints, outputs
+W_ST = 0  # 6 channels × N_STATE_COLS
+W_K = W_ST + 6 * N_STATE_COLS  # 6 channels × (kp, ki, kd)
+W_ERR = W_K + 18  # x, y, z, roll, pitch, yaw errors
+W_ACC = W_ERR + 6  # acceleration setpoint after limits, NED
+W_ATT = W_ACC + 3  # roll, pitch, yaw setpoint
+W_TQ = W_ATT + 3  # torque FRD
+W_THR = W_TQ + 3  # collective thrust
+W_U = W_THR + 1  # motor commands
+W_OK = W_U + 4  # 1.0 when the last step was valid
+N_WORK = W_OK + 1
+
+
+@njit(cache=True, inline="always")
+def _finite_or_zero(x):  # pragma: no cover - numba kernel
+    return x if math.isfinite(x) else 0.0
+
+
+@njit(cache=True, inline="always")
+def _pid(ch, e, de, w, u_max, i_max, gains, prm, wk):  # pragma: no cover - numba kernel
+    s0 = W_ST + ch * N_STATE_COLS
+    k0 = W_K + 3 * ch
+    return nlvg_pid_step(e, de, gains[ch], w, prm[P_DT], u_max, i_max, wk[s0 : s0 + N_STATE_COLS], wk[k0 : k0 + 3])
+
+
+@njit(cache=True, inline="always")
+def _attitude_stage(q4, rate3, roll_d, pitch_d, yaw_d, thrust_n, gains, prm, wk):  # pragma: no cover - numba kernel
+    """Steps 5-7 for one vehicle (rows of the batch arrays); returns False (nothing written) on bad input."""
+    qw, qx, qy, qz = q4[0], q4[1], q4[2], q4[3]
+    qn = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+    p, q, r = rate3[0], rate3[1], rate3[2]
+    if not (math.isfinite(qn) and qn > 1e-9 and math.isfinite(p + q + r)):
+        return False
+    if not (math.isfinite(roll_d) and math.isfinite(pitch_d) and math.isfinite(yaw_d) and math.isfinite(thrust_n)):
+        return False
+    qw, qx, qy, qz = qw / qn, qx / qn, qy / qn, qz / qn
+    roll = math.atan2(2.0 * (qw * qx + qy * qz), 1.0 - 2.0 * (qx * qx + qy * qy))
+    pitch = math.asin(min(max(2.0 * (qw * qy - qz * qx), -1.0), 1.0))
+    yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+    sr, cr = math.sin(roll), math.cos(roll)
+    sp, cp = math.sin(pitch), math.cos(pitch)
+    cp_safe = max(cp, 0.05)
+    roll_rate = p + (q * sr + r * cr) * sp / cp_safe
+    pitch_rate = q * cr - r * sr
+    yaw_rate = (q * sr + r * cr) / cp_safe
+    e_roll = roll_d - roll
+    e_pitch = pitch_d - pitch
+    e_yaw = (yaw_d - yaw + math.pi) % (2.0 * math.pi) - math.pi
+    w = 1.0 / prm[L_T_ATT]
+    i_max = prm[L_I_ATT]
+    acc_roll = _pid(3, e_roll, -roll_rate, w, prm[L_AA_RP], i_max, gains, prm, wk)
+    acc_pitch = _pid(4, e_pitch, -pitch_rate, w, prm[L_AA_RP], i_max, gains, prm, wk)
+    acc_yaw = _pid(5, e_yaw, -yaw_rate, w, prm[L_AA_YAW], i_max, gains, prm, wk)
+    dp = acc_roll - sp * acc_yaw
+    dq = cr * acc_pitch + sr * cp * acc_yaw
+    dr = -sr * acc_pitch + cr * cp * acc_yaw
+    ix, iy, iz = prm[P_IX], prm[P_IY], prm[P_IZ]
+    tx, ty, tz = ix * dp, iy * dq, iz * dr
+    if prm[L_GYRO] != 0.0:
+        tx += q * iz * r - r * iy * q
+        ty += r * ix * p - p * iz * r
+        tz += p * iy * q - q * ix * p
+    wk[W_ERR + 3] = e_roll
+    wk[W_ERR + 4] = e_pitch
+    wk[W_ERR + 5] = e_yaw
+    wk[W_ATT] = roll_d
+    wk[W_ATT + 1] = pitch_d
+    wk[W_ATT + 2] = yaw_d
+    wk[W_TQ] = tx
+    wk[W_TQ + 1] = ty
+    wk[W_TQ + 2] = tz
+    wk[W_THR] = thrust_n
+    a_inv = prm[P_AINV : P_AINV + 16].reshape((4, 4))
+    mix_one(thrust_n, tx, ty, tz, a_inv, prm[P_FMAX], prm[P_KF], prm[P_WMAX], wk[W_U : W_U + 4])
+    return True
+
+
+@njit(cache=True)
+def _attitude_kernel(qv, rate, att_in, thrust_in, gains, prm, work):  # pragma: no cover - numba kernel
+    for v in range(qv.shape[0]):
+        wk = work[v]
+        ok = _attitude_stage(qv[v], rate[v], att_in[v, 0], att_in[v, 1], att_in[v, 2], thrust_in[v], gains[v], prm, wk)
+        wk[W_OK] = 1.0 if ok else 0.0
+
+
+@njit(cache=True)
+def _position_kernel(pos, vel, qv, rate, pos_sp, vel_sp, acc_ff, yaw_sp, gains, mass, prm, work):  # pragma: no cover
+    w = 1.0 / prm[L_T_POS]
+    i_max = prm[L_I_POS]
+    tan_tilt = math.tan(prm[L_TILT])
+    acc_xy = prm[L_ACC_XY]
+    u_z = max(prm[L_ACC_UP], prm[L_ACC_DOWN])
+    for v in range(pos.shape[0]):
+        wk = work[v]
+        g = gains[v]
+        wk[W_OK] = 0.0
+        m = mass[v]
+        finite = math.isfinite(m) and m > 0.0 and math.isfinite(yaw_sp[v])
+        for k in range(3):
+            finite = finite and math.isfinite(pos[v, k] + vel[v, k] + pos_sp[v, k])
+        if not finite:
+            continue
+        e0 = pos_sp[v, 0] - pos[v, 0]
+        e1 = pos_sp[v, 1] - pos[v, 1]
+        e2 = pos_sp[v, 2] - pos[v, 2]
+        de0 = _finite_or_zero(vel_sp[v, 0]) - vel[v, 0]
+        de1 = _finite_or_zero(vel_sp[v, 1]) - vel[v, 1]
+        de2 = _finite_or_zero(vel_sp[v, 2]) - vel[v, 2]
+        a0 = _finite_or_zero(acc_ff[v, 0]) + _pid(0, e0, de0, w, acc_xy, i_max, g, prm, wk)
+        a1 = _finite_or_zero(acc_ff[v, 1]) + _pid(1, e1, de1, w, acc_xy, i_max, g, prm, wk)
+        a2 = _finite_or_zero(acc_ff[v, 2]) + _pid(2, e2, de2, w, u_z, i_max, g, prm, wk)
+        wk[W_ERR] = e0
+        wk[W_ERR + 1] = e1
+        wk[W_ERR + 2] = e2
+        a2 = min(max(a2, -prm[L_ACC_UP]), prm[L_ACC_DOWN])
+        h = math.sqrt(a0 * a0 + a1 * a1)
+        if h > acc_xy:
+            a0 *= acc_xy / h
+            a1 *= acc_xy / h
+        fx, fy, fz = a0, a1, a2 - GRAVITY_M_S2  # specific force wanted, NED; fz < 0
+        h = math.sqrt(fx * fx + fy * fy)
+        h_max = -fz * tan_tilt
+        if h > h_max:
+            fx *= h_max / h
+            fy *= h_max / h
+        fn = math.sqrt(fx * fx + fy * fy + fz * fz)
+        wk[W_ACC] = fx
+        wk[W_ACC + 1] = fy
+        wk[W_ACC + 2] = fz + GRAVITY_M_S2
+        zx, zy, zz = -fx / fn, -fy / fn, -fz / fn  # desired body z (down) in NED
+        sy, cy = math.sin(yaw_sp[v]), math.cos(yaw_sp[v])
+        # x_B = y_C × z_B with y_C = (−sin ψ, cos ψ, 0)
+        xx, xy, xz = cy * zz, sy * zz, -sy * zy - cy * zx
+        xn = math.sqrt(xx * xx + xy * xy + xz * xz)
+        xx, xy, xz = xx / xn, xy / xn, xz / xn
+        # y_B = z_B × x_B; roll = atan2(R21, R22), pitch = −asin(R20)
+        yz = zx * xy - zy * xx
+        roll_d = math.atan2(yz, zz)
+        pitch_d = -math.asin(min(max(xz, -1.0), 1.0))
+        ok = _attitude_stage(qv[v], rate[v], roll_d, pitch_d, yaw_sp[v], m * fn, g, prm, wk)
+        wk[W_OK] = 1.0 if ok else 0.0
+
+
+@dataclass(frozen=True)
+class CascadeDiagnostics:
+    """Live views of the last step (overwritten by the next update; copy to keep). Shapes with n vehicles.
+
+    pos_err_ned (n,3) m; att_err_rad (n,3) roll/pitch/yaw; kp, ki, kd (n,6) live k(s) per channel in
+    CHANNELS order; acc_sp_ned (n,3) m/s² after limits; att_sp_rad (n,3); torque_frd_nm (n,3);
+    thrust_n (n,); motor_cmd (n,4); valid (n,) 1.0 where the last step ran, 0.0 where the NaN guard held.
+    """
+
+    pos_err_ned: np.ndarray
+    att_err_rad: np.ndarray
+    kp: np.ndarray
+    ki: np.ndarray
+    kd: np.ndarray
+    acc_sp_ned: np.ndarray
+    att_sp_rad: np.ndarray
+    torque_frd_nm: np.ndarray
+    thrust_n: np.ndarray
+    motor_cmd: np.ndarray
+    valid: np.ndarray
+
+
+def _rows(x: object, n: int, k: int) -> np.ndarray:
+    a = np.asarray(x, dtype=np.float64)
+    if a.shape == (n, k):
+        return a if a.flags.c_contiguous else np.ascontiguousarray(a)
+    if n == 1 and a.shape == (k,):
+        return a.reshape(1, k)
+    return np.ascontiguousarray(np.broadcast_to(a, (n, k)))
+
+
+def _vector(x: object, n: int) -> np.ndarray:
+    a = np.asarray(x, dtype=np.float64)
+    if a.shape == (n,):
+        return a
+    if a.ndim == 0:
+        return np.full(n, float(a))
+    return np.ascontiguousarray(np.broadcast_to(a, (n,)))
+
+
+class CascadeController:
+    """NLVG-PID cascade for n vehicles of one airframe (n = 1: the single vehicle, same code).
+
+    Inputs are NED/FRD arrays shaped (n, k) — or (k,) when n = 1; scalars broadcast to every vehicle.
+    """
+
+    def __init__(
+        self,
+        airframe: Airframe,
+        gains: CascadeGains,
+        n: int = 1,
+        dt_s: float = 1.0 / 250.0,
+        limits: CascadeLimits | None = None,
+    ) -> None:
+        if n < 1 or not (math.isfinite(dt_s) and dt_s > 0.0):
+            raise ValueError(f"need n >= 1 and dt_s > 0, got n={n}, dt_s={dt_s}")
+        self.airframe = airframe
+        self.n = n
+        self.dt_s = float(dt_s)
+        self.limits = limits or CascadeLimits()
+        mixer = QuadXMixer(airframe)
+        prm = np.zeros(N_PARAMS)
+        prm[:P_FMAX] = self.limits.as_array()
+        prm[P_FMAX] = mixer.f_max_n
+        prm[P_KF] = airframe.k_f
+        prm[P_WMAX] = airframe.omega_max_rad_s
+        prm[P_DT] = self.dt_s
+        prm[P_IX : P_IZ + 1] = airframe.inertia_kg_m2
+        prm[P_AINV:] = mixer.a_inv.ravel()
+        self._prm = prm
+        self._mass = np.full(n, airframe.mass_kg)
+        self._work = np.zeros((n, N_WORK))
+        self.gains = gains
+        self._gains = gains.table(n)
+        wk = self._work
+        self.diagnostics = CascadeDiagnostics(
+            pos_err_ned=wk[:, W_ERR : W_ERR + 3],
+            att_err_rad=wk[:, W_ERR + 3 : W_ERR + 6],
+            kp=wk[:, W_K : W_K + 18 : 3],
+            ki=wk[:, W_K + 1 : W_K + 18 : 3],
+            kd=wk[:, W_K + 2 : W_K + 18 : 3],
+            acc_sp_ned=wk[:, W_ACC : W_ACC + 3],
+            att_sp_rad=wk[:, W_ATT : W_ATT + 3],
+            torque_frd_nm=wk[:, W_TQ : W_TQ + 3],
+            thrust_n=wk[:, W_THR],
+            motor_cmd=wk[:, W_U : W_U + 4],
+            valid=wk[:, W_OK],
+        )
+
+    @property
+    def mass_kg(self) -> np.ndarray:
+        """The mass (n,) the controller uses."""
+        return self._mass.copy()
+
+    def reset(self, mask: np.ndarray | None = None) -> None:
+        """Clear integrators, held outputs and commands (all vehicles, or where ``mask`` is True)."""
+        if mask is None:
+            self._work[:] = 0.0
+        else:
+            self._work[np.asarray(mask, dtype=bool)] = 0.0
+
+    def set_gains(self, gains: CascadeGains) -> None:
+        """Change gains live (in flight); integrator states are kept (bumpless: I stores ∫k_i·e)."""
+        self._gains[:] = gains.table(self.n)
+        self.gains = gains
+
+    def set_mass_kg(self, mass_kg: float | np.ndarray) -> None:
+        """Mass used for thrust (e.g. after payload release); finite positive, scalar or (n,)."""
+        m = np.broadcast_to(np.asarray(mass_kg, dtype=np.float64), (self.n,))
+        if not np.all(np.isfinite(m) & (m > 0.0)):
+            raise ValueError(f"mass_kg must be finite and positive, got {mass_kg!r}")
+        self._mass[:] = m
+
+    def update_position(
+        self,
+        pos_ned: np.ndarray,
+        vel_ned: np.ndarray,
+        q_ned_frd: np.ndarray,
+        rate_frd: np.ndarray,
+        pos_sp_ned: np.ndarray,
+        vel_sp_ned: np.ndarray,
+        acc_ff_ned: np.ndarray,
+        yaw_sp_rad: float | np.ndarray,
+    ) -> np.ndarray:
+        """Full cascade step (SPEC §6.2); returns motor commands (n, 4) in [0, 1], PX4 quad-x order."""
+        n = self.n
+        _position_kernel(
+            _rows(pos_ned, n, 3),
+            _rows(vel_ned, n, 3),
+            _rows(q_ned_frd, n, 4),
+            _rows(rate_frd, n, 3),
+            _rows(pos_sp_ned, n, 3),
+            _rows(vel_sp_ned, n, 3),
+            _rows(acc_ff_ned, n, 3),
+            _vector(yaw_sp_rad, n),
+            self._gains,
+            self._mass,
+            self._prm,
+            self._work,
+        )
+        return self._work[:, W_U : W_U + 4].copy()
+
+    def update_attitude(
+        self,
+        q_ned_frd: np.ndarray,
+        rate_frd: np.ndarray,
+        att_sp_rad: np.ndarray,
+        thrust_n: float | np.ndarray,
+    ) -> np.ndarray:
+        """Attitude loop only (steps 5-7): roll/pitch/yaw setpoint (n, 3) rad and collective thrust (n,) N."""
+        n = self.n
+        _attitude_kernel(
+            _rows(q_ned_frd, n, 4),
+            _rows(rate_frd, n, 3),
+            _rows(att_sp_rad, n, 3),
+            _vector(thrust_n, n),
+            self._gains,
+            self._prm,
+            self._work,
+        )
+        return self._work[:, W_U : W_U + 4].copy()
+
+    def hover_thrust_n(self) -> np.ndarray:
+        """m·g per vehicle (N), e.g. the collective for an attitude-only experiment."""
+        return self._mass * GRAVITY_M_S2
