@@ -1,0 +1,277 @@
+"""Batched closed-loop experiments: BatchSim (sim/) + CascadeController (autopilot/) in one process.
+
+Each function runs ``m`` vehicles side by side, vehicle ``i`` flying gain set ``i`` of a batched
+:class:`~autopilot.control.gains.CascadeGains`, and returns the error traces the paper's metrics and the
+ES cost (SPEC §6.3, ``J = 1/(tf - t0) ∫ e² dt``) are computed from. Vehicles whose simulation ended
+(non-finite state, ground impact) get ``diverged = True``; their cost is +inf.
+
+* :func:`run_step`: the paper's step responses, started from hover at ``hover_alt_m``. Attitude channels
+  (roll, pitch, yaw) drive the attitude loop alone with hover collective thrust; position channels
+  (x, y, z) drive the whole cascade with a position setpoint step.
+* :func:`run_tracking`: follow a parametric reference (storm spiral, Lissajous, ...) with the whole cascade,
+  feed-forward of the reference velocity and acceleration; returns position and attitude errors.
+* :func:`run_mass_change`: hover, then the mass jumps by a fraction (payload added or dropped) without the
+  controller being told; returns the altitude error.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from autopilot.control.airframe import Airframe, load_airframe
+from autopilot.control.cascade import CascadeController
+from autopilot.control.gains import CascadeGains, CascadeLimits
+from sim.batch import BatchSim
+from sim.vehicle_config import VehicleConfig, load_vehicle
+
+ATTITUDE_CHANNELS = ("roll", "pitch", "yaw")
+POSITION_AXES = {"x": 0, "y": 1, "z": 2}
+ATTITUDE_AXES = {"roll": 0, "pitch": 1, "yaw": 2}
+
+
+@dataclass(frozen=True, slots=True)
+class StepTrace:
+    """Step response of ``m`` vehicles: ``error[i, k]`` = setpoint − measured at ``t_s[k]`` (rad or m)."""
+
+    channel: str
+    amplitude: float
+    t_s: np.ndarray  # (T,)
+    error: np.ndarray  # (m, T)
+    response: np.ndarray  # (m, T) the measured stepped quantity
+    diverged: np.ndarray  # (m,) bool
+
+
+@dataclass(frozen=True, slots=True)
+class TrackTrace:
+    """Reference tracking of ``m`` vehicles: errors are reference − measured."""
+
+    t_s: np.ndarray  # (T,)
+    pos_err_ned: np.ndarray  # (m, T, 3) m
+    att_err_rad: np.ndarray  # (m, T, 3) roll, pitch, yaw (controller's attitude error)
+    pos_ned: np.ndarray  # (m, T, 3)
+    ref_pos_ned: np.ndarray  # (T, 3)
+    diverged: np.ndarray  # (m,) bool
+
+
+@dataclass(frozen=True, slots=True)
+class MassChangeTrace:
+    """Altitude error (m, positive = below the setpoint) around a mass change at ``t_change_s``."""
+
+    t_s: np.ndarray  # (T,)
+    alt_err_m: np.ndarray  # (m, T)
+    t_change_s: float
+    mass_before_kg: float
+    mass_after_kg: float
+    diverged: np.ndarray  # (m,) bool
+
+
+@dataclass(frozen=True, slots=True)
+class ReferenceSample:
+    """Reference at one time: position, velocity, acceleration (NED) and yaw."""
+
+    pos_ned: np.ndarray  # (3,)
+    vel_ned: np.ndarray  # (3,)
+    acc_ned: np.ndarray  # (3,)
+    yaw_rad: float
+
+
+Reference = Callable[[float], ReferenceSample]
+
+
+@lru_cache(maxsize=8)
+def _vehicle(name: str) -> VehicleConfig:
+    """Vehicle config by name, parsed once per process (frozen dataclass)."""
+    return load_vehicle(name)
+
+
+@lru_cache(maxsize=8)
+def _airframe(name: str) -> Airframe:
+    return load_airframe(name)
+
+
+def _hovering_batch(vehicle: str, m: int, alt_m: float, seed: int, payload_kg: float = 0.0) -> BatchSim:
+    """m vehicles hovering (rotors at hover speed) at ``alt_m``; the payload is written after the reset so
+    an experiment may exceed the vehicle's rated payload (the mass-change experiment needs +-30 %)."""
+    sim = BatchSim(_vehicle(vehicle), m, seed=seed, payload_kg=0.0)
+    sim.reset(pos_ned=np.array([0.0, 0.0, -alt_m]))
+    sim.payload_kg[:] = payload_kg
+    sim.omega_rad_s[:] = sim.hover_omega_rad_s()[:, None]
+    sim.on_ground[:] = False
+    return sim
+
+
+def _controller(vehicle: str, gains: CascadeGains, m: int, dt_s: float, limits: CascadeLimits | None):
+    if gains.n not in (1, m):
+        raise ValueError(f"gain batch of {gains.n} does not fit {m} vehicles")
+    return CascadeController(_airframe(vehicle), gains, n=m, dt_s=dt_s, limits=limits)
+
+
+def run_step(
+    vehicle: str,
+    gains: CascadeGains,
+    channel: str,
+    amplitude: float,
+    duration_s: float,
+    m: int | None = None,
+    hover_alt_m: float = 20.0,
+    seed: int = 0,
+    limits: CascadeLimits | None = None,
+) -> StepTrace:
+    """Step of ``amplitude`` (rad for roll/pitch/yaw, m for x/y/z NED) at t = 0 from hover; ``m`` vehicles."""
+    m = gains.n if m is None else m
+    if channel not in ATTITUDE_AXES and channel not in POSITION_AXES:
+        raise ValueError(f"step channel {channel!r} is not one of {(*ATTITUDE_AXES, *POSITION_AXES)}")
+    sim = _hovering_batch(vehicle, m, hover_alt_m, seed)
+    ctrl = _controller(vehicle, gains, m, sim.control_dt_s, limits)
+    n_steps = round(duration_s * sim.control_hz)
+    t_s = np.arange(1, n_steps + 1) / sim.control_hz
+    response = np.empty((m, n_steps))
+    diverged = np.zeros(m, dtype=bool)
+    home = np.array([0.0, 0.0, -hover_alt_m])
+    if channel in ATTITUDE_AXES:
+        axis = ATTITUDE_AXES[channel]
+        att_sp = np.zeros((m, 3))
+        att_sp[:, axis] = amplitude
+        thrust_n = ctrl.hover_thrust_n()
+        for k in range(n_steps):
+            u = ctrl.update_attitude(sim.q_ned_frd, sim.rate_frd, att_sp, thrust_n)
+            sim.step(u)
+            _euler_axis(sim, axis, out=response[:, k])
+            diverged |= ~sim.running
+    else:
+        axis = POSITION_AXES[channel]
+        pos_sp = np.broadcast_to(home, (m, 3)).copy()
+        pos_sp[:, axis] += amplitude
+        zeros = np.zeros((m, 3))
+        for k in range(n_steps):
+            u = ctrl.update_position(sim.pos_ned, sim.vel_ned, sim.q_ned_frd, sim.rate_frd, pos_sp, zeros, zeros, 0.0)
+            sim.step(u)
+            response[:, k] = sim.pos_ned[:, axis] - home[axis]
+            diverged |= ~sim.running
+    error = amplitude - response
+    diverged |= ~np.all(np.isfinite(error), axis=1)
+    return StepTrace(channel, float(amplitude), t_s, error, response, diverged)
+
+
+def _euler_axis(sim: BatchSim, axis: int, out: np.ndarray) -> None:
+    """Roll, pitch or yaw (ZYX Euler, rad) of every vehicle, written into ``out`` (m,)."""
+    q = sim.q_ned_frd
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    if axis == 0:
+        out[:] = np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    elif axis == 1:
+        out[:] = np.arcsin(np.clip(2.0 * (w * y - z * x), -1.0, 1.0))
+    else:
+        out[:] = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def run_tracking(
+    vehicle: str,
+    gains: CascadeGains,
+    reference: Reference,
+    duration_s: float,
+    m: int | None = None,
+    seed: int = 0,
+    limits: CascadeLimits | None = None,
+    record_every: int = 1,
+) -> TrackTrace:
+    """Track ``reference`` for ``duration_s`` starting in hover at the reference's start point."""
+    m = gains.n if m is None else m
+    ref0 = reference(0.0)
+    sim = _hovering_batch(vehicle, m, 0.0, seed)
+    sim.reset(pos_ned=ref0.pos_ned, yaw_rad=ref0.yaw_rad)
+    sim.omega_rad_s[:] = sim.hover_omega_rad_s()[:, None]
+    sim.on_ground[:] = False
+    ctrl = _controller(vehicle, gains, m, sim.control_dt_s, limits)
+    n_steps = round(duration_s * sim.control_hz)
+    n_rec = n_steps // record_every
+    t_s = np.empty(n_rec)
+    pos_err = np.empty((m, n_rec, 3))
+    att_err = np.empty((m, n_rec, 3))
+    pos_rec = np.empty((m, n_rec, 3))
+    ref_rec = np.empty((n_rec, 3))
+    diverged = np.zeros(m, dtype=bool)
+    pos_sp = np.empty((m, 3))
+    vel_sp = np.empty((m, 3))
+    acc_ff = np.empty((m, 3))
+    for k in range(n_steps):
+        ref = reference(k * sim.control_dt_s)
+        pos_sp[:] = ref.pos_ned
+        vel_sp[:] = ref.vel_ned
+        acc_ff[:] = ref.acc_ned
+        u = ctrl.update_position(
+            sim.pos_ned, sim.vel_ned, sim.q_ned_frd, sim.rate_frd, pos_sp, vel_sp, acc_ff, ref.yaw_rad
+        )
+        if k % record_every == 0 and k // record_every < n_rec:
+            r = k // record_every
+            t_s[r] = k * sim.control_dt_s
+            pos_err[:, r] = ctrl.diagnostics.pos_err_ned
+            att_err[:, r] = ctrl.diagnostics.att_err_rad
+            pos_rec[:, r] = sim.pos_ned
+            ref_rec[r] = ref.pos_ned
+        sim.step(u)
+        diverged |= ~sim.running
+    diverged |= ~(np.all(np.isfinite(pos_err), axis=(1, 2)) & np.all(np.isfinite(att_err), axis=(1, 2)))
+    return TrackTrace(t_s, pos_err, att_err, pos_rec, ref_rec, diverged)
+
+
+def run_mass_change(
+    vehicle: str,
+    gains: CascadeGains,
+    mass_fraction_change: float,
+    t_change_s: float,
+    duration_s: float,
+    payload_before_kg: float,
+    m: int | None = None,
+    hover_alt_m: float = 20.0,
+    seed: int = 0,
+    limits: CascadeLimits | None = None,
+) -> MassChangeTrace:
+    """Hover with ``payload_before_kg`` (the controller knows this mass), then the total mass changes by
+    ``mass_fraction_change`` (e.g. -0.3) at ``t_change_s`` through the payload; the controller is not told.
+    """
+    m = gains.n if m is None else m
+    sim = _hovering_batch(vehicle, m, hover_alt_m, seed, payload_kg=payload_before_kg)
+    mass_before = float(sim.mass_kg[0])
+    mass_after = mass_before * (1.0 + mass_fraction_change)
+    payload_after = mass_after - sim.vehicle.mass_kg
+    if payload_after < 0.0:
+        raise ValueError(
+            f"a {mass_fraction_change:+.0%} change from {mass_before:.3f} kg leaves less than the airframe "
+            f"({sim.vehicle.mass_kg} kg): carry more payload before the change"
+        )
+    ctrl = _controller(vehicle, gains, m, sim.control_dt_s, limits)
+    ctrl.set_mass_kg(mass_before)
+    n_steps = round(duration_s * sim.control_hz)
+    k_change = round(t_change_s * sim.control_hz)
+    t_s = np.arange(1, n_steps + 1) / sim.control_hz
+    alt_err = np.empty((m, n_steps))
+    home = np.array([0.0, 0.0, -hover_alt_m])
+    pos_sp = np.broadcast_to(home, (m, 3)).copy()
+    zeros = np.zeros((m, 3))
+    diverged = np.zeros(m, dtype=bool)
+    for k in range(n_steps):
+        if k == k_change:
+            sim.payload_kg[:] = payload_after
+        u = ctrl.update_position(sim.pos_ned, sim.vel_ned, sim.q_ned_frd, sim.rate_frd, pos_sp, zeros, zeros, 0.0)
+        sim.step(u)
+        alt_err[:, k] = sim.pos_ned[:, 2] - home[2]  # NED down: positive = below the setpoint
+        diverged |= ~sim.running
+    return MassChangeTrace(t_s, alt_err, t_change_s, mass_before, mass_after, diverged)
+
+
+def mean_square_cost(error: np.ndarray, t_s: np.ndarray, diverged: np.ndarray, t0_s: float = 0.0) -> np.ndarray:
+    """ES cost J = 1/(tf − t0) ∫_{t0}^{tf} e² dt per vehicle (SPEC §6.3); +inf where diverged.
+
+    ``error`` (m, T) or (m, T, k) (squares summed over the last axis), uniformly sampled at ``t_s``.
+    """
+    sel = t_s >= t0_s
+    e2 = np.square(error[:, sel])
+    if e2.ndim == 3:
+        e2 = e2.sum(axis=2)
+    j = e2.mean(axis=1)
+    return np.where(diverged | ~np.isfinite(j), np.inf, j)
