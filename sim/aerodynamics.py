@@ -10,7 +10,7 @@ from __future__ import annotations
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def drag_force_frd(
     v_air_x: float,
     v_air_y: float,

@@ -19,7 +19,7 @@ from numba import njit
 _REST_SPEED_M_S = 1e-9
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def ground_reaction_ned(
     in_contact: bool,
     f_x: float,
@@ -47,7 +47,7 @@ def ground_reaction_ned(
     return -limit * f_x / f_h, -limit * f_y / f_h, -normal, normal
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def resolve_touchdown(x: np.ndarray, was_loaded: bool, impact_speed_m_s: float, friction_dv_m_s: float) -> bool:
     """Enforce ``z ≤ 0`` after a physics step on state ``x`` (in place). Returns True on a ground impact.
 

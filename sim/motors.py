@@ -9,7 +9,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def omega_command_rad_s(u: float, omega_min_rad_s: float, omega_max_rad_s: float) -> float:
     """Commanded rotor speed: ``ω_cmd = clamp(u·ω_max, ω_min, ω_max)`` for ``u > 0``, else 0 (spin down).
 
@@ -25,13 +25,13 @@ def omega_command_rad_s(u: float, omega_min_rad_s: float, omega_max_rad_s: float
     return w
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def motor_lag_rate(omega_rad_s: float, omega_cmd_rad_s: float, time_constant_s: float) -> float:
     """First-order motor lag ``dω/dt = (ω_cmd − ω) / τ``."""
     return (omega_cmd_rad_s - omega_rad_s) / time_constant_s
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def rotor_wrench_frd(
     omega_rad_s: np.ndarray, rotor_xy_m: np.ndarray, rotor_yaw_dir: np.ndarray, k_f: float, k_m: float
 ) -> tuple[float, float, float, float]:

@@ -56,7 +56,7 @@ N_SCRATCH = 8
 _G = GRAVITY_M_S2
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def derivative(
     x: np.ndarray,
     omega_cmd: np.ndarray,
@@ -135,7 +135,7 @@ def derivative(
     return normal
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def rk4_step(
     x: np.ndarray,
     omega_cmd: np.ndarray,
@@ -172,7 +172,7 @@ def rk4_step(
     return normal
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _all_finite(x: np.ndarray) -> bool:
     for s in range(x.shape[0]):  # noqa: SIM110 (numba: an explicit loop, no generator)
         if not math.isfinite(x[s]):
@@ -180,7 +180,7 @@ def _all_finite(x: np.ndarray) -> bool:
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def step_vehicles(
     state: np.ndarray,
     motor_cmd: np.ndarray,

@@ -26,7 +26,7 @@ _S11 = np.uint64(11)
 _TWO_M53 = 1.0 / 9007199254740992.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def splitmix64_next(rng_state: np.ndarray, i: int) -> np.uint64:
     """Advance stream ``i`` and return 64 random bits (SplitMix64, Steele et al. 2014)."""
     s = rng_state[i] + _GOLDEN
@@ -36,13 +36,13 @@ def splitmix64_next(rng_state: np.ndarray, i: int) -> np.uint64:
     return z ^ (z >> _S31)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def uniform_open01(rng_state: np.ndarray, i: int) -> float:
     """Uniform in (0, 1) from stream ``i`` (53-bit resolution, never exactly 0)."""
     return (float(splitmix64_next(rng_state, i) >> _S11) + 0.5) * _TWO_M53
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def standard_normal(rng_state: np.ndarray, i: int) -> float:
     """N(0, 1) from stream ``i`` (Box–Muller, one sample per two uniforms)."""
     u1 = uniform_open01(rng_state, i)
@@ -50,7 +50,7 @@ def standard_normal(rng_state: np.ndarray, i: int) -> float:
     return math.sqrt(-2.0 * math.log(u1)) * math.cos(2.0 * math.pi * u2)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def gust_step(gust_ned: np.ndarray, rng_state: np.ndarray, i: int, sigma_m_s: float, decay: float) -> None:
     """One Ornstein–Uhlenbeck step of vehicle ``i``'s gust (m/s, NED) in place; ``decay = exp(−dt/τ)``."""
     if sigma_m_s <= 0.0:

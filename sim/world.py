@@ -33,7 +33,7 @@ class WorldConfigError(ValueError):
     """The world description was refused; the message names the entry, field and allowed range."""
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _capped_distance(d_h: float, d_v: float) -> float:
     """Signed distance of the intersection of two slabs with signed distances ``d_h`` and ``d_v``."""
     if d_h > 0.0 and d_v > 0.0:
@@ -41,7 +41,7 @@ def _capped_distance(d_h: float, d_v: float) -> float:
     return max(d_h, d_v)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def obstacle_distance_m(kind: int, p: np.ndarray, north_m: float, east_m: float, down_m: float) -> float:
     """Signed distance (m, negative inside) from a NED point to one packed obstacle ``p``.
 
@@ -62,7 +62,7 @@ def obstacle_distance_m(kind: int, p: np.ndarray, north_m: float, east_m: float,
     return _capped_distance(d_h, -p[6] - down_m)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def min_obstacle_distance_m(
     kinds: np.ndarray, params: np.ndarray, north_m: float, east_m: float, down_m: float
 ) -> float:
@@ -75,7 +75,7 @@ def min_obstacle_distance_m(
     return best
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _distances(kinds: np.ndarray, params: np.ndarray, pos_ned: np.ndarray, out: np.ndarray) -> None:
     for i in range(pos_ned.shape[0]):
         out[i] = min_obstacle_distance_m(kinds, params, pos_ned[i, 0], pos_ned[i, 1], pos_ned[i, 2])
