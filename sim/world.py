@@ -9,6 +9,7 @@ the same numba kernels serve :meth:`World.clearance_m` and the physics step.
 from __future__ import annotations
 
 import math
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -86,11 +87,14 @@ def _as_points(pos_ned: np.ndarray) -> np.ndarray:
     return pts.reshape(1, 3) if pts.ndim == 1 else pts
 
 
-class _Shape:
+class _Shape(ABC):
+    """Common behaviour of the obstacle shapes: packing for the kernels and signed distance."""
+
     kind: int
 
+    @abstractmethod
     def packed(self) -> np.ndarray:
-        raise NotImplementedError
+        """The shape as one row of :meth:`World.obstacle_arrays` params."""
 
     def distance_m(self, pos_ned: np.ndarray) -> np.ndarray:
         """Signed distance (m, negative inside) of each point of ``pos_ned`` (n, 3) or (3,)."""

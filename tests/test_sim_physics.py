@@ -274,3 +274,33 @@ def test_sim_attitude_stays_level_in_hover_with_yaw() -> None:
     for _ in range(250):
         sim.step(_hover_cmd(sim))
     assert np.allclose(euler_from_quat(sim.q_ned_frd), [0.0, 0.0, 1.0], atol=1e-12)
+
+
+def test_sim_ground_friction_holds_against_wind_and_slides_to_rest() -> None:
+    world = World(empty_world().home, (), WindConfig(mean_ned_m_s=(6.0, 0.0, 0.0)), 0.0)
+    sim = VehicleSim(X500, world=world)
+    sim.reset()
+    for _ in range(250 * 5):
+        sim.step(np.zeros(4))
+    assert np.all(sim.pos_ned == 0.0) and sim.on_ground  # 6 m/s of wind cannot beat μ m g
+    sim = VehicleSim(NO_DRAG)
+    sim.reset()
+    sim.vel_ned[0] = 2.0  # sliding touchdown: Coulomb friction stops it in v / (μ g) ≈ 0.25 s
+    for _ in range(250):
+        sim.step(np.zeros(4))
+    assert sim.vel_ned[0] == 0.0
+    assert sim.pos_ned[0] == pytest.approx(2.0**2 / (2 * 0.8 * GRAVITY_M_S2), rel=0.05)
+
+
+def test_sim_stepper_validation_and_stop() -> None:
+    with pytest.raises(ValueError, match="multiple of control_hz"):
+        BatchSim(X500, 1, physics_hz=1000, control_hz=300)
+    with pytest.raises(ValueError, match="payload_max_kg"):
+        BatchSim(X500, 2, payload_kg=np.array([0.0, 5.0]))
+    sim = BatchSim(X500, 2)
+    sim.reset(pos_ned=[0.0, 0.0, -10.0])
+    sim.end(EndReason.STOPPED, np.array([True, False]))
+    sim.step(np.zeros((2, 4)))
+    assert sim.pos_ned[0, 2] == -10.0 and sim.pos_ned[1, 2] > -10.0
+    assert sim.end_reason.tolist() == [EndReason.STOPPED, EndReason.RUNNING]
+    assert sim.t_us == 4000 and sim.substeps == 4
