@@ -289,7 +289,10 @@ def load_world(source: str | Path | dict) -> World:
     if isinstance(source, dict):
         doc = source
     else:
-        text = Path(source).read_text() if isinstance(source, Path) or "\n" not in str(source) else str(source)
+        looks_like_yaml = isinstance(source, str) and ("\n" in source or source.lstrip().startswith("{"))
+        if not looks_like_yaml and not Path(source).is_file():
+            raise WorldConfigError(f"world: no such file {str(source)!r}")
+        text = str(source) if looks_like_yaml else Path(source).read_text()
         try:
             doc = yaml.safe_load(text)
         except yaml.YAMLError as exc:

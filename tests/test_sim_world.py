@@ -90,6 +90,9 @@ def test_sim_world_validation_names_entry_and_range(world, fragments) -> None:
 
 
 def test_sim_world_home_validated() -> None:
+    with pytest.raises(WorldConfigError, match="no such file"):
+        load_world("/nonexistent/mission.yaml")
+    assert load_world("{obstacles: []}").obstacles == ()
     with pytest.raises(WorldConfigError, match=r"home.lat_deg.*\[-90, 90\]"):
         load_world({"home": {"lat_deg": 95.0, "lon_deg": 0.0}, "world": {}})
 
