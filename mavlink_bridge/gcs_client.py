@@ -113,6 +113,7 @@ class VehicleStatus:
     battery_remaining_pct: float | None
     mission_seq_current: int
     mission_count: int
+    mission_state: int  # MISSION_STATE: 0 unknown, 1 none, 2 not started, 3 active, 4 paused, 5 complete
     items_reached: tuple[int, ...]  # each reached item once, in the order first reported
     statustexts: tuple[StatusText, ...]
 
@@ -171,6 +172,7 @@ class GcsClient:
         self._battery: float | None = None
         self._mission_seq = 0
         self._mission_count = 0
+        self._mission_state = 0
         self._reached: list[int] = []
         self._reached_set: set[int] = set()
         self._texts: deque[StatusText] = deque(maxlen=_STATUSTEXT_KEEP)
@@ -209,6 +211,7 @@ class GcsClient:
             battery_remaining_pct=self._battery,
             mission_seq_current=self._mission_seq,
             mission_count=self._mission_count,
+            mission_state=self._mission_state,
             items_reached=tuple(self._reached),
             statustexts=tuple(self._texts),
         )
@@ -584,6 +587,7 @@ class GcsClient:
         elif kind == "MISSION_CURRENT":
             self._mission_seq = int(msg.seq)
             self._mission_count = int(getattr(msg, "total", 0))
+            self._mission_state = int(getattr(msg, "mission_state", 0))
         elif kind == "MISSION_ITEM_REACHED":
             seq = int(msg.seq)
             if seq not in self._reached_set:

@@ -186,6 +186,7 @@ class TelemetrySnapshot:
     mission_seq_current: int
     mission_count: int
     mission_reached: list[int] = field(default_factory=list)  # items reached since the last snapshot
+    mission_state: int = 0  # MISSION_STATE (MISSION_CURRENT): 0 unknown, 1 none, 2 idle, 3 active, 4 paused, 5 done
 
 
 class VehicleInterface(Protocol):

@@ -97,7 +97,7 @@ class TelemetryStreams:
         self.interval_us: dict[int, int] = dict(self._default_interval_us)
         self._next_due_us: dict[int, int] = dict.fromkeys(self._encoders, 0)
         self._last_state: tuple[bool, int, int] | None = None
-        self._last_mission_seq = -1
+        self._last_mission: tuple[int, int, int] | None = None
         self.last_snapshot: TelemetrySnapshot | None = None
         self.sent_count: dict[int, int] = dict.fromkeys(self._encoders, 0)
         self._q = np.zeros(4)
@@ -131,8 +131,9 @@ class TelemetryStreams:
             self._heartbeat(snapshot)
             self._extended_sys_state(snapshot)
             self._next_due_us[M.MAVLINK_MSG_ID_HEARTBEAT] = t_us + self.interval_us[M.MAVLINK_MSG_ID_HEARTBEAT]
-        if snapshot.mission_seq_current != self._last_mission_seq:
-            self._last_mission_seq = snapshot.mission_seq_current
+        mission = (snapshot.mission_seq_current, snapshot.mission_count, snapshot.mission_state)
+        if mission != self._last_mission:
+            self._last_mission = mission
             self._mission_current(snapshot)
         for seq in snapshot.mission_reached:
             self._mav.mission_item_reached_send(seq)
@@ -299,7 +300,10 @@ class TelemetryStreams:
         )
 
     def _mission_current(self, s: TelemetrySnapshot) -> None:
-        self._mav.mission_current_send(max(0, min(_UINT16_MAX, s.mission_seq_current)), max(0, s.mission_count))
+        seq = max(0, min(_UINT16_MAX, s.mission_seq_current))
+        self._mav.mission_current_send(
+            seq, max(0, min(_UINT16_MAX, s.mission_count)), max(0, min(255, s.mission_state))
+        )
 
 
 def _clamp_int(value: float, lo: int, hi: int) -> int:

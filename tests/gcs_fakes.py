@@ -72,6 +72,8 @@ class FakeVehicle:
         self.params = ParamStore(PARAM_SPECS)
         self.current_seq = 0
         self.pending_reached: list[int] = []  # drained into the next snapshot
+        self.item_period_us = 50_000  # in AUTO_MISSION and armed, one item is "reached" per this much sim time
+        self._next_item_us: int | None = None
 
     # VehicleInterface ------------------------------------------------------------------------------------
     def handle_command(self, request: CommandRequest) -> CommandResult:
@@ -135,7 +137,26 @@ class FakeVehicle:
             return False, self.params.get(name), str(exc)
 
     # telemetry -------------------------------------------------------------------------------------------
+    def _fly(self, time_us: int) -> None:
+        """Pretend to fly the mission: reach one item per ``item_period_us``, then land and disarm."""
+        items = self.missions[MissionType.MISSION]
+        if not (self.armed and self.mode is FlightMode.AUTO_MISSION and items):
+            self._next_item_us = None
+            return
+        if self._next_item_us is None:
+            self._next_item_us = time_us + self.item_period_us
+        if time_us >= self._next_item_us:
+            self.pending_reached.append(self.current_seq)
+            self._next_item_us += self.item_period_us
+            if self.current_seq + 1 < len(items):
+                self.current_seq += 1
+            else:
+                self.armed = False
+                self.mode = FlightMode.AUTO_LOITER
+
     def snapshot(self, time_us: int) -> TelemetrySnapshot:
+        self._fly(time_us)
+        done = bool(self.missions[MissionType.MISSION]) and not self.armed and self.current_seq > 0
         return TelemetrySnapshot(
             time_us=time_us,
             armed=self.armed,
@@ -167,6 +188,7 @@ class FakeVehicle:
             mission_seq_current=self.current_seq,
             mission_count=len(self.missions[MissionType.MISSION]),
             mission_reached=self._drain_reached(),
+            mission_state=5 if done else 2,
         )
 
     def _drain_reached(self) -> list[int]:

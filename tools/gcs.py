@@ -1,0 +1,345 @@
+"""The ground-station script (SPEC §8, §12): ``python -m tools.gcs [options] COMMAND ...``.
+
+Commands: ``upload FILE [--fence-only]``, ``download OUT``, ``clear``, ``arm``, ``disarm``,
+``start``, ``mode NAME``, ``takeoff ALT_M``, ``land``, ``rtl``,
+``fly FILE --summary PATH [--timeout-s S]``, ``param get NAME``, ``param set NAME VALUE``,
+``param list``. Mission files: YAML v1, QGC WPL 110 (``.waypoints``/``.txt``), ``.plan``.
+Exit code 0 only when the request succeeded; errors are one line on stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from autopilot.mission.files import MissionFileError, load_mission_file, save_mission_file
+from autopilot.mission.plan import MissionPlan
+from mavlink_bridge.frames import GeoPoint
+from mavlink_bridge.gcs_client import CommandFailedError, GcsClient, GcsError, VehicleStatus
+from mavlink_bridge.gcs_types import CommandResult, FlightMode, LandedState, MissionType
+from mavlink_bridge.link import LinkUrl, LinkUrlError
+from mavlink_bridge.signing import SigningKeyError, signing_key_from_text
+
+DEFAULT_CONNECT = "udpin:127.0.0.1:14550"
+MISSION_STATE_COMPLETE = 5
+MODE_NAMES: dict[str, FlightMode] = {
+    "manual": FlightMode.MANUAL,
+    "posctl": FlightMode.POSCTL,
+    "position": FlightMode.POSCTL,
+    "offboard": FlightMode.OFFBOARD,
+    "hold": FlightMode.AUTO_LOITER,
+    "loiter": FlightMode.AUTO_LOITER,
+    "takeoff": FlightMode.AUTO_TAKEOFF,
+    "mission": FlightMode.AUTO_MISSION,
+    "rtl": FlightMode.AUTO_RTL,
+    "land": FlightMode.AUTO_LAND,
+}
+
+
+class GcsScriptError(Exception):
+    """A request that did not succeed; the message is the one line printed on stderr."""
+
+
+@dataclass(frozen=True, slots=True)
+class FlySummary:
+    """What ``fly --summary`` writes (SPEC §12)."""
+
+    ok: bool
+    items_total: int
+    items_reached: int
+    sim_time_s: float | None
+    wall_time_s: float
+    landed: bool
+    disarmed: bool
+    reason: str
+
+    def to_json(self) -> str:
+        return json.dumps(asdict(self), indent=2) + "\n"
+
+
+def connect_url(url: str, instance: int) -> str:
+    """``url`` with its port offset by ``instance`` (SPEC §3 ``--instance N``)."""
+    return str(LinkUrl.parse(url).with_port_offset(instance))
+
+
+# ---- commands ----------------------------------------------------------------------------------------------
+def cmd_upload(client: GcsClient, args: argparse.Namespace) -> str:
+    plan = load_mission_file(args.file)
+    if not args.fence_only:
+        client.upload_mission(plan.items, MissionType.MISSION)
+    client.upload_mission(plan.fence, MissionType.FENCE)
+    what = f"{len(plan.fence)} fence items" if args.fence_only else f"{len(plan.items)} items + {len(plan.fence)} fence"
+    return f"uploaded {what} from {args.file}"
+
+
+def cmd_download(client: GcsClient, args: argparse.Namespace) -> str:
+    items = client.download_mission(MissionType.MISSION)
+    fence = client.download_mission(MissionType.FENCE)
+    status = client.wait_until(lambda s: s.home is not None, client.timeout_s)
+    home = status.home or GeoPoint(0.0, 0.0, 0.0)
+    out = Path(args.out)
+    wpl = out.suffix.lower() in (".waypoints", ".txt")
+    save_mission_file(MissionPlan(name=out.stem, home=home, items=items, fence=fence), out, allow_drop_fence=wpl)
+    note = f" (QGC WPL has no fence: {len(fence)} fence items not saved)" if wpl and fence else ""
+    return f"downloaded {len(items)} items + {0 if wpl else len(fence)} fence to {out}{note}"
+
+
+def cmd_clear(client: GcsClient, args: argparse.Namespace) -> str:
+    del args
+    client.clear_mission(MissionType.MISSION)
+    client.clear_mission(MissionType.FENCE)
+    return "cleared mission and fence"
+
+
+def cmd_simple(action: Callable[[GcsClient], None], done: str) -> Callable[[GcsClient, argparse.Namespace], str]:
+    def run(client: GcsClient, args: argparse.Namespace) -> str:
+        del args
+        action(client)
+        return done
+
+    return run
+
+
+def cmd_arm(client: GcsClient, args: argparse.Namespace) -> str:
+    client.arm(force=args.force)
+    return "armed"
+
+
+def cmd_disarm(client: GcsClient, args: argparse.Namespace) -> str:
+    client.disarm(force=args.force)
+    return "disarmed"
+
+
+def cmd_mode(client: GcsClient, args: argparse.Namespace) -> str:
+    mode = MODE_NAMES.get(args.name.lower())
+    if mode is None:
+        raise GcsScriptError(f"unknown mode {args.name!r}; choose one of {', '.join(sorted(MODE_NAMES))}")
+    client.set_mode(mode)
+    return f"mode {mode.name}"
+
+
+def cmd_takeoff(client: GcsClient, args: argparse.Namespace) -> str:
+    client.takeoff(args.alt_m)
+    return f"taking off to {args.alt_m:g} m"
+
+
+def cmd_param(client: GcsClient, args: argparse.Namespace) -> str:
+    if args.param_cmd == "get":
+        return f"{args.name} = {client.get_param(args.name):g}"
+    if args.param_cmd == "set":
+        return f"{args.name} = {client.set_param(args.name, args.value):g}"
+    return "\n".join(f"{name:<16} {value:g}" for name, value in client.list_params().items())
+
+
+def _arm_when_ready(client: GcsClient, timeout_s: float) -> None:
+    """Arm, retrying while the vehicle refuses (estimator or GPS not ready yet) until ``timeout_s``."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            client.arm()
+            return
+        except CommandFailedError as exc:
+            if exc.result not in (CommandResult.DENIED, CommandResult.TEMPORARILY_REJECTED, CommandResult.FAILED):
+                raise
+            if time.monotonic() >= deadline:
+                raise GcsScriptError(f"arming refused for {timeout_s:g} s: {exc}") from exc
+            client.pump(0.5)
+
+
+def _mission_done(status: VehicleStatus, total: int) -> bool:
+    return status.mission_state == MISSION_STATE_COMPLETE or (total > 0 and total - 1 in status.items_reached)
+
+
+def fly(client: GcsClient, plan: MissionPlan, timeout_s: float, progress: bool = True) -> FlySummary:
+    """Upload mission + fence, arm, start, and wait until the mission is done, landed and disarmed."""
+    t0 = time.monotonic()
+    total = len(plan.items)
+    client.upload_mission(plan.items, MissionType.MISSION)
+    client.upload_mission(plan.fence, MissionType.FENCE)
+    client.forget_reached_items()
+    _arm_when_ready(client, min(60.0, timeout_s))
+    try:
+        client.start_mission()
+    except CommandFailedError:
+        client.set_mode(FlightMode.AUTO_MISSION)
+    deadline = t0 + timeout_s
+    reason = ""
+    seen_armed = False  # armed in telemetry at least once (a fast sim may finish before we look)
+    with _Progress(total, enabled=progress) as bar:
+        while True:
+            client.pump(0.1)
+            status = client.telemetry()
+            bar.update(len(status.items_reached), status)
+            seen_armed = seen_armed or status.armed
+            landed_disarmed = not status.armed and status.landed_state is LandedState.ON_GROUND
+            if landed_disarmed and _mission_done(status, total):
+                break
+            if landed_disarmed and seen_armed:
+                client.pump(0.5)  # late MISSION_ITEM_REACHED / MISSION_CURRENT
+                status = client.telemetry()
+                bar.update(len(status.items_reached), status)
+                if not _mission_done(status, total):
+                    reason = "the vehicle landed and disarmed before the mission was complete"
+                break
+            if time.monotonic() >= deadline:
+                reason = f"not landed and disarmed after {timeout_s:g} s"
+                break
+    texts = [t.text for t in status.statustexts if t.severity <= 3]
+    if reason and texts:
+        reason += f" (last error: {texts[-1]})"
+    landed = status.landed_state is LandedState.ON_GROUND
+    ok = not reason and landed and not status.armed and _mission_done(status, total)
+    return FlySummary(
+        ok=ok,
+        items_total=total,
+        items_reached=len(status.items_reached),
+        sim_time_s=status.sim_time_s,
+        wall_time_s=round(time.monotonic() - t0, 3),
+        landed=landed,
+        disarmed=not status.armed,
+        reason=reason,
+    )
+
+
+class _Progress:
+    """A rich progress bar of mission items reached (plain no-op when disabled or rich is missing)."""
+
+    def __init__(self, total: int, enabled: bool) -> None:
+        self._bar = None
+        self._task = None
+        if enabled:
+            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+            self._bar = Progress(
+                TextColumn("[bold]mission"),
+                BarColumn(),
+                MofNCompleteColumn(),
+                TextColumn("{task.fields[state]}"),
+                TimeElapsedColumn(),
+                transient=False,
+            )
+            self._task = self._bar.add_task("mission", total=max(total, 1), state="")
+
+    def __enter__(self) -> _Progress:
+        if self._bar is not None:
+            self._bar.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._bar is not None:
+            self._bar.stop()
+
+    def update(self, reached: int, status: VehicleStatus) -> None:
+        if self._bar is None or self._task is None:
+            return
+        sim = f"{status.sim_time_s:7.1f} s" if status.sim_time_s is not None else "   ?"
+        state = (
+            f"{status.mode_name:<13} {'ARMED' if status.armed else 'disarmed':<8} {status.landed_state.name} t={sim}"
+        )
+        self._bar.update(self._task, completed=reached, state=state)
+
+
+def cmd_fly(client: GcsClient, args: argparse.Namespace) -> str:
+    t0 = time.monotonic()
+    plan: MissionPlan | None = None
+    try:
+        plan = load_mission_file(args.file)
+        summary = fly(client, plan, args.timeout_s, progress=not args.no_progress)
+    except (GcsScriptError, GcsError, MissionFileError) as exc:
+        status = client.telemetry()
+        summary = FlySummary(
+            ok=False,
+            items_total=len(plan.items) if plan is not None else 0,
+            items_reached=len(status.items_reached),
+            sim_time_s=status.sim_time_s,
+            wall_time_s=round(time.monotonic() - t0, 3),
+            landed=status.landed_state is LandedState.ON_GROUND,
+            disarmed=not status.armed,
+            reason=str(exc),
+        )
+    if args.summary:
+        Path(args.summary).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.summary).write_text(summary.to_json())
+    if not summary.ok:
+        raise GcsScriptError(f"mission failed: {summary.reason or 'not complete'}")
+    return (
+        f"mission complete: {summary.items_reached}/{summary.items_total} items, "
+        f"sim {summary.sim_time_s:.1f} s in {summary.wall_time_s:.1f} s wall"
+    )
+
+
+# ---- entry point -------------------------------------------------------------------------------------------
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="python -m tools.gcs", description=__doc__.split("\n")[0])
+    parser.add_argument("--connect", default=DEFAULT_CONNECT, help=f"link URL (default {DEFAULT_CONNECT})")
+    parser.add_argument("--instance", type=int, default=0, help="offset the link port by N (quadsitl --instance)")
+    parser.add_argument("--signing-key", default=None, help="MAVLink 2 signing key: 64 hex digits or a passphrase")
+    parser.add_argument("--wait-s", type=float, default=60.0, help="how long to wait for the vehicle's heartbeat")
+    parser.add_argument("--timeout-step-s", type=float, default=5.0, help="timeout of one protocol exchange")
+    parser.add_argument("--system", type=int, default=1, help="target system id")
+    sub = parser.add_subparsers(dest="command", required=True)
+    p = sub.add_parser("upload", help="upload a mission file (mission + fence)")
+    p.add_argument("file")
+    p.add_argument("--fence-only", action="store_true")
+    p.set_defaults(run=cmd_upload)
+    p = sub.add_parser("download", help="download mission + fence to a file (format by extension)")
+    p.add_argument("out")
+    p.set_defaults(run=cmd_download)
+    sub.add_parser("clear", help="clear mission and fence").set_defaults(run=cmd_clear)
+    for name, run in (("arm", cmd_arm), ("disarm", cmd_disarm)):
+        p = sub.add_parser(name)
+        p.add_argument("--force", action="store_true", help="bypass the vehicle's checks (21196)")
+        p.set_defaults(run=run)
+    sub.add_parser("start", help="start the mission").set_defaults(
+        run=cmd_simple(lambda c: c.start_mission(), "mission started")
+    )
+    p = sub.add_parser("mode", help=f"set the flight mode ({', '.join(sorted(MODE_NAMES))})")
+    p.add_argument("name")
+    p.set_defaults(run=cmd_mode)
+    p = sub.add_parser("takeoff", help="take off to ALT_M above home")
+    p.add_argument("alt_m", type=float)
+    p.set_defaults(run=cmd_takeoff)
+    sub.add_parser("land").set_defaults(run=cmd_simple(lambda c: c.land(), "landing"))
+    sub.add_parser("rtl").set_defaults(run=cmd_simple(lambda c: c.rtl(), "returning to launch"))
+    p = sub.add_parser("fly", help="upload, arm, start and wait until landed and disarmed")
+    p.add_argument("file")
+    p.add_argument("--summary", default=None, help="write the JSON summary here")
+    p.add_argument("--timeout-s", type=float, default=600.0, help="wall-clock limit")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(run=cmd_fly)
+    p = sub.add_parser("param", help="get, set or list parameters")
+    psub = p.add_subparsers(dest="param_cmd", required=True)
+    psub.add_parser("get").add_argument("name")
+    ps = psub.add_parser("set")
+    ps.add_argument("name")
+    ps.add_argument("value", type=float)
+    psub.add_parser("list")
+    p.set_defaults(run=cmd_param)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        key = signing_key_from_text(args.signing_key) if args.signing_key else None
+        url = connect_url(args.connect, args.instance)
+        with GcsClient(url, target_system=args.system, signing_key=key, timeout_s=args.timeout_step_s) as client:
+            try:
+                client.wait_heartbeat(args.wait_s)
+            except GcsError as exc:
+                raise GcsScriptError(f"no vehicle heartbeat on {url} within {args.wait_s:g} s") from exc
+            message = args.run(client, args)
+    except (GcsScriptError, GcsError, MissionFileError, LinkUrlError, SigningKeyError, OSError) as exc:
+        print(f"gcs: error: {exc}", file=sys.stderr)
+        return 1
+    print(message)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
