@@ -25,6 +25,7 @@ import numpy as np
 from autopilot.control.airframe import Airframe, load_airframe
 from autopilot.control.cascade import CascadeController
 from autopilot.control.gains import CascadeGains, CascadeLimits
+from autopilot.metrics import es_cost
 from sim.batch import BatchSim
 from sim.vehicle_config import VehicleConfig, load_vehicle
 
@@ -35,7 +36,9 @@ ATTITUDE_AXES = {"roll": 0, "pitch": 1, "yaw": 2}
 
 @dataclass(frozen=True, slots=True)
 class StepTrace:
-    """Step response of ``m`` vehicles: ``error[i, k]`` = setpoint − measured at ``t_s[k]`` (rad or m)."""
+    """Step response of ``m`` vehicles: ``error[i, k]`` = setpoint − measured at ``t_s[k]`` (rad or m).
+
+    ``t_s[0] = 0`` is the step instant (error = amplitude), then one sample per control step."""
 
     channel: str
     amplitude: float
@@ -128,8 +131,8 @@ def run_step(
     sim = _hovering_batch(vehicle, m, hover_alt_m, seed)
     ctrl = _controller(vehicle, gains, m, sim.control_dt_s, limits)
     n_steps = round(duration_s * sim.control_hz)
-    t_s = np.arange(1, n_steps + 1) / sim.control_hz
-    response = np.empty((m, n_steps))
+    t_s = np.arange(n_steps + 1) / sim.control_hz  # sample 0 is the step instant (response 0)
+    response = np.zeros((m, n_steps + 1))
     diverged = np.zeros(m, dtype=bool)
     home = np.array([0.0, 0.0, -hover_alt_m])
     if channel in ATTITUDE_AXES:
@@ -137,7 +140,7 @@ def run_step(
         att_sp = np.zeros((m, 3))
         att_sp[:, axis] = amplitude
         thrust_n = ctrl.hover_thrust_n()
-        for k in range(n_steps):
+        for k in range(1, n_steps + 1):
             u = ctrl.update_attitude(sim.q_ned_frd, sim.rate_frd, att_sp, thrust_n)
             sim.step(u)
             _euler_axis(sim, axis, out=response[:, k])
@@ -147,7 +150,7 @@ def run_step(
         pos_sp = np.broadcast_to(home, (m, 3)).copy()
         pos_sp[:, axis] += amplitude
         zeros = np.zeros((m, 3))
-        for k in range(n_steps):
+        for k in range(1, n_steps + 1):
             u = ctrl.update_position(sim.pos_ned, sim.vel_ned, sim.q_ned_frd, sim.rate_frd, pos_sp, zeros, zeros, 0.0)
             sim.step(u)
             response[:, k] = sim.pos_ned[:, axis] - home[axis]
@@ -265,13 +268,8 @@ def run_mass_change(
 
 
 def mean_square_cost(error: np.ndarray, t_s: np.ndarray, diverged: np.ndarray, t0_s: float = 0.0) -> np.ndarray:
-    """ES cost J = 1/(tf − t0) ∫_{t0}^{tf} e² dt per vehicle (SPEC §6.3); +inf where diverged.
-
-    ``error`` (m, T) or (m, T, k) (squares summed over the last axis), uniformly sampled at ``t_s``.
-    """
-    sel = t_s >= t0_s
-    e2 = np.square(error[:, sel])
-    if e2.ndim == 3:
-        e2 = e2.sum(axis=2)
-    j = e2.mean(axis=1)
+    """ES cost J = 1/(tf − t0) ∫_{t0}^{tf} e² dt per vehicle (SPEC §6.3, ``autopilot.metrics.es_cost``);
+    +inf where the rollout diverged. ``error`` is (m, T) sampled at ``t_s`` (T,)."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        j = es_cost(np.nan_to_num(error, nan=0.0, posinf=0.0, neginf=0.0), t_s, t0_s=max(t0_s, float(t_s[0])))
     return np.where(diverged | ~np.isfinite(j), np.inf, j)
