@@ -100,7 +100,10 @@ class TelemetryStreams:
         self._last_mission: tuple[int, int, int] | None = None
         self.last_snapshot: TelemetrySnapshot | None = None
         self.sent_count: dict[int, int] = dict.fromkeys(self._encoders, 0)
+        self._next_any_due_us = 0
         self._q = np.zeros(4)
+        self._euler_time_us = -1
+        self._euler_rad = (0.0, 0.0, 0.0)
 
     # ---- rates -------------------------------------------------------------------------------------------
     def supports(self, msg_id: int) -> bool:
@@ -118,6 +121,7 @@ class TelemetryStreams:
         else:
             self.interval_us[msg_id] = max(1, int(interval_us))
         self._next_due_us[msg_id] = 0
+        self._update_next_any_due()
         return True
 
     # ---- sending -----------------------------------------------------------------------------------------
@@ -137,6 +141,8 @@ class TelemetryStreams:
             self._mission_current(snapshot)
         for seq in snapshot.mission_reached:
             self._mav.mission_item_reached_send(seq)
+        if t_us < self._next_any_due_us:
+            return  # most control steps: nothing due
         for msg_id, encode in self._encoders.items():
             interval = self.interval_us[msg_id]
             if interval <= 0:
@@ -147,6 +153,11 @@ class TelemetryStreams:
                 self.sent_count[msg_id] += 1
                 due += interval
                 self._next_due_us[msg_id] = due if due > t_us else t_us + interval
+        self._update_next_any_due()
+
+    def _update_next_any_due(self) -> None:
+        dues = [self._next_due_us[m] for m, interval in self.interval_us.items() if interval > 0]
+        self._next_any_due_us = min(dues) if dues else 2**62
 
     def send_now(self, msg_id: int) -> bool:
         """Send one message (REQUEST_MESSAGE); False if unsupported or no snapshot yet."""
@@ -210,11 +221,19 @@ class TelemetryStreams:
             0,
         )
 
+    def _euler(self, s: TelemetrySnapshot) -> tuple[float, float, float]:
+        """(roll, pitch, yaw) in rad of ``s.q_ned_frd``, computed once per snapshot time."""
+        if s.time_us != self._euler_time_us:
+            self._q[:] = s.q_ned_frd
+            roll, pitch, yaw = euler_from_quat(self._q)
+            self._euler_rad = (float(roll), float(pitch), float(yaw))
+            self._euler_time_us = s.time_us
+        return self._euler_rad
+
     def _attitude(self, s: TelemetrySnapshot) -> None:
-        self._q[:] = s.q_ned_frd
-        roll, pitch, yaw = euler_from_quat(self._q)
+        roll, pitch, yaw = self._euler(s)
         p, q, r = s.rate_frd_rad_s
-        self._mav.attitude_send(s.time_us // 1000 & 0xFFFFFFFF, float(roll), float(pitch), float(yaw), p, q, r)
+        self._mav.attitude_send(s.time_us // 1000 & 0xFFFFFFFF, roll, pitch, yaw, p, q, r)
 
     def _local_position(self, s: TelemetrySnapshot) -> None:
         x, y, z = s.pos_ned_m
@@ -222,9 +241,7 @@ class TelemetryStreams:
         self._mav.local_position_ned_send(s.time_us // 1000 & 0xFFFFFFFF, x, y, z, vx, vy, vz)
 
     def _yaw_cdeg(self, s: TelemetrySnapshot) -> int:
-        w, x, y, z = s.q_ned_frd
-        yaw_deg = math.degrees(math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))) % 360.0
-        return int(yaw_deg * 100.0) % 36000
+        return int(math.degrees(self._euler(s)[2]) % 360.0 * 100.0) % 36000
 
     def _global_position(self, s: TelemetrySnapshot) -> None:
         vn, ve, vd = s.vel_ned_m_s
