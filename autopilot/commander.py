@@ -134,6 +134,11 @@ class Commander:
         return result
 
     @property
+    def state(self) -> VehicleState | None:
+        """The vehicle state of the latest :meth:`update`."""
+        return self._state
+
+    @property
     def in_air(self) -> bool:
         return self.landed_state in (LandedState.IN_AIR, LandedState.TAKEOFF, LandedState.LANDING)
 

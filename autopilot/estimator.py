@@ -111,7 +111,9 @@ class TruthEstimator:
         pos = self._frame.ned_from_geodetic(truth.lat_deg, truth.lon_deg, truth.alt_amsl_m)
         q = truth.q_ned_frd
         norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-        finite = all(math.isfinite(v) for v in (*pos, *truth.vel_ned_m_s, *truth.rate_frd_rad_s, norm))
+        vel, rate = truth.vel_ned_m_s, truth.rate_frd_rad_s
+        # a sum is finite only when every term is (inf - inf is NaN): one check instead of eleven
+        finite = math.isfinite(pos[0] + pos[1] + pos[2] + vel[0] + vel[1] + vel[2] + rate[0] + rate[1] + rate[2] + norm)
         valid = finite and abs(norm - 1.0) < 1e-3
         if valid and norm != 1.0:
             q = (q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm)

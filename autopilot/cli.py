@@ -1,0 +1,162 @@
+"""``quadsitl autopilot`` / ``python -m autopilot``: the autopilot process (SPEC §3, §12).
+
+Links (``--instance N`` adds N to every port):
+
+- ``--sim``  lockstep client of the simulator, default ``udpout:127.0.0.1:14560``;
+- ``--gcs``  GCS link, default ``udpin:127.0.0.1:18570`` sending to ``127.0.0.1:14550`` until someone
+  talks to it, then replying to whoever talks (PX4's "local 18570 → 14550");
+- ``--api``  API/offboard link (MAVSDK, scripts), default ``udpin:127.0.0.1:14580`` → ``127.0.0.1:14540``.
+
+``--gcs off`` / ``--api off`` disable a link. SIGINT/SIGTERM stop the loop cleanly; the
+summary is written to ``--log-dir/autopilot_summary.json`` in every case after start-up.
+Exit status: 0 stopped by a signal, 3 the simulator was lost or never came, 2 bad options, 1 error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+import time
+from pathlib import Path
+from types import FrameType
+
+from autopilot.control.airframe import AirframeError
+from autopilot.params import ParamError
+from autopilot.runner import Autopilot, AutopilotConfig, AutopilotEndReason, Links, VehicleAdapter, run_loop
+from mavlink_bridge.gcs_server import GcsServer
+from mavlink_bridge.link import LinkUrl, LinkUrlError
+from mavlink_bridge.lockstep import LockstepClient
+
+EXIT_OK = 0
+EXIT_ERROR = 1
+EXIT_USAGE = 2
+EXIT_SIM_LOST = 3
+
+DEFAULT_SIM = "udpout:127.0.0.1:14560"
+DEFAULT_GCS = "udpin:127.0.0.1:18570"
+DEFAULT_GCS_TARGET = "udpout:127.0.0.1:14550"
+DEFAULT_API = "udpin:127.0.0.1:14580"
+DEFAULT_API_TARGET = "udpout:127.0.0.1:14540"
+
+_log = logging.getLogger("autopilot")
+
+
+def _speed(text: str) -> float:
+    if text == "max":
+        return 0.0
+    value = float(text)
+    if not value > 0.0:
+        raise argparse.ArgumentTypeError(f"expected 'max' or a positive number, got {text!r}")
+    return value
+
+
+def add_autopilot_options(p: argparse.ArgumentParser) -> None:
+    """The autopilot's options (shared with ``quadsitl up``)."""
+    p.add_argument("--sim", default=DEFAULT_SIM, metavar="URL", help=f"simulator address (default {DEFAULT_SIM})")
+    p.add_argument("--gcs", default=DEFAULT_GCS, metavar="URL|off", help=f"GCS link (default {DEFAULT_GCS})")
+    p.add_argument("--gcs-target", default=DEFAULT_GCS_TARGET, metavar="URL", help="where the GCS link sends first")
+    p.add_argument("--api", default=DEFAULT_API, metavar="URL|off", help=f"API link (default {DEFAULT_API})")
+    p.add_argument("--api-target", default=DEFAULT_API_TARGET, metavar="URL", help="where the API link sends first")
+    p.add_argument("--params", default=None, metavar="FILE", help="YAML of NAME: value applied at start")
+    p.add_argument("--rerun", default="off", metavar="off|save:PATH|connect:URL", help="Rerun telemetry")
+    p.add_argument("--estimator", default="truth", choices=["truth"], help="state estimator")
+    p.add_argument("--sim-timeout-s", type=float, default=3.0, help="wall s of sim silence that ends the run")
+    p.add_argument("--connect-timeout-s", type=float, default=60.0, help="wall s to wait for the first frame")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="quadsitl autopilot", description=__doc__.split("\n")[0])
+    add_autopilot_options(p)
+    p.add_argument("--instance", type=int, default=0, metavar="N", help="add N to every port")
+    p.add_argument("--vehicle", default="x500", metavar="NAME", help="airframe the controller assumes")
+    p.add_argument("--log-dir", type=Path, default=None, metavar="DIR", help="where autopilot_summary.json goes")
+    p.add_argument("--speed", type=_speed, default=0.0, metavar="{max|FLOAT}", help="the sim's speed (GCS timeouts)")
+    p.add_argument("-v", "--verbose", action="store_true")
+    return p
+
+
+def _offset(url: str, instance: int) -> str:
+    return str(LinkUrl.parse(url).with_port_offset(instance))
+
+
+def _make_listener(spec: str, vehicle: str) -> object | None:
+    """The Rerun telemetry listener for ``--rerun`` (None for ``off``)."""
+    if spec == "off":
+        return None
+    try:
+        from autopilot.telemetry import make_listener  # the Rerun listener seam (autopilot/telemetry)
+    except ImportError as exc:
+        _log.warning("--rerun %s ignored: telemetry listener unavailable (%s)", spec, exc)
+        return None
+    return make_listener(spec, vehicle=vehicle)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="autopilot %(message)s")
+    if args.instance < 0:
+        print("quadsitl autopilot: --instance must be >= 0", file=sys.stderr)
+        return EXIT_USAGE
+    config = AutopilotConfig(
+        vehicle=args.vehicle,
+        estimator=args.estimator,
+        params_file=args.params,
+        log_dir=str(args.log_dir) if args.log_dir is not None else None,
+        speed_factor=args.speed,
+    )
+    servers: list[GcsServer] = []
+    client: LockstepClient | None = None
+    try:
+        autopilot = Autopilot(config, listener=_make_listener(args.rerun, args.vehicle))  # type: ignore[arg-type]
+        client = LockstepClient(_offset(args.sim, args.instance), sim_lost_timeout_s=args.sim_timeout_s)
+        vehicle = VehicleAdapter(autopilot)
+        for url, target in ((args.gcs, args.gcs_target), (args.api, args.api_target)):
+            if url != "off":
+                servers.append(
+                    GcsServer(
+                        _offset(url, args.instance),
+                        vehicle,
+                        speed_factor=args.speed if args.speed > 0.0 else 1.0,
+                        default_target_url=_offset(target, args.instance),
+                    )
+                )
+    except (AirframeError, ParamError, LinkUrlError, OSError, ValueError) as exc:
+        print(f"quadsitl autopilot: {exc}", file=sys.stderr)
+        for server in servers:
+            server.close()
+        if client is not None:
+            client.close()
+        return EXIT_USAGE
+
+    stop = {"requested": False}
+
+    def _stop(signum: int, _frame: FrameType | None) -> None:
+        stop["requested"] = True
+
+    previous = {sig: signal.signal(sig, _stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+    t0 = time.monotonic()
+    try:
+        reason = run_loop(
+            autopilot, Links(client, servers), lambda: stop["requested"], connect_timeout_s=args.connect_timeout_s
+        )
+    except Exception:
+        _log.exception("autopilot loop failed")
+        autopilot.end_reason = reason = AutopilotEndReason.ERROR
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        wall_s = time.monotonic() - t0
+        autopilot.write_summary(wall_s)
+        close = getattr(autopilot.listener, "close", None)
+        if close is not None:
+            close()
+        for server in servers:
+            server.close()
+        client.close()
+    sim_s = autopilot.state.time_us * 1e-6 if autopilot.state is not None else 0.0
+    print(f"quadsitl autopilot: {reason.value} after {sim_s:.2f} s sim, {wall_s:.1f} s wall", file=sys.stderr)
+    if reason in (AutopilotEndReason.SIM_LOST, AutopilotEndReason.SIM_NEVER_CONNECTED):
+        return EXIT_SIM_LOST
+    return EXIT_ERROR if reason is AutopilotEndReason.ERROR else EXIT_OK

@@ -1,0 +1,141 @@
+"""``quadsitl up``: the simulator and the autopilot as two processes (SPEC §3, §12).
+
+Starts ``python -m sim`` and ``python -m autopilot`` with the options of both (``--instance``
+offsets every port of both), forwards SIGINT/SIGTERM to them, and when either one exits
+stops the other. Exit status: 0 when both ended cleanly (a signal, ``--duration-s``), else the
+simulator's non-zero status if it had one (3 autopilot lost, 4 vehicle ended the run), else
+the autopilot's; 2 for bad options.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from types import FrameType
+
+from autopilot.cli import add_autopilot_options
+from mavlink_bridge.link import LinkMode, LinkUrl, LinkUrlError
+
+EXIT_USAGE = 2
+#: How long a child gets to exit after SIGTERM before it is killed (wall s).
+STOP_TIMEOUT_S = 15.0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="quadsitl up", description="Start sim and autopilot as two processes.")
+    p.add_argument("--world", default=None, metavar="MISSION.yaml", help="mission/world YAML for the simulator")
+    p.add_argument("--vehicle", default=None, metavar="NAME", help="vehicle (sim model and autopilot airframe)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--speed", default="max", metavar="{max|FLOAT}", help="sim s per wall s (default max)")
+    p.add_argument("--instance", type=int, default=0, metavar="N", help="add N to every port of both processes")
+    p.add_argument("--listen", default="udp:127.0.0.1:14560", metavar="URL", help="the simulator's lockstep address")
+    p.add_argument("--log-dir", default=None, metavar="DIR", help="both summaries and the processes' logs")
+    p.add_argument("--duration-s", type=float, default=None, help="stop after this much sim time")
+    p.add_argument("--physics-hz", type=int, default=None)
+    p.add_argument("--control-hz", type=int, default=None)
+    p.add_argument("--no-sensor-noise", action="store_true")
+    add_autopilot_options(p)
+    p.set_defaults(sim=None)
+    return p
+
+
+def _world_vehicle(world: str | None) -> str | None:
+    """The ``vehicle:`` of a mission YAML (the default airframe of ``up``), if any."""
+    if world is None or not world.endswith((".yaml", ".yml")):
+        return None
+    import yaml
+
+    try:
+        data = yaml.safe_load(Path(world).read_text())
+    except (OSError, yaml.YAMLError):
+        return None
+    vehicle = data.get("vehicle") if isinstance(data, dict) else None
+    return str(vehicle) if vehicle else None
+
+
+def commands(args: argparse.Namespace) -> tuple[list[str], list[str]]:
+    """The sim and autopilot command lines for parsed ``up`` options (LinkUrlError on a bad --listen)."""
+    listen = LinkUrl.parse(args.listen)
+    if listen.mode is not LinkMode.LISTEN:
+        raise LinkUrlError(f"--listen must be udp:HOST:PORT or udpin:HOST:PORT, got {args.listen!r}")
+    vehicle = args.vehicle or _world_vehicle(args.world) or "x500"
+    py = [sys.executable, "-m"]
+    sim = [*py, "sim", "--seed", str(args.seed), "--speed", args.speed, "--instance", str(args.instance)]
+    sim += ["--listen", args.listen, "--vehicle", vehicle]
+    if args.world:
+        sim += ["--world", args.world]
+    if args.duration_s is not None:
+        sim += ["--duration-s", str(args.duration_s)]
+    if args.physics_hz is not None:
+        sim += ["--physics-hz", str(args.physics_hz)]
+    if args.control_hz is not None:
+        sim += ["--control-hz", str(args.control_hz)]
+    if args.no_sensor_noise:
+        sim.append("--no-sensor-noise")
+    sim_url = args.sim or f"udpout:{listen.host}:{listen.port}"
+    ap = [*py, "autopilot", "--sim", sim_url, "--instance", str(args.instance), "--vehicle", vehicle]
+    ap += ["--gcs", args.gcs, "--gcs-target", args.gcs_target, "--api", args.api, "--api-target", args.api_target]
+    ap += ["--rerun", args.rerun, "--estimator", args.estimator, "--speed", args.speed]
+    ap += ["--sim-timeout-s", str(args.sim_timeout_s), "--connect-timeout-s", str(args.connect_timeout_s)]
+    if args.params:
+        ap += ["--params", args.params]
+    if args.log_dir:
+        sim += ["--log-dir", args.log_dir]
+        ap += ["--log-dir", args.log_dir]
+    return sim, ap
+
+
+def _stop(proc: subprocess.Popen[bytes]) -> None:
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGTERM)
+        try:
+            proc.wait(timeout=STOP_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        sim_cmd, ap_cmd = commands(args)
+    except LinkUrlError as exc:
+        print(f"quadsitl up: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    if args.log_dir:
+        Path(args.log_dir).mkdir(parents=True, exist_ok=True)
+    stop = {"signal": 0}
+
+    def _on_signal(signum: int, _frame: FrameType | None) -> None:
+        stop["signal"] = signum
+
+    previous = {sig: signal.signal(sig, _on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    sim = subprocess.Popen(sim_cmd, env=env)
+    autopilot = subprocess.Popen(ap_cmd, env=env)
+    try:
+        while stop["signal"] == 0 and sim.poll() is None and autopilot.poll() is None:
+            time.sleep(0.05)
+        if stop["signal"]:
+            for proc in (autopilot, sim):
+                if proc.poll() is None:
+                    proc.send_signal(stop["signal"])
+        # whoever is still running follows the one that ended (the autopilot first: the sim then sums up)
+        _stop(autopilot)
+        _stop(sim)
+    finally:
+        for proc in (autopilot, sim):
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    sim_rc, ap_rc = sim.returncode, autopilot.returncode
+    print(f"quadsitl up: sim exited {sim_rc}, autopilot exited {ap_rc}", file=sys.stderr)
+    rc = sim_rc if sim_rc != 0 else ap_rc
+    return 128 - rc if rc < 0 else rc  # killed by signal N -> 128 + N, as a shell reports it

@@ -1,0 +1,720 @@
+"""The autopilot process: owns the links, schedules the loop and wires the pure parts (issue 4, SPEC §3-§4).
+
+Per lockstep frame (``Autopilot.step``), in sim time only:
+
+    estimator → failsafes → mission executor (AUTO_MISSION) → commander → [planner override]
+    → setpoint generator → NLVG-PID cascade → ActuatorCommand (armed flag, gripper channel)
+
+The command is answered *before* the bookkeeping of ``Autopilot.after_step`` (telemetry
+snapshot, GCS/API polling, the telemetry listener), so the simulator integrates the next
+step while the autopilot does the rest. GCS and API links are polled between frames and
+never block the lockstep. Positions inside are local NED about the estimator's origin (the
+first fix); the mission executor, the geofence and the planner work about home, so the
+runner converts at their edge. :class:`VehicleAdapter` is the ``VehicleInterface`` the
+GCS servers call (commands, missions, parameters).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import struct
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from enum import Enum
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+
+from autopilot.commander import CMD_MISSION_START, Commander
+from autopilot.control.airframe import Airframe, load_airframe
+from autopilot.control.cascade import GRAVITY_M_S2, CascadeController
+from autopilot.control.gains import CascadeGains
+from autopilot.estimator import Estimator, FrameLike, VehicleState, make_estimator
+from autopilot.failsafe import BatteryModel, FailsafeInputs, FailsafeMonitor
+from autopilot.mission.commands import MissionState
+from autopilot.mission.executor import (
+    ActionKind,
+    ExecutorConfig,
+    ExecutorOutput,
+    MissionExecutor,
+    NavKind,
+    VehicleSample,
+)
+from autopilot.mission.executor import NavTarget as MissionTarget
+from autopilot.mission.fence import FenceError, geofence_from_items
+from autopilot.mission.validation import MissionLimits, validate_mission
+from autopilot.param_schema import make_param_store
+from autopilot.params import ParamError, ParamStore
+from autopilot.setpoints import NavTarget, SetpointGenerator, SetpointLimits, TargetKind
+from mavlink_bridge.frames import GeoPoint
+from mavlink_bridge.gcs_types import (
+    CommandRequest,
+    CommandResult,
+    FlightMode,
+    LandedState,
+    MissionItem,
+    MissionResult,
+    MissionType,
+    Severity,
+    StatusText,
+    TelemetrySnapshot,
+)
+from mavlink_bridge.wire import ActuatorCommand, ObstacleDetection, Vec3
+
+#: MAV_SYS_STATUS_SENSOR bits: 3D gyro, accel, mag, abs pressure, GPS, rate/attitude/position control,
+#: motor outputs, AHRS, battery.
+_SENSORS_PRESENT = 0x1 | 0x2 | 0x4 | 0x8 | 0x20 | 0x400 | 0x800 | 0x4000 | 0x8000 | 0x200000 | 0x2000000
+_SENSOR_GPS = 0x20
+#: Publish the telemetry snapshot every this many control steps (62.5 Hz at 250 Hz) and on any event.
+_SNAPSHOT_EVERY = 4
+#: Failsafe conditions are evaluated every this much sim time (µs).
+FAILSAFE_PERIOD_US = 100_000
+#: Poll the GCS/API links at most this often (wall seconds).
+_LINK_POLL_PERIOD_S = 0.004
+
+
+class StepListener(Protocol):
+    """A passive per-step observer (the Rerun telemetry); must not change anything it is given."""
+
+    def on_step(self, record: StepRecord) -> None: ...
+
+
+class RoutePlanner(Protocol):
+    """The avoidance planner seam (``autopilot.planner.planner.AvoidancePlanner.update``)."""
+
+    def update(
+        self,
+        time_us: int,
+        pos_ned: Sequence[float],
+        vel_ned: Sequence[float],
+        q_ned_frd: Sequence[float],
+        detections: Sequence[ObstacleDetection],
+        route_target_ned: Sequence[float],
+        route_next_ned: Sequence[float] | None = None,
+    ) -> object: ...
+
+
+@dataclass(frozen=True, slots=True)
+class StepRecord:
+    """What one control step did, for listeners. Vectors are local NED about the origin; ``home_ned_m`` too."""
+
+    time_us: int
+    state: VehicleState
+    target: NavTarget
+    pos_sp_ned_m: Vec3
+    vel_sp_ned_m_s: Vec3
+    acc_sp_ned_m_s2: Vec3
+    yaw_sp_rad: float
+    motor_cmd: tuple[float, float, float, float]
+    thrust_ratio: float
+    armed: bool
+    mode: FlightMode
+    landed_state: LandedState
+    home_ned_m: Vec3 | None
+    mission_seq: int
+    reached: tuple[int, ...]
+    texts: tuple[StatusText, ...]
+    detections: tuple[ObstacleDetection, ...]
+    planner_output: object | None
+    controller: CascadeController | None  # live diagnostics (overwritten next step)
+
+
+class AutopilotEndReason(Enum):
+    """Why the autopilot loop stopped."""
+
+    STOPPED = "stopped"  # SIGINT/SIGTERM or the caller's stop()
+    SIM_LOST = "sim_lost"  # frames came and then stopped for the client's sim_lost_timeout_s
+    SIM_NEVER_CONNECTED = "sim_never_connected"  # no frame within the start-up timeout
+    ERROR = "error"
+
+
+@dataclass(frozen=True)
+class AutopilotConfig:
+    """Settings of one autopilot instance (the CLI fills it, SPEC §12)."""
+
+    vehicle: str = "x500"
+    estimator: str = "truth"
+    params_file: str | None = None
+    log_dir: str | None = None
+    speed_factor: float = 1.0  # only stretches GCS timeouts when < 1 (the sim owns time)
+
+
+@dataclass
+class _Tracking:
+    """Running tracking-error statistics while flying (setpoint vs estimate)."""
+
+    n: int = 0
+    pos_sq_sum: float = 0.0
+    pos_max: float = 0.0
+    att_sq_sum: float = 0.0
+    att_max: float = 0.0
+    max_tilt_rad: float = 0.0
+
+    def add(self, pos_err_m: float, att_err_rad: float, tilt_rad: float) -> None:
+        self.n += 1
+        self.pos_sq_sum += pos_err_m * pos_err_m
+        self.att_sq_sum += att_err_rad * att_err_rad
+        self.pos_max = max(self.pos_max, pos_err_m)
+        self.att_max = max(self.att_max, att_err_rad)
+        self.max_tilt_rad = max(self.max_tilt_rad, tilt_rad)
+
+
+def _mission_to_nav(target: MissionTarget, home_ned: Vec3, commander: Commander) -> NavTarget:
+    """The executor's target (about home) as a commander target (about the origin)."""
+    p = commander.params.get
+    n, e, d = (target.pos_ned_m[i] + home_ned[i] for i in range(3))
+    speed = min(target.speed_m_s, p("MPC_XY_VEL_MAX"))
+    up, down = p("MPC_Z_VEL_MAX_UP"), p("MPC_Z_VEL_MAX_DN")
+    yaw = math.nan if math.isnan(target.yaw_deg) else math.radians(target.yaw_deg)
+    kind = target.kind
+    if kind is NavKind.IDLE:
+        return NavTarget(TargetKind.IDLE, (n, e, d))
+    if kind is NavKind.LAND:
+        alt = commander.alt_rel_home_m(commander.state) if commander.state is not None else 0.0
+        down = p("MPC_LAND_SPEED") if alt < p("MPC_LAND_ALT2") else down
+        return NavTarget(TargetKind.LAND, (n, e, d), yaw, speed, up, down)
+    if kind is NavKind.TAKEOFF:
+        up = p("MPC_TKO_SPEED")
+    return NavTarget(TargetKind.POSITION, (n, e, d), yaw, speed, up, down)
+
+
+class Autopilot:
+    """Everything between a lockstep frame and its answer, plus the bookkeeping around it (no sockets)."""
+
+    def __init__(
+        self,
+        config: AutopilotConfig | None = None,
+        *,
+        params: ParamStore | None = None,
+        airframe: Airframe | None = None,
+        estimator: Estimator | None = None,
+        listener: StepListener | None = None,
+        planner: RoutePlanner | None = None,
+    ) -> None:
+        self.config = config or AutopilotConfig()
+        self.params = params or make_param_store(self.config.params_file)
+        self.airframe = airframe or load_airframe(self.config.vehicle)
+        self.estimator = estimator or make_estimator(self.config.estimator)
+        self.listener = listener
+        self.planner = planner
+        self.commander = Commander(self.params)
+        self.setpoints = SetpointGenerator(self._setpoint_limits())
+        self.failsafe = FailsafeMonitor(self.params)
+        self.battery = BatteryModel(self.params.get("BAT_HOVER_ENDUR"))
+        self.executor: MissionExecutor | None = None
+        self.controller: CascadeController | None = None
+        self.gains = CascadeGains.paper_default()
+        self.mission: list[MissionItem] = []
+        self.fence: list[MissionItem] = []
+        self.state: VehicleState | None = None
+        self.texts: list[StatusText] = []
+        self.reached_seqs: list[int] = []
+        self.tracking = _Tracking()
+        self.frames = 0
+        self.end_reason: AutopilotEndReason | None = None
+        self.thrust_ratio = 0.0
+        self._hover_thrust_n = self.airframe.mass_kg * GRAVITY_M_S2
+        self._prev_time_us: int | None = None
+        self._dt_s = 0.004
+        self._last_kind = TargetKind.IDLE
+        self._last_mode = self.commander.mode
+        self._last_home = None
+        self._target = NavTarget(TargetKind.IDLE)
+        self._pending_reached: list[int] = []
+        self._last_output: ExecutorOutput | None = None
+        self._planner_output: object | None = None
+        self._hash = hashlib.sha256()
+        self._pack = struct.Struct("<q10d").pack
+        self._motor = (0.0, 0.0, 0.0, 0.0)
+        self._gcs_heartbeat_age: Callable[[], float | None] = lambda: None
+        # preallocated controller inputs, shaped (n=1, k) so the cascade reads them in place
+        self._pos = np.zeros((1, 3))
+        self._vel = np.zeros((1, 3))
+        self._q = np.zeros((1, 4))
+        self._rate = np.zeros((1, 3))
+        self._pos_sp = np.zeros((1, 3))
+        self._vel_sp = np.zeros((1, 3))
+        self._acc_sp = np.zeros((1, 3))
+        self._yaw_sp = np.zeros(1)
+        self._next_failsafe_us = 0
+        self.params.subscribe(self._on_param)
+        self.frame_detections: tuple[ObstacleDetection, ...] = ()
+
+    # ------------------------------------------------------------------ parameters
+    def _setpoint_limits(self) -> SetpointLimits:
+        p = self.params.get
+        return SetpointLimits(
+            acc_xy_m_s2=p("MPC_ACC_HOR"),
+            acc_up_m_s2=p("MPC_ACC_UP_MAX"),
+            acc_down_m_s2=p("MPC_ACC_DOWN_MAX"),
+            jerk_m_s3=p("MPC_JERK_AUTO"),
+            yaw_rate_rad_s=math.radians(p("MPC_YAWRAUTO_MAX")),
+        )
+
+    def _on_param(self, name: str, value: float) -> None:
+        """Parameter changes take effect at once (in flight too)."""
+        if name.startswith(("MPC_ACC", "MPC_JERK", "MPC_YAWRAUTO")):
+            self.setpoints.limits = self._setpoint_limits()
+        elif name == "BAT_HOVER_ENDUR":
+            self.battery.hover_endurance_s = value
+        elif name.startswith("MIS_") and self.executor is not None:
+            self.executor.configure(ExecutorConfig.from_params(self.params))
+
+    # ------------------------------------------------------------------ geography
+    @property
+    def home_geo(self) -> GeoPoint | None:
+        """Home if armed once, else the estimator's origin (where home will be), else None."""
+        if self.commander.home is not None:
+            return self.commander.home.geo
+        return self.estimator.origin
+
+    @property
+    def home_ned(self) -> Vec3:
+        return self.commander.home.pos_ned_m if self.commander.home is not None else (0.0, 0.0, 0.0)
+
+    def _say(self, text: str, severity: Severity = Severity.INFO) -> None:
+        self.texts.append(StatusText(severity, text))
+
+    # ------------------------------------------------------------------ missions (VehicleAdapter calls these)
+    def replace_mission(self, mission_type: MissionType, items: list[MissionItem]) -> tuple[MissionResult, str]:
+        home = self.home_geo
+        if mission_type not in (MissionType.MISSION, MissionType.FENCE):
+            return MissionResult.UNSUPPORTED, f"mission type {mission_type.name} is not supported"
+        if home is None:
+            return MissionResult.ERROR, "no position fix yet: upload again once the vehicle has a position"
+        if mission_type is MissionType.FENCE:
+            try:
+                fence = geofence_from_items(items, home)
+            except FenceError as exc:
+                return MissionResult.INVALID, str(exc)
+            self.fence = list(items)
+            self.failsafe.geofence = fence
+            self._say(f"Geofence: {len(items)} items")
+            return MissionResult.ACCEPTED, ""
+        result, reason = validate_mission(items, home, MissionLimits.from_params(self.params))
+        if result is not MissionResult.ACCEPTED:
+            return result, reason
+        executor = self._executor()
+        if executor is None:
+            return MissionResult.ERROR, "no position fix yet"
+        executor.set_mission(items)
+        self.mission = list(items)
+        self.commander.mission_ready = bool(items)
+        self._say(f"Mission: {len(items)} items")
+        return MissionResult.ACCEPTED, ""
+
+    def mission_items(self, mission_type: MissionType) -> list[MissionItem]:
+        if mission_type is MissionType.FENCE:
+            return list(self.fence)
+        return list(self.mission) if mission_type is MissionType.MISSION else []
+
+    def set_current_mission_item(self, seq: int) -> bool:
+        executor = self.executor
+        return executor is not None and executor.set_current(seq)
+
+    def handle_command(self, request: CommandRequest) -> CommandResult:
+        result = self.commander.handle_command(request)
+        if request.command == CMD_MISSION_START and result is CommandResult.ACCEPTED and self.executor is not None:
+            first = request.params[0]
+            seq = int(first) if math.isfinite(first) and first >= 1.0 else None
+            if not self.executor.start(self._now_us(), seq):
+                return CommandResult.DENIED
+        return result
+
+    def _now_us(self) -> int:
+        return self.state.time_us if self.state is not None else 0
+
+    def _executor(self) -> MissionExecutor | None:
+        if self.executor is None and self.home_geo is not None:
+            self.executor = MissionExecutor(self.home_geo, ExecutorConfig.from_params(self.params))
+        return self.executor
+
+    # ------------------------------------------------------------------ the step
+    def step(self, frame: FrameLike) -> ActuatorCommand:
+        """Answer one lockstep frame (everything here is a function of the frames and commands so far)."""
+        t_us = frame.sensor.time_us
+        if self._prev_time_us is not None and t_us > self._prev_time_us:
+            self._dt_s = (t_us - self._prev_time_us) * 1e-6
+        self._prev_time_us = t_us
+        self.frames += 1
+        self.frame_detections = getattr(frame, "detections", ())
+        state = self.estimator.update(frame)
+        truth = frame.truth
+        if truth is not None:
+            self._hash.update(self._pack(truth.time_us, *truth.q_ned_frd, *truth.vel_ned_m_s, truth.lat_deg,
+                                         truth.lon_deg, truth.alt_amsl_m))  # fmt: skip
+        if state is None:
+            return ActuatorCommand(t_us, (0.0, 0.0, 0.0, 0.0), False, self.commander.gripper_release)
+        self.state = state
+        commander = self.commander
+        commander.local_frame = self.estimator.local_frame
+        self._track_home()
+        self._run_failsafes(state)
+        self._run_mission(state)
+        target = commander.update(state, self.thrust_ratio)
+        self._follow_mode_changes(state)
+        self._target = target
+        motor = self._control(state, target)
+        self._motor = motor
+        return ActuatorCommand(t_us, motor, commander.armed, commander.gripper_release)
+
+    def _track_home(self) -> None:
+        home = self.commander.home
+        if home is not self._last_home:
+            self._last_home = home
+            if home is not None:
+                executor = self._executor()
+                if executor is not None:
+                    executor.set_home(home.geo)
+                if self.fence:
+                    self.failsafe.geofence = geofence_from_items(self.fence, home.geo)
+
+    def _run_failsafes(self, state: VehicleState) -> None:
+        """Failsafe checks at FAILSAFE_PERIOD_US of sim time (PX4's commander runs them at 10 Hz too)."""
+        if state.time_us < self._next_failsafe_us:
+            return
+        self._next_failsafe_us = state.time_us + FAILSAFE_PERIOD_US
+        commander = self.commander
+        events = self.failsafe.update(
+            FailsafeInputs(
+                armed=commander.armed,
+                in_air=commander.in_air,
+                gcs_heartbeat_age_s=self._gcs_heartbeat_age(),
+                offboard_setpoint_age_s=None,
+                battery_remaining=self.battery.remaining,
+                pos_ned_m=state.pos_ned_m,
+                home_ned_m=self.home_ned,
+            )
+        )
+        for event in events:
+            commander.apply_failsafe(event)
+        commander.failsafe_reasons = {kind.value for kind in self.failsafe.active}
+
+    def _run_mission(self, state: VehicleState) -> None:
+        commander, executor = self.commander, self.executor
+        if executor is None or commander.mode is not FlightMode.AUTO_MISSION:
+            return
+        home = self.home_ned
+        pos = (state.pos_ned_m[0] - home[0], state.pos_ned_m[1] - home[1], state.pos_ned_m[2] - home[2])
+        landed = commander.landed_state is LandedState.ON_GROUND
+        out = executor.step(VehicleSample(state.time_us, pos, state.vel_ned_m_s, landed))
+        self._last_output = out
+        for seq in out.reached:
+            self._pending_reached.append(seq)
+            self.reached_seqs.append(seq)
+            self._say(f"Reached item {seq}")
+        for action in out.actions:
+            commander.set_gripper(release=action.kind is ActionKind.GRIPPER_RELEASE)
+        target = out.target
+        commander.set_mission_target(None if target is None else _mission_to_nav(target, home, commander))
+
+    def _follow_mode_changes(self, state: VehicleState) -> None:
+        mode = self.commander.mode
+        if mode is self._last_mode:
+            return
+        executor = self.executor
+        if executor is not None:
+            if mode is FlightMode.AUTO_MISSION and executor.state is not MissionState.ACTIVE:
+                executor.start(state.time_us)
+            elif self._last_mode is FlightMode.AUTO_MISSION:
+                executor.pause(state.time_us)
+        self._last_mode = mode
+
+    def _control(self, state: VehicleState, target: NavTarget) -> tuple[float, float, float, float]:
+        commander, gen = self.commander, self.setpoints
+        if target.kind is TargetKind.IDLE:
+            self._last_kind = TargetKind.IDLE
+            gen.update(target, self._dt_s, state.pos_ned_m)
+            self.thrust_ratio = 0.0
+            idle = self.params.get("MOT_SPIN_IDLE") if commander.armed else 0.0
+            return (idle, idle, idle, idle)
+        controller = self.controller
+        if controller is None or abs(controller.dt_s - self._dt_s) > 1e-9:
+            controller = self.controller = CascadeController(self.airframe, self.gains, 1, self._dt_s)
+        if self._last_kind is TargetKind.IDLE:
+            gen.reset(state.pos_ned_m, state.vel_ned_m_s, state.yaw_rad)
+            controller.reset()
+        self._last_kind = target.kind
+        gen.update(target, self._dt_s, state.pos_ned_m)
+        pos_sp, vel_sp, acc_sp = self._pos_sp, self._vel_sp, self._acc_sp
+        pos_sp[0] = gen.pos_ned
+        vel_sp[0] = gen.vel_ned
+        acc_sp[0] = gen.acc_ned
+        if self.planner is not None and commander.mode is FlightMode.AUTO_MISSION:
+            self._apply_planner(state, target)
+        self._pos[0] = state.pos_ned_m
+        self._vel[0] = state.vel_ned_m_s
+        self._q[0] = state.q_ned_frd
+        self._rate[0] = state.rate_frd_rad_s
+        self._yaw_sp[0] = gen.yaw_rad
+        u = controller.update_position(self._pos, self._vel, self._q, self._rate, pos_sp, vel_sp, acc_sp, self._yaw_sp)
+        diag = controller.diagnostics
+        self.thrust_ratio = diag.thrust_n.item(0) / self._hover_thrust_n
+        self.battery.update(self.thrust_ratio, self._dt_s)
+        ex, ey, ez = diag.pos_err_ned.tolist()[0]
+        eroll, epitch, _ = diag.att_err_rad.tolist()[0]
+        q = state.q_ned_frd
+        tilt = math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (q[1] * q[1] + q[2] * q[2]))))
+        self.tracking.add(math.sqrt(ex * ex + ey * ey + ez * ez), math.sqrt(eroll * eroll + epitch * epitch), tilt)
+        u0, u1, u2, u3 = u.tolist()[0]
+        return (u0, u1, u2, u3)
+
+    def _apply_planner(self, state: VehicleState, target: NavTarget) -> None:
+        """Let the avoidance planner override the reference (about home at its edge)."""
+        planner = self.planner
+        assert planner is not None
+        home = self.home_ned
+        rel = (state.pos_ned_m[0] - home[0], state.pos_ned_m[1] - home[1], state.pos_ned_m[2] - home[2])
+        goal = (target.pos_ned_m[0] - home[0], target.pos_ned_m[1] - home[1], target.pos_ned_m[2] - home[2])
+        nxt = None
+        out = self._last_output
+        if out is not None and out.target is not None and out.target.next_pos_ned_m is not None:
+            nxt = out.target.next_pos_ned_m
+        result = planner.update(
+            state.time_us, rel, state.vel_ned_m_s, state.q_ned_frd, self.frame_detections, goal, nxt
+        )
+        self._planner_output = result
+        setpoint = getattr(result, "setpoint", None)
+        for decision in getattr(result, "decisions", ()):
+            self._say(str(decision.text), Severity.NOTICE)
+        if setpoint is not None:
+            p, v, a = setpoint.pos_ned_m, setpoint.vel_ned_m_s, setpoint.acc_ned_m_s2
+            self._pos_sp[0] = (p[0] + home[0], p[1] + home[1], p[2] + home[2])
+            self._vel_sp[0] = v
+            self._acc_sp[0] = a
+            self.setpoints.pos_ned[:] = (p[0] + home[0], p[1] + home[1], p[2] + home[2])
+            self.setpoints.vel_ned[:] = v
+            self.setpoints.acc_ned[:] = a
+
+    # ------------------------------------------------------------------ after the answer
+    def drain_texts(self) -> list[StatusText]:
+        """Events (commander + runner) since the last call."""
+        texts = self.commander.drain_texts()
+        if self.texts:
+            texts += self.texts
+            self.texts = []
+        return texts
+
+    def snapshot(self) -> TelemetrySnapshot | None:
+        """The telemetry snapshot of the latest step (None before the first state)."""
+        state = self.state
+        if state is None:
+            return None
+        commander = self.commander
+        home = commander.home
+        home_geo = home.geo if home is not None else self.estimator.origin
+        out = self._last_output
+        gps_ok = state.gps_fix_type >= 3
+        reached, self._pending_reached = self._pending_reached, []
+        return TelemetrySnapshot(
+            time_us=state.time_us,
+            armed=commander.armed,
+            mode=commander.mode,
+            landed_state=commander.landed_state,
+            q_ned_frd=state.q_ned_frd,
+            rate_frd_rad_s=state.rate_frd_rad_s,
+            pos_ned_m=state.pos_ned_m,
+            vel_ned_m_s=state.vel_ned_m_s,
+            lat_deg=state.lat_deg,
+            lon_deg=state.lon_deg,
+            alt_amsl_m=state.alt_amsl_m,
+            alt_rel_m=commander.alt_rel_home_m(state),
+            home_lat_deg=home_geo.lat_deg if home_geo is not None else 0.0,
+            home_lon_deg=home_geo.lon_deg if home_geo is not None else 0.0,
+            home_alt_amsl_m=home_geo.alt_amsl_m if home_geo is not None else 0.0,
+            home_valid=home is not None,
+            gps_fix_type=state.gps_fix_type,
+            gps_satellites=state.gps_satellites,
+            gps_eph_m=state.gps_eph_m if math.isfinite(state.gps_eph_m) else 99.0,
+            gps_epv_m=state.gps_epv_m if math.isfinite(state.gps_epv_m) else 99.0,
+            battery_voltage_v=self.battery.voltage_v,
+            battery_current_a=self.battery.current_a(self.thrust_ratio),
+            battery_remaining_pct=100.0 * self.battery.remaining,
+            throttle_pct=100.0 * min(1.0, self.thrust_ratio * self._hover_fraction()),
+            sensors_present=_SENSORS_PRESENT,
+            sensors_enabled=_SENSORS_PRESENT,
+            sensors_health=_SENSORS_PRESENT if gps_ok else _SENSORS_PRESENT & ~_SENSOR_GPS,
+            mission_seq_current=out.current_seq if out is not None else 0,
+            mission_count=len(self.mission),
+            mission_reached=reached,
+        )
+
+    def _hover_fraction(self) -> float:
+        """Hover thrust as a fraction of the maximum (to turn thrust_ratio into throttle)."""
+        return self._hover_thrust_n / (4.0 * self.airframe.max_rotor_thrust_n)
+
+    def record(self, texts: Sequence[StatusText]) -> StepRecord | None:
+        """The step record for a listener (None before the first state)."""
+        state = self.state
+        if state is None:
+            return None
+        gen, commander = self.setpoints, self.commander
+        out = self._last_output
+        return StepRecord(
+            time_us=state.time_us,
+            state=state,
+            target=self._target,
+            pos_sp_ned_m=(gen.pos_ned[0], gen.pos_ned[1], gen.pos_ned[2]),
+            vel_sp_ned_m_s=(gen.vel_ned[0], gen.vel_ned[1], gen.vel_ned[2]),
+            acc_sp_ned_m_s2=(gen.acc_ned[0], gen.acc_ned[1], gen.acc_ned[2]),
+            yaw_sp_rad=gen.yaw_rad,
+            motor_cmd=self._motor,
+            thrust_ratio=self.thrust_ratio,
+            armed=commander.armed,
+            mode=commander.mode,
+            landed_state=commander.landed_state,
+            home_ned_m=commander.home.pos_ned_m if commander.home is not None else None,
+            mission_seq=out.current_seq if out is not None else 0,
+            reached=tuple(self._pending_reached),
+            texts=tuple(texts),
+            detections=self.frame_detections,
+            planner_output=self._planner_output,
+            controller=self.controller,
+        )
+
+    # ------------------------------------------------------------------ summary
+    def summary(self, wall_time_s: float) -> dict[str, object]:
+        """``autopilot_summary.json`` (SPEC §12): mission progress, modes, landing, tracking errors."""
+        commander = self.commander
+        tr = self.tracking
+        sim_time_s = (self.state.time_us * 1e-6) if self.state is not None else 0.0
+        executor = self.executor
+        return {
+            "end_reason": (self.end_reason or AutopilotEndReason.STOPPED).value,
+            "sim_time_s": round(sim_time_s, 6),
+            "wall_time_s": round(wall_time_s, 3),
+            "frames": self.frames,
+            "vehicle": self.airframe.name,
+            "items_total": len(self.mission),
+            "items_reached": len(set(self.reached_seqs)),
+            "reached_seqs": list(self.reached_seqs),
+            "mission_state": executor.state.name if executor is not None else MissionState.NO_MISSION.name,
+            "mode": commander.mode.name,
+            "mode_history": [{"t_s": t / 1e6, "mode": m.name} for t, m in commander.mode_history],
+            "armed": commander.armed,
+            "landed": commander.landed_state is LandedState.ON_GROUND,
+            "disarmed": not commander.armed,
+            "payload_released": commander.gripper_release,
+            "battery_remaining": round(self.battery.remaining, 4),
+            "tracking_pos_err_rms_m": math.sqrt(tr.pos_sq_sum / tr.n) if tr.n else 0.0,
+            "tracking_pos_err_max_m": tr.pos_max,
+            "tracking_att_err_rms_deg": math.degrees(math.sqrt(tr.att_sq_sum / tr.n)) if tr.n else 0.0,
+            "tracking_att_err_max_deg": math.degrees(tr.att_max),
+            "max_tilt_deg": math.degrees(tr.max_tilt_rad),
+            "flying_steps": tr.n,
+            "truth_sha256": self._hash.hexdigest(),
+        }
+
+    def write_summary(self, wall_time_s: float) -> Path | None:
+        """Write ``LOG_DIR/autopilot_summary.json`` (None without a log dir)."""
+        if not self.config.log_dir:
+            return None
+        path = Path(self.config.log_dir) / "autopilot_summary.json"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(self.summary(wall_time_s), indent=2) + "\n")
+        return path
+
+
+class VehicleAdapter:
+    """The ``VehicleInterface`` the GCS and API servers call: commands, missions, parameters."""
+
+    def __init__(self, autopilot: Autopilot) -> None:
+        self._ap = autopilot
+
+    def handle_command(self, request: CommandRequest) -> CommandResult:
+        return self._ap.handle_command(request)
+
+    def mission_items(self, mission_type: MissionType) -> list[MissionItem]:
+        return self._ap.mission_items(mission_type)
+
+    def replace_mission(self, mission_type: MissionType, items: list[MissionItem]) -> tuple[MissionResult, str]:
+        return self._ap.replace_mission(mission_type, items)
+
+    def set_current_mission_item(self, seq: int) -> bool:
+        return self._ap.set_current_mission_item(seq)
+
+    def param_names(self) -> list[str]:
+        return self._ap.params.names()
+
+    def param_get(self, name: str) -> float | None:
+        params = self._ap.params
+        return params.get(name) if name in params else None
+
+    def param_set(self, name: str, value: float) -> tuple[bool, float, str]:
+        params = self._ap.params
+        try:
+            return True, params.set(name, value), ""
+        except ParamError as exc:
+            current = params.get(name) if name in params else math.nan
+            return False, current, str(exc)
+
+
+@dataclass
+class Links:
+    """The sockets of one autopilot process (SPEC §3); any of the GCS/API servers may be absent."""
+
+    lockstep: object  # mavlink_bridge.lockstep.LockstepClient
+    gcs: list[object] = field(default_factory=list)  # mavlink_bridge.gcs_server.GcsServer
+
+
+def run_loop(
+    autopilot: Autopilot,
+    links: Links,
+    should_stop: Callable[[], bool],
+    *,
+    connect_timeout_s: float = 30.0,
+) -> AutopilotEndReason:
+    """Serve the lockstep until stopped or the sim is gone; GCS links polled between frames."""
+    client = links.lockstep
+    servers = links.gcs
+    if servers:
+        autopilot._gcs_heartbeat_age = lambda: _gcs_age(servers)
+    t0 = time.monotonic()
+    next_poll = 0.0
+    steps = 0
+    reason = AutopilotEndReason.STOPPED
+    while not should_stop():
+        frame = client.next_frame(_LINK_POLL_PERIOD_S)  # type: ignore[attr-defined]
+        now = time.monotonic()
+        if frame is not None:
+            client.answer(autopilot.step(frame))  # type: ignore[attr-defined]
+            steps += 1
+        elif client.sim_lost:  # type: ignore[attr-defined]
+            reason = AutopilotEndReason.SIM_LOST
+            break
+        elif not client.connected and now - t0 > connect_timeout_s:  # type: ignore[attr-defined]
+            reason = AutopilotEndReason.SIM_NEVER_CONNECTED
+            break
+        texts = autopilot.drain_texts()
+        if servers:
+            state = autopilot.state
+            sim_us = state.time_us if state is not None else 0
+            if frame is not None and (steps % _SNAPSHOT_EVERY == 0 or texts or autopilot._pending_reached):
+                snapshot = autopilot.snapshot()
+                if snapshot is not None:
+                    for server in servers:
+                        server.publish(snapshot)  # type: ignore[attr-defined]
+            for text in texts:
+                for server in servers:
+                    server.statustext(text.severity, text.text)  # type: ignore[attr-defined]
+            if frame is None or now >= next_poll:
+                next_poll = now + _LINK_POLL_PERIOD_S
+                for server in servers:
+                    server.poll(sim_us, now)  # type: ignore[attr-defined]
+        if autopilot.listener is not None and frame is not None:
+            record = autopilot.record(texts)
+            if record is not None:
+                autopilot.listener.on_step(record)
+    autopilot.end_reason = reason
+    return reason
+
+
+def _gcs_age(servers: Sequence[object]) -> float | None:
+    """Wall seconds since the youngest GCS heartbeat over all links (None if none ever)."""
+    ages = [server.gcs_heartbeat_age_s for server in servers]  # type: ignore[attr-defined]
+    age = min(ages) if ages else math.inf
+    return None if math.isinf(age) else age
