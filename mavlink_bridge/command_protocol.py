@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pymavlink.dialects.v20 import common as mavlink2
 
 from mavlink_bridge.gcs_types import CommandRequest, CommandResult, VehicleInterface
-from mavlink_bridge.mission_items import GLOBAL_FRAMES, xy_from_int
+from mavlink_bridge.mission_items import xy_from_int
 
 MAV_CMD_SET_MESSAGE_INTERVAL = mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL
 MAV_CMD_REQUEST_MESSAGE = mavlink2.MAV_CMD_REQUEST_MESSAGE
@@ -42,11 +42,10 @@ class _Answered:
 
 
 def request_from_msg(msg: mavlink2.MAVLink_message) -> CommandRequest:
-    """COMMAND_LONG or COMMAND_INT as a CommandRequest (COMMAND_INT x/y in degrees for global frames)."""
+    """COMMAND_LONG or COMMAND_INT as a CommandRequest (COMMAND_INT x/y: degrees in global frames, metres in local)."""
     if msg.get_type() == "COMMAND_INT":
         frame = int(msg.frame)
-        x = xy_from_int(msg.x, frame) if frame in GLOBAL_FRAMES else float(msg.x)
-        y = xy_from_int(msg.y, frame) if frame in GLOBAL_FRAMES else float(msg.y)
+        x, y = xy_from_int(msg.x, frame), xy_from_int(msg.y, frame)
         params = (float(msg.param1), float(msg.param2), float(msg.param3), float(msg.param4), x, y, float(msg.z))
         return CommandRequest(int(msg.command), params, msg.get_srcSystem(), msg.get_srcComponent(), True, frame)
     params = tuple(float(getattr(msg, f"param{i}")) for i in range(1, 8))

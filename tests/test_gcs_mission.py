@@ -203,3 +203,26 @@ def test_items_reached_reach_the_client(link) -> None:
         harness.vehicle.pending_reached.extend([0, 1, 2])
     status = client.wait_until(lambda s: len(s.items_reached) == 3, 3.0)
     assert status.items_reached == (0, 1, 2)
+
+
+def test_too_many_items_is_refused_with_no_space() -> None:
+    server_port, gcs_port = free_udp_port(), free_udp_port()
+    vehicle = FakeVehicle()
+    server = GcsServer(
+        f"udpin:127.0.0.1:{server_port}",
+        vehicle,
+        default_target_url=f"udpout:127.0.0.1:{gcs_port}",
+        max_mission_items=50,
+    )
+    harness = ServerHarness(server, vehicle)
+    client = GcsClient(f"udpin:127.0.0.1:{gcs_port}", timeout_s=3.0, retry_s=0.1)
+    try:
+        client.wait_heartbeat(5.0)
+        client.upload_mission(_route(50))
+        with pytest.raises(MissionUploadError) as err:
+            client.upload_mission(_route(51))
+        assert err.value.result is MissionResult.NO_SPACE and "limit 50" in err.value.text
+        assert vehicle.missions[MissionType.MISSION] == _route(50)
+    finally:
+        client.close()
+        harness.stop()
