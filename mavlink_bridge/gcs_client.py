@@ -110,6 +110,7 @@ class VehicleStatus:
     lon_deg: float | None
     alt_rel_m: float | None
     home: GeoPoint | None
+    gps_fix_type: int  # GPS_FIX_TYPE (0 = no GPS yet, 3 = 3D fix)
     battery_remaining_pct: float | None
     mission_seq_current: int
     mission_count: int
@@ -170,6 +171,7 @@ class GcsClient:
         self._alt_rel: float | None = None
         self._home: GeoPoint | None = None
         self._battery: float | None = None
+        self._gps_fix_type = 0
         self._mission_seq = 0
         self._mission_count = 0
         self._mission_state = 0
@@ -208,6 +210,7 @@ class GcsClient:
             lon_deg=self._lon,
             alt_rel_m=self._alt_rel,
             home=self._home,
+            gps_fix_type=self._gps_fix_type,
             battery_remaining_pct=self._battery,
             mission_seq_current=self._mission_seq,
             mission_count=self._mission_count,
@@ -582,6 +585,8 @@ class GcsClient:
                 self._alt_rel = msg.relative_alt / 1000.0
         elif kind == "HOME_POSITION":
             self._home = GeoPoint(deg_from_deg_e7(msg.latitude), deg_from_deg_e7(msg.longitude), msg.altitude / 1000.0)
+        elif kind == "GPS_RAW_INT":
+            self._gps_fix_type = int(msg.fix_type)
         elif kind == "SYS_STATUS":
             self._battery = None if msg.battery_remaining < 0 else float(msg.battery_remaining)
         elif kind == "MISSION_CURRENT":

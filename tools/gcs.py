@@ -20,8 +20,8 @@ from pathlib import Path
 from autopilot.mission.files import MissionFileError, load_mission_file, save_mission_file
 from autopilot.mission.plan import MissionPlan
 from mavlink_bridge.frames import GeoPoint
-from mavlink_bridge.gcs_client import CommandFailedError, GcsClient, GcsError, VehicleStatus
-from mavlink_bridge.gcs_types import CommandResult, FlightMode, LandedState, MissionType
+from mavlink_bridge.gcs_client import CommandFailedError, GcsClient, GcsError, MissionUploadError, VehicleStatus
+from mavlink_bridge.gcs_types import CommandResult, FlightMode, LandedState, MissionResult, MissionType
 from mavlink_bridge.link import LinkUrl, LinkUrlError
 from mavlink_bridge.signing import SigningKeyError, signing_key_from_text
 
@@ -151,6 +151,25 @@ def _arm_when_ready(client: GcsClient, timeout_s: float) -> None:
             client.pump(0.5)
 
 
+def _upload_when_ready(client: GcsClient, plan: MissionPlan, timeout_s: float) -> None:
+    """Wait for a 3D GPS fix, then upload mission + fence, retrying while the vehicle is not ready yet."""
+    deadline = time.monotonic() + timeout_s
+    try:
+        client.wait_until(lambda s: s.gps_fix_type >= 3, timeout_s)
+    except GcsError as exc:
+        raise GcsScriptError(f"no 3D GPS fix reported within {timeout_s:g} s") from exc
+    while True:
+        try:
+            client.upload_mission(plan.items, MissionType.MISSION)
+            client.upload_mission(plan.fence, MissionType.FENCE)
+            return
+        except MissionUploadError as exc:
+            transient = exc.result in (MissionResult.ERROR, MissionResult.DENIED)
+            if not transient or time.monotonic() >= deadline:
+                raise
+            client.pump(0.5)
+
+
 def _mission_done(status: VehicleStatus, total: int) -> bool:
     return status.mission_state == MISSION_STATE_COMPLETE or (total > 0 and total - 1 in status.items_reached)
 
@@ -159,8 +178,7 @@ def fly(client: GcsClient, plan: MissionPlan, timeout_s: float, progress: bool =
     """Upload mission + fence, arm, start, and wait until the mission is done, landed and disarmed."""
     t0 = time.monotonic()
     total = len(plan.items)
-    client.upload_mission(plan.items, MissionType.MISSION)
-    client.upload_mission(plan.fence, MissionType.FENCE)
+    _upload_when_ready(client, plan, min(60.0, timeout_s))
     client.forget_reached_items()
     _arm_when_ready(client, min(60.0, timeout_s))
     try:
