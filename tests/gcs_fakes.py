@@ -74,6 +74,8 @@ class FakeVehicle:
         self.pending_reached: list[int] = []  # drained into the next snapshot
         self.item_period_us = 50_000  # in AUTO_MISSION and armed, one item is "reached" per this much sim time
         self._next_item_us: int | None = None
+        self.not_ready_until_us = 0  # missions are refused ("no position fix yet") before this sim time
+        self.time_us = 0
 
     # VehicleInterface ------------------------------------------------------------------------------------
     def handle_command(self, request: CommandRequest) -> CommandResult:
@@ -107,6 +109,8 @@ class FakeVehicle:
 
     def replace_mission(self, mission_type: MissionType, items: list[MissionItem]) -> tuple[MissionResult, str]:
         self.replace_calls += 1
+        if self.time_us < self.not_ready_until_us:
+            return MissionResult.ERROR, "no position fix yet"
         known = FENCE_COMMANDS if mission_type is MissionType.FENCE else MISSION_COMMANDS
         for item in items:
             if item.command not in known:
@@ -155,6 +159,7 @@ class FakeVehicle:
                 self.mode = FlightMode.AUTO_LOITER
 
     def snapshot(self, time_us: int) -> TelemetrySnapshot:
+        self.time_us = time_us
         self._fly(time_us)
         done = bool(self.missions[MissionType.MISSION]) and not self.armed and self.current_seq > 0
         return TelemetrySnapshot(

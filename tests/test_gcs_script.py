@@ -57,6 +57,8 @@ def vehicle_link(tmp_path):
 
 def test_fly_uploads_arms_starts_and_waits_for_landing(vehicle_link, tmp_path, capsys) -> None:
     harness, connect, mission = vehicle_link
+    with harness.locked():
+        harness.vehicle.not_ready_until_us = harness.sim_time_us + 3_000_000  # refuses uploads for 3 s of sim
     summary_path = tmp_path / "out" / "gcs_summary.json"
     rc = gcs.main([*connect, "fly", str(mission), "--summary", str(summary_path), "--no-progress", "--timeout-s", "30"])
     assert rc == 0, capsys.readouterr().err
@@ -68,6 +70,7 @@ def test_fly_uploads_arms_starts_and_waits_for_landing(vehicle_link, tmp_path, c
     assert summary["sim_time_s"] > 0 and summary["wall_time_s"] > 0
     _assert_same_items(harness.vehicle.missions[MissionType.MISSION], plan.items)
     assert len(harness.vehicle.missions[MissionType.FENCE]) == len(plan.fence) > 0
+    assert harness.vehicle.replace_calls > 2  # the first refused uploads were retried
 
 
 def test_fly_reports_failure_when_arming_is_refused(vehicle_link, tmp_path, capsys) -> None:
