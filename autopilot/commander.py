@@ -6,7 +6,8 @@ an honest :class:`CommandResult` (and :attr:`Commander.last_reason` when refused
 produces one :class:`NavTarget` per step for the setpoint generator.
 
 State: ``armed``; ``mode`` (PX4-encoded :class:`FlightMode`); ``landed_state``
-(:class:`LandedState`); ``home`` (set at arming); ``gripper_release``. Modes:
+(:class:`LandedState`); ``home`` (set at the first 3D GPS fix and again at arming, as PX4
+does); ``gripper_release``. Modes:
 
 - AUTO_LOITER (HOLD) and POSCTL (no RC here, so it holds too): hold a point.
 - AUTO_TAKEOFF: climb to the takeoff altitude above home at ``MPC_TKO_SPEED``, then HOLD.
@@ -282,13 +283,16 @@ class Commander:
         self.armed = True
         self._armed_at_us = state.time_us
         self._touchdown_us = None
-        self.home = Home(state.pos_ned_m, GeoPoint(state.lat_deg, state.lon_deg, state.alt_amsl_m), state.yaw_rad)
+        self._set_home(state)
         if self.mode is FlightMode.AUTO_TAKEOFF:  # takeoff requested before arming: climb above the new home
             self._enter_takeoff(state, self._takeoff_alt_rel_m)
         elif self.mode in (FlightMode.AUTO_LOITER, FlightMode.POSCTL):
             self._hold_ned = state.pos_ned_m
         self._say("Armed" + (" (forced)" if force else ""))
         return CommandResult.ACCEPTED
+
+    def _set_home(self, state: VehicleState) -> None:
+        self.home = Home(state.pos_ned_m, GeoPoint(state.lat_deg, state.lon_deg, state.alt_amsl_m), state.yaw_rad)
 
     def disarm(self, force: bool = False, reason: str = "") -> CommandResult:
         if not self.armed:
@@ -534,6 +538,8 @@ class Commander:
         self._state = state
         if self.local_frame is None:
             return NavTarget(TargetKind.IDLE)
+        if self.home is None and state.valid and state.gps_fix_type >= 3:
+            self._set_home(state)  # PX4: home at the first 3D fix, moved to where the vehicle arms
         p = self.params.get
         if not self.armed:  # motors off: on the ground unless still falling after a forced disarm
             falling = abs(state.vel_ned_m_s[2]) >= p("LNDMC_Z_VEL_MAX")

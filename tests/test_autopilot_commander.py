@@ -231,3 +231,15 @@ def test_offboard_needs_a_setpoint_and_mission_target_drives_auto_mission() -> N
 
     commander.set_mission_target(NavTarget(TargetKind.POSITION, (0.0, 8.0, -6.0)))
     assert loop.run_until(lambda: math.dist(loop.pos, (0.0, 8.0, -6.0)) < 0.1, 20.0)
+
+
+def test_home_is_set_at_the_first_3d_fix_and_moved_at_arming() -> None:
+    commander = make_commander()
+    commander.update(make_state(gps_fix_type=2), 0.0)
+    assert commander.home is None
+    commander.update(make_state((1.0, 2.0, 0.0)), 0.0)
+    assert commander.home is not None and commander.home.pos_ned_m == (1.0, 2.0, 0.0)
+    commander.update(make_state((3.0, 4.0, 0.0)), 0.0)
+    assert commander.home.pos_ned_m == (1.0, 2.0, 0.0)
+    assert commander.handle_command(command(*ARM)) is CommandResult.ACCEPTED
+    assert commander.home.pos_ned_m == (3.0, 4.0, 0.0)
