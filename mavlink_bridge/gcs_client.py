@@ -480,14 +480,17 @@ class GcsClient:
         self.mav.param_request_list_send(ts, tc)
         deadline = time.monotonic() + self.timeout_s
         while time.monotonic() < deadline:
+            before = len(values)
             if self._wait(complete, self.retry_s) is not None:
                 break
+            if len(values) > before:
+                deadline = time.monotonic() + self.timeout_s  # still streaming: the limit is on silence
+                continue
             if total is None:
                 self.mav.param_request_list_send(ts, tc)
             else:
                 for index in [i for i in range(total) if i not in values][:20]:
                     self.mav.param_request_read_send(ts, tc, b"", index)
-                deadline = max(deadline, time.monotonic() + self.retry_s)  # progress keeps it going
         if total is None or len(values) < total:
             raise GcsTimeoutError(f"parameter list incomplete: {len(values)}/{total if total is not None else '?'}")
         return {name: value for _, (name, value) in sorted(values.items())}

@@ -12,6 +12,7 @@ import pytest
 from conftest import free_udp_port
 from gcs_fakes import MAV_CMD_COMPONENT_ARM_DISARM, FakeVehicle, ServerHarness
 
+from autopilot.params import ParamSpec, ParamStore
 from mavlink_bridge.gcs_client import (
     CommandFailedError,
     GcsClient,
@@ -21,6 +22,7 @@ from mavlink_bridge.gcs_client import (
 )
 from mavlink_bridge.gcs_server import GcsServer
 from mavlink_bridge.gcs_types import CommandResult, FlightMode, LandedState
+from mavlink_bridge.lossy import LossProfile, LossyUdpProxy
 from mavlink_bridge.signing import signing_key_from_text
 
 os.environ.setdefault("MAVLINK20", "1")
@@ -255,3 +257,25 @@ def test_gcs_heartbeat_age_tracks_the_client(link) -> None:
     harness, client = link
     client.pump(1.2)
     assert harness.server.gcs_heartbeat_age_s < 1.5
+
+
+def test_param_list_of_300_over_a_lossy_link() -> None:
+    server_port = free_udp_port()
+    vehicle = FakeVehicle()
+    vehicle.params = ParamStore(ParamSpec(f"TEST_P{i:03d}", float(i), 0.0, 1000.0, "", "test") for i in range(300))
+    harness = ServerHarness(GcsServer(f"udpin:127.0.0.1:{server_port}", vehicle), vehicle)
+    profile = LossProfile(drop_p=0.1, duplicate_p=0.05, reorder_p=0.05, seed=11)
+    try:
+        with LossyUdpProxy(("127.0.0.1", server_port), profile) as proxy:
+            host, port = proxy.listen_address
+            client = GcsClient(f"udpout:{host}:{port}", timeout_s=3.0, retry_s=0.1)
+            try:
+                client.wait_heartbeat(5.0)
+                params = client.list_params()
+                assert params == {f"TEST_P{i:03d}": float(i) for i in range(300)}
+                assert client.set_param("TEST_P123", 7.0) == 7.0
+                assert proxy.stats.dropped > 0
+            finally:
+                client.close()
+    finally:
+        harness.stop()
