@@ -6,6 +6,9 @@ their rates in sim time, commands acked honestly, the mission protocol (MISSION 
 FENCE) and float parameters. The autopilot runner owns the clock: it calls ``poll``
 between lockstep frames (never blocks) and ``publish`` once per control step.
 
+Streams run at their rates in sim time, capped at ``max_stream_speedup`` (default 5) times
+those rates in wall time so a run at ``--speed max`` cannot flood a GCS; events are never capped.
+
 GCS link timeouts are wall-clock (the GCS is a real-time peer). When the simulation runs
 slower than real time (``speed_factor`` < 1) they stretch by ``1 / speed_factor``, so a
 slow run is never timed out by its own pace; faster runs keep the real-time values.
@@ -74,6 +77,7 @@ class GcsServer:
         default_target_url: str | None = None,
         mission_timeouts: TransferTimeouts | None = None,
         max_mission_items: int = 5000,
+        max_stream_speedup: float | None = 5.0,
     ) -> None:
         self._endpoint = MavlinkEndpoint(
             url,
@@ -87,7 +91,7 @@ class GcsServer:
         self.system_id = system_id
         self.component_id = component_id
         stretch = 1.0 / speed_factor if 0.0 < speed_factor < 1.0 else 1.0
-        self.streams = TelemetryStreams(self.mav)
+        self.streams = TelemetryStreams(self.mav, max_speedup=max_stream_speedup)
         self.missions = MissionProtocol(
             self.mav,
             vehicle,

@@ -1,13 +1,17 @@
 """Telemetry streams of the GCS link: TelemetrySnapshot -> PX4-style MAVLink messages (SPEC §8).
 
 Each stream has an interval in microseconds of SIM time (changed by SET_MESSAGE_INTERVAL,
-0 = off). ``publish`` sends the streams that are due; ``send_now`` serves REQUEST_MESSAGE.
+0 = default, -1 = off). ``publish`` sends the streams that are due; ``send_now`` serves
+REQUEST_MESSAGE. Optionally a stream is also capped at ``max_speedup`` times its rate in
+wall time (events — HEARTBEAT on a mode/arming change, MISSION_CURRENT on a change,
+MISSION_ITEM_REACHED, STATUSTEXT — are never capped).
 The vehicle identifies as a PX4 quadrotor (system 1, component 1) with PX4 ``custom_mode``.
 """
 
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -77,9 +81,20 @@ class VehicleIdentity:
 class TelemetryStreams:
     """Rate-limited telemetry in sim time; one encoder per message id."""
 
-    def __init__(self, mav: mavlink2.MAVLink, identity: VehicleIdentity = VehicleIdentity()) -> None:
+    def __init__(
+        self,
+        mav: mavlink2.MAVLink,
+        identity: VehicleIdentity = VehicleIdentity(),
+        *,
+        max_speedup: float | None = None,
+        wall_clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        """``max_speedup``: a stream is sent at most this many times faster than its rate in WALL time
+        (None: no cap), so a simulation running many times faster than real time cannot flood the GCS."""
         self._mav = mav
         self._identity = identity
+        self._min_wall_gap_scale = None if max_speedup is None else 1e-6 / max_speedup
+        self._wall_clock = wall_clock
         self._encoders: dict[int, Callable[[TelemetrySnapshot], None]] = {
             M.MAVLINK_MSG_ID_HEARTBEAT: self._heartbeat,
             M.MAVLINK_MSG_ID_SYS_STATUS: self._sys_status,
@@ -96,6 +111,7 @@ class TelemetryStreams:
         self._default_interval_us = {msg_id: round(1e6 / hz) for msg_id, hz in DEFAULT_RATES_HZ.items()}
         self.interval_us: dict[int, int] = dict(self._default_interval_us)
         self._next_due_us: dict[int, int] = dict.fromkeys(self._encoders, 0)
+        self._next_wall_ok_s: dict[int, float] = dict.fromkeys(self._encoders, -math.inf)
         self._last_state: tuple[bool, int, int] | None = None
         self._last_mission: tuple[int, int, int] | None = None
         self.last_snapshot: TelemetrySnapshot | None = None
@@ -143,14 +159,20 @@ class TelemetryStreams:
             self._mav.mission_item_reached_send(seq)
         if t_us < self._next_any_due_us:
             return  # most control steps: nothing due
+        wall_s = self._wall_clock() if self._min_wall_gap_scale is not None else 0.0
         for msg_id, encode in self._encoders.items():
             interval = self.interval_us[msg_id]
             if interval <= 0:
                 continue
             due = self._next_due_us[msg_id]
             if t_us >= due:
-                encode(snapshot)
-                self.sent_count[msg_id] += 1
+                if self._min_wall_gap_scale is None:
+                    encode(snapshot)
+                    self.sent_count[msg_id] += 1
+                elif wall_s >= self._next_wall_ok_s[msg_id]:
+                    encode(snapshot)
+                    self.sent_count[msg_id] += 1
+                    self._next_wall_ok_s[msg_id] = wall_s + interval * self._min_wall_gap_scale
                 due += interval
                 self._next_due_us[msg_id] = due if due > t_us else t_us + interval
         self._update_next_any_due()

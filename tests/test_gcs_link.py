@@ -167,8 +167,34 @@ def _attitude_rate_hz(conn, n: int = 12) -> float:
     return (n - 1) / ((times[-1] - times[0]) / 1000.0)
 
 
-def test_set_message_interval_changes_a_stream_rate(raw) -> None:
-    _harness, conn = raw
+def test_set_message_interval_changes_a_stream_rate() -> None:
+    harness, _ = _start(max_stream_speedup=None)  # rates in pure sim time, however fast the harness runs
+    conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{harness.server.local_port}", source_system=255)
+    conn.mav.heartbeat_send(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+    try:
+        _check_rates(conn)
+    finally:
+        conn.close()
+        harness.stop()
+
+
+def test_stream_rate_is_capped_in_wall_time() -> None:
+    harness, _ = _start(max_stream_speedup=1.0)
+    harness.sim_step_us = 40_000  # sim runs ~40x faster than real time
+    conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{harness.server.local_port}", source_system=255)
+    conn.mav.heartbeat_send(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+    try:
+        _recv(conn, "ATTITUDE")
+        t0, n = time.monotonic(), 0
+        while time.monotonic() - t0 < 0.5:
+            n += conn.recv_match(type="ATTITUDE", blocking=True, timeout=0.1) is not None
+        assert 10 <= n <= 40  # 50 Hz in wall time at most (25 in 0.5 s, with slack), not 40 x 50 Hz
+    finally:
+        conn.close()
+        harness.stop()
+
+
+def _check_rates(conn) -> None:
     _recv(conn, "ATTITUDE")
     assert _attitude_rate_hz(conn) == pytest.approx(50.0, rel=0.1)
     conn.mav.command_long_send(
