@@ -1,0 +1,131 @@
+"""``quadsitl sim`` / ``python -m sim``: the lockstep simulator process (SPEC §12).
+
+Exit status: 0 when the run completed or was stopped (SIGINT/SIGTERM, ``--duration-s``),
+3 when the autopilot vanished (AUTOPILOT_LOST), 4 when the vehicle ended the run
+(collision, ground impact, non-finite state), 2 for bad options or files. In every case
+after start-up ``--log-dir/sim_summary.json`` is written.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+from pathlib import Path
+from types import FrameType
+
+from mavlink_bridge.link import LinkMode, LinkUrl, LinkUrlError
+from mavlink_bridge.lockstep import DEFAULT_SIM_PORT
+from sim.end_reason import EndReason
+from sim.server import SimConfig, SimServer, SimSetupError
+
+EXIT_OK = 0
+EXIT_USAGE = 2
+EXIT_AUTOPILOT_LOST = 3
+EXIT_VEHICLE_ENDED = 4
+
+
+def _speed(text: str) -> float | None:
+    if text == "max":
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected 'max' or a positive number, got {text!r}") from None
+    if not value > 0.0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected 'max' or a positive number, got {text!r}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The option set of SPEC §12 plus run-length, rates and test helpers."""
+    p = argparse.ArgumentParser(prog="quadsitl sim", description="Lockstep quadrotor simulator (MAVLink over UDP).")
+    p.add_argument("--world", type=Path, default=None, metavar="MISSION.yaml", help="mission/world YAML (obstacles)")
+    p.add_argument("--vehicle", default=None, metavar="NAME", help="vehicle config name or YAML path (default: x500)")
+    p.add_argument("--seed", type=int, default=0, help="seed of sensor noise and gusts")
+    p.add_argument("--speed", type=_speed, default=None, metavar="{max|FLOAT}", help="sim s per wall s (default max)")
+    p.add_argument("--instance", type=int, default=0, metavar="N", help="offset of the listen port (14560 + N)")
+    p.add_argument(
+        "--listen",
+        default=f"udp:127.0.0.1:{DEFAULT_SIM_PORT}",
+        metavar="udp:HOST:PORT",
+        help="lockstep server address (udp: or udpin:); --instance is added to its port",
+    )
+    p.add_argument("--log-dir", type=Path, default=None, metavar="DIR", help="where sim_summary.json is written")
+    p.add_argument("--duration-s", type=float, default=None, help="stop after this much sim time")
+    p.add_argument("--physics-hz", type=int, default=1000)
+    p.add_argument("--control-hz", type=int, default=250)
+    p.add_argument(
+        "--autopilot-timeout-s", type=float, default=3.0, help="wall s of silence before AUTOPILOT_LOST (default 3)"
+    )
+    p.add_argument("--start-timeout-s", type=float, default=None, help="give up waiting for the first HEARTBEAT")
+    p.add_argument("--no-sensor-noise", action="store_true", help="noiseless sensors (truth + quantisation)")
+    p.add_argument("--truth-log", type=Path, default=None, metavar="PATH.npz", help="truth state at control rate")
+    p.add_argument("-v", "--verbose", action="store_true", help="log lockstep events")
+    return p
+
+
+def config_from_args(args: argparse.Namespace) -> SimConfig:
+    """Validate the parsed options into a ``SimConfig``; ``--instance`` offsets the listen port."""
+    url = LinkUrl.parse(args.listen)
+    if url.mode is not LinkMode.LISTEN:
+        raise LinkUrlError(f"--listen: the simulator listens, use udp:HOST:PORT or udpin:HOST:PORT, got {args.listen}")
+    if args.instance < 0:
+        raise SimSetupError(f"--instance: expected N >= 0, got {args.instance}")
+    return SimConfig(
+        listen_url=str(url.with_port_offset(args.instance)),
+        world_path=args.world,
+        vehicle=args.vehicle,
+        seed=args.seed,
+        speed=args.speed,
+        duration_s=args.duration_s,
+        physics_hz=args.physics_hz,
+        control_hz=args.control_hz,
+        autopilot_timeout_s=args.autopilot_timeout_s,
+        start_timeout_s=args.start_timeout_s,
+        sensor_noise=not args.no_sensor_noise,
+        truth_log=args.truth_log,
+    )
+
+
+def exit_code(end_reason: str) -> int:
+    """Process exit status for an end reason (see module docstring)."""
+    if end_reason in (EndReason.COMPLETED.name, EndReason.STOPPED.name):
+        return EXIT_OK
+    if end_reason == EndReason.AUTOPILOT_LOST.name:
+        return EXIT_AUTOPILOT_LOST
+    return EXIT_VEHICLE_ENDED
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run one simulator process; returns the exit status."""
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(
+        level=logging.INFO if args.verbose else logging.WARNING,
+        format="sim %(levelname)s %(message)s",
+        stream=sys.stderr,
+    )
+    try:
+        server = SimServer(config_from_args(args))
+    except (ValueError, OSError) as exc:  # refused world/vehicle/options, or the port is taken
+        print(f"quadsitl sim: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+
+    def _stop(signum: int, _frame: FrameType | None) -> None:
+        server.request_stop()
+
+    previous = {sig: signal.signal(sig, _stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        summary = server.run()
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    if args.log_dir is not None:
+        summary.write(args.log_dir)
+    print(
+        f"quadsitl sim: {summary.end_reason} after {summary.sim_time_s:.2f} s sim "
+        f"({summary.real_time_factor:.1f}x real time)",
+        file=sys.stderr,
+    )
+    return exit_code(summary.end_reason)
