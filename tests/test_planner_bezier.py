@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from autopilot.planner.bezier import bezier_eval, derivative_bounds, fit_detour, hodograph
+from autopilot.planner.bezier import LIMIT_RTOL, bezier_eval, derivative_bounds, fit_detour, hodograph
 
 
 def _numeric_derivatives(ctrl: np.ndarray, duration_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -41,14 +41,14 @@ def test_fit_detour_meets_limits_and_continuity() -> None:
     pts = np.array([[0, 0, -10], [19, -4, -10], [20.7, -4, -10], [22.2, -3.5, -10], [28.5, 0, -10.0]])
     v0, v1 = np.array([5.0, 0, 0]), np.array([5.0, 0, 0])
     path = fit_detour(pts, v0, v1, v_max_m_s=6.0, a_max_m_s2=3.0)
-    assert path.limits_ok and path.v_bound_m_s <= 6.0 + 1e-9 and path.a_bound_m_s2 <= 3.0 + 1e-9
+    assert path.limits_ok and path.v_bound_m_s <= 6.0 * (1 + LIMIT_RTOL) and path.a_bound_m_s2 <= 3.0 * (1 + LIMIT_RTOL)
     ts = np.linspace(0.0, path.duration_s, 3000)
     states = [path.state_at(t) for t in ts]
     pos = np.array([s[0] for s in states])
     vel = np.array([s[1] for s in states])
     acc = np.array([s[2] for s in states[:-1]])
-    assert np.linalg.norm(vel, axis=1).max() <= 6.0 + 1e-9
-    assert np.linalg.norm(acc, axis=1).max() <= 3.0 + 1e-9
+    assert np.linalg.norm(vel, axis=1).max() <= 6.0 * (1 + LIMIT_RTOL)
+    assert np.linalg.norm(acc, axis=1).max() <= 3.0 * (1 + LIMIT_RTOL)
     assert pos[0] == pytest.approx(pts[0]) and pos[-1] == pytest.approx(pts[-1])
     assert vel[0] == pytest.approx(v0)  # continuous with the vehicle
     assert np.cross(vel[-1], v1) == pytest.approx(np.zeros(3), abs=1e-9)  # leaves along the route
@@ -62,7 +62,7 @@ def test_fit_detour_meets_limits_and_continuity() -> None:
 def test_fit_detour_tight_limits_slow_down_instead_of_violating() -> None:
     pts = np.array([[0, 0, 0], [5, 5, 0], [10, 0, 0], [15, 5, 0.0]])
     path = fit_detour(pts, np.array([2.0, 0, 0]), np.array([2.0, 0, 0]), v_max_m_s=3.0, a_max_m_s2=1.0)
-    assert path.limits_ok and path.a_bound_m_s2 <= 1.0 + 1e-9
+    assert path.limits_ok and path.a_bound_m_s2 <= 1.0 * (1 + LIMIT_RTOL)
 
 
 def test_sample_spacing_bound() -> None:

@@ -16,6 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+#: Relative tolerance on the limit check (the joint-speed iteration approaches a limit asymptotically).
+LIMIT_RTOL = 1e-4
+
 _BINOM = tuple(tuple(math.comb(n, k) for k in range(n + 1)) for n in range(12))
 
 
@@ -151,7 +154,8 @@ def fit_detour(
     for i in range(1, k):
         speeds[i], tangents[i] = _turn_speed(pts[i - 1], pts[i], pts[i + 1], cruise, a_max_m_s2)
     chords = np.linalg.norm(np.diff(pts, axis=0), axis=1)
-    v_bound = a_bound = math.inf
+    v_bound = a_bound = best_excess = math.inf
+    stalled = 0
     for _ in range(max_iterations):
         vel = tangents.copy()
         vel[1:] *= speeds[1:, None]
@@ -163,13 +167,18 @@ def fit_detour(
         vb = np.linalg.norm(hv, axis=2).max(axis=1)
         ab = np.linalg.norm(ha, axis=2).max(axis=1)
         v_bound, a_bound = float(vb.max()), float(ab.max())
-        if v_bound <= v_max_m_s * (1 + 1e-9) and a_bound <= a_max_m_s2 * (1 + 1e-9):
+        if v_bound <= v_max_m_s * (1 + LIMIT_RTOL) and a_bound <= a_max_m_s2 * (1 + LIMIT_RTOL):
             break
         excess = np.maximum(vb / v_max_m_s, np.sqrt(ab / a_max_m_s2))
+        worst_now = float(excess.max())
+        stalled = stalled + 1 if worst_now > 0.995 * best_excess else 0
+        if stalled >= 3:
+            break  # no progress: the fixed start velocity makes the limits unreachable
+        best_excess = min(best_excess, worst_now)
         worst = np.maximum(np.concatenate((excess, [0.0])), np.concatenate(([0.0], excess)))
         # slow the joints next to offending segments (the start velocity stays: continuity with the vehicle)
         speeds[1:] *= np.where(worst[1:] > 1.0, np.maximum(0.6, 0.97 / np.maximum(worst[1:], 1e-9)), 1.0)
-    ok = v_bound <= v_max_m_s * (1 + 1e-6) and a_bound <= a_max_m_s2 * (1 + 1e-6)
+    ok = v_bound <= v_max_m_s * (1 + LIMIT_RTOL) and a_bound <= a_max_m_s2 * (1 + LIMIT_RTOL)
     ctrl.setflags(write=False)
     durations.setflags(write=False)
     return BezierPath(ctrl, durations, v_bound, a_bound, ok)

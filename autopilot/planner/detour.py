@@ -28,6 +28,8 @@ from .obstacle_map import ObstacleKind, TrackedObstacle
 _UP_NED = np.array((0.0, 0.0, -1.0))
 _ARC_STEP_RAD = math.radians(30.0)
 _SAMPLE_STEP_M = 0.4
+#: How many times blocking neighbours may be merged into the threat's volume before giving up.
+MAX_CLUSTER_MERGES = 3
 
 
 class DetourSide(Enum):
@@ -72,6 +74,7 @@ class DetourLimits:
     alt_floor_m: float
     alt_ceiling_m: float
     fences: tuple[FenceZone, ...] = ()
+    cruise_m_s: float = 5.0  # detour speed when the vehicle flies slower (e.g. starts from a hover)
 
 
 @dataclass(frozen=True, slots=True)
@@ -224,15 +227,19 @@ def path_clearance(samples_ned: np.ndarray, obstacles: Sequence[TrackedObstacle]
 
 
 def check_path(
-    samples_ned: np.ndarray, start_ned: np.ndarray, obstacles: Sequence[TrackedObstacle], limits: DetourLimits
+    samples_ned: np.ndarray,
+    start_ned: np.ndarray,
+    obstacles: Sequence[TrackedObstacle],
+    limits: DetourLimits,
+    tol_m: float = 0.5 * _SAMPLE_STEP_M,
 ) -> str:
     """Why a sampled path is unsafe ("" when it is safe).
 
-    Clearance to every obstacle must be >= R_safe + half the sample spacing (points between two
-    samples are within that of one); an obstacle already nearer than that at the start must not
+    Clearance to every obstacle must be >= R_safe + ``tol_m`` (default half the sample spacing:
+    points between two samples are within that of one); an obstacle already nearer than that at the start must not
     get nearer. Altitudes stay in [max(min AGL, floor), ceiling]; fences are checked per segment.
     """
-    tol = 0.5 * _SAMPLE_STEP_M
+    tol = tol_m
     for obs in obstacles:
         d = obs.signed_distance(samples_ned)
         need = min(limits.r_safe_m + tol, float(obs.signed_distance(start_ned[None, :])[0]) - 0.05)
@@ -260,53 +267,107 @@ def plan_detour(
 
     ``route_ned`` is the route ahead of the vehicle (current target, next target, ...). The detour
     starts at ``pos_ned`` with ``vel_ned`` and rejoins the route ``ρ + rejoin_m`` past the point
-    nearest the obstacle with the route direction at the speed it had (at least 1 m/s).
-    If no side is safe at ρ, wider detours (×1.6, ×2.5) are tried before giving up.
+    nearest the obstacle along the route at the speed it had (at least ``cruise_m_s``, at most v_max).
+    If every side is blocked by other obstacles, the threat and the nearest blocker are wrapped in
+    one enclosing volume and the sides are tried around it (up to MAX_CLUSTER_MERGES times).
     """
     pos = np.asarray(pos_ned, float)
     vel = np.asarray(vel_ned, float)
     route = np.vstack((pos, np.asarray(route_ned, float).reshape(-1, 3)))
     reports: dict[DetourSide, CandidateReport] = {}
     sides = (DetourSide.LEFT, DetourSide.RIGHT, DetourSide.OVER, DetourSide.UNDER)
-    for scale in (1.0, 1.6, 2.5):
-        rho = scale * (threat.radius_m + limits.r_safe_m + limits.margin_m)
-        s_rejoin = _closest_arclength(route, threat) + rho + limits.rejoin_m
-        rejoin, route_dir = _point_at_arclength(route, s_rejoin)
-        horiz = _unit(np.array((rejoin[0] - pos[0], rejoin[1] - pos[1], 0.0)))
-        if horiz is None:
-            horiz = _unit(np.array((route_dir[0], route_dir[1], 0.0)))
-        e1 = horiz if horiz is not None else np.array((1.0, 0.0, 0.0))
-        speed = min(limits.v_max_m_s, max(float(np.linalg.norm(vel)), 1.0))
-        vel_end = route_dir * speed
-        candidates = sorted(
-            (_build_candidate(side, pos, rejoin, threat, e1, rho, limits) for side in sides), key=lambda c: c.cost_m
-        )
-        chosen: DetourPlan | None = None
-        for cand in candidates:
-            if cand.rule:
-                reports[cand.side] = CandidateReport(cand.side, cand.cost_m, CandidateStatus.RULED_OUT, cand.rule)
-                continue
-            if chosen is not None:
-                reports[cand.side] = CandidateReport(cand.side, cand.cost_m, CandidateStatus.NOT_EVALUATED)
-                continue
-            path = fit_detour(cand.via_ned, vel, vel_end, limits.v_max_m_s, limits.a_max_m_s2)
-            if not path.limits_ok:
-                reports[cand.side] = CandidateReport(cand.side, cand.cost_m, CandidateStatus.BLOCKED, "dynamic limits")
-                continue
-            samples = path.sample(_SAMPLE_STEP_M)
-            why = check_path(samples, pos, obstacles, limits)
-            if why:
-                reports[cand.side] = CandidateReport(cand.side, cand.cost_m, CandidateStatus.BLOCKED, why)
-                continue
-            clearance, _ = path_clearance(samples, obstacles)
-            samples.setflags(write=False)
-            chosen = DetourPlan(
-                cand.side, threat.obstacle_id, cand.via_ned, path, samples, cand.cost_m, clearance, rejoin
-            )
-            reports[cand.side] = CandidateReport(cand.side, cand.cost_m, CandidateStatus.CHOSEN)
+    by_id = {o.obstacle_id: o for o in obstacles}
+    volume = threat
+    for attempt in range(MAX_CLUSTER_MERGES + 1):
+        chosen = _try_sides(pos, vel, route, volume, threat.obstacle_id, obstacles, limits, sides, reports)
         if chosen is not None:
             return DetourResult(chosen, tuple(reports[s] for s in sides))
+        blockers = {int(r.reason.split()[1]) for r in reports.values() if r.reason.startswith("obstacle ")}
+        blockers = {b for b in blockers if b in by_id}
+        if not blockers or attempt == MAX_CLUSTER_MERGES:
+            break
+        c = np.array(volume.center_ned)
+        nearest = min(blockers, key=lambda b: float(by_id[b].signed_distance(c[None, :])[0]))
+        volume = enclosing_volume(volume, by_id[nearest])
     return DetourResult(None, tuple(reports[s] for s in sides))
+
+
+def enclosing_volume(a: TrackedObstacle, b: TrackedObstacle) -> TrackedObstacle:
+    """The smallest sphere (or, if either is a column, vertical column) enclosing two obstacles; keeps a's id."""
+    column = ObstacleKind.COLUMN in (a.kind, b.kind)
+    ca, cb = np.array(a.center_ned), np.array(b.center_ned)
+    if column:
+        cb[2] = ca[2]
+    d = float(np.linalg.norm(cb - ca))
+    if d + b.radius_m <= a.radius_m:
+        c, r = ca, a.radius_m
+    elif d + a.radius_m <= b.radius_m:
+        c, r = cb, b.radius_m
+    else:
+        r = 0.5 * (d + a.radius_m + b.radius_m)
+        c = ca + (cb - ca) * (r - a.radius_m) / d
+    kind = ObstacleKind.COLUMN if column else ObstacleKind.SPHERE
+    center = (float(c[0]), float(c[1]), float(c[2]))
+    return TrackedObstacle(a.obstacle_id, kind, center, r, a.first_seen_us, a.last_seen_us, a.detections)
+
+
+def _try_sides(
+    pos: np.ndarray,
+    vel: np.ndarray,
+    route: np.ndarray,
+    volume: TrackedObstacle,
+    threat_id: int,
+    obstacles: Sequence[TrackedObstacle],
+    limits: DetourLimits,
+    sides: tuple[DetourSide, ...],
+    reports: dict[DetourSide, CandidateReport],
+) -> DetourPlan | None:
+    """Build the four candidates around ``volume``, check them in order of cost; fill ``reports``."""
+    rho = volume.radius_m + limits.r_safe_m + limits.margin_m
+    s_rejoin = _closest_arclength(route, volume) + rho + limits.rejoin_m
+    rejoin, route_dir = _point_at_arclength(route, s_rejoin)
+    horiz = _unit(np.array((rejoin[0] - pos[0], rejoin[1] - pos[1], 0.0)))
+    if horiz is None:
+        horiz = _unit(np.array((route_dir[0], route_dir[1], 0.0)))
+    e1 = horiz if horiz is not None else np.array((1.0, 0.0, 0.0))
+    speed = min(limits.v_max_m_s, max(float(np.linalg.norm(vel)), limits.cruise_m_s))
+    vel_end = route_dir * speed
+    candidates = sorted(
+        (_build_candidate(side, pos, rejoin, volume, e1, rho, limits) for side in sides), key=lambda c: c.cost_m
+    )
+    chosen: DetourPlan | None = None
+    for cand in candidates:
+        if cand.rule:
+            reports[cand.side] = CandidateReport(cand.side, cand.cost_m, CandidateStatus.RULED_OUT, cand.rule)
+            continue
+        if chosen is not None:
+            reports[cand.side] = CandidateReport(cand.side, cand.cost_m, CandidateStatus.NOT_EVALUATED)
+            continue
+        why = check_path(_densify(cand.via_ned, 1.0), pos, obstacles, limits, tol_m=0.0)  # cheap pre-check
+        if not why:
+            path = fit_detour(cand.via_ned, vel, vel_end, limits.v_max_m_s, limits.a_max_m_s2)
+            if not path.limits_ok:
+                why = "dynamic limits"
+            else:
+                samples = path.sample(_SAMPLE_STEP_M)
+                why = check_path(samples, pos, obstacles, limits)
+        if why:
+            reports[cand.side] = CandidateReport(cand.side, cand.cost_m, CandidateStatus.BLOCKED, why)
+            continue
+        clearance, _ = path_clearance(samples, obstacles)
+        samples.setflags(write=False)
+        chosen = DetourPlan(cand.side, threat_id, cand.via_ned, path, samples, cand.cost_m, clearance, rejoin)
+        reports[cand.side] = CandidateReport(cand.side, cand.cost_m, CandidateStatus.CHOSEN)
+    return chosen
+
+
+def _densify(polyline: np.ndarray, step_m: float) -> np.ndarray:
+    """Points along a polyline at most ``step_m`` apart (vertices included)."""
+    out = [polyline[:1]]
+    for a, b in itertools.pairwise(polyline):
+        n = max(1, math.ceil(float(np.linalg.norm(b - a)) / step_m))
+        out.append(a + (b - a) * (np.arange(1, n + 1) / n)[:, None])
+    return np.concatenate(out)
 
 
 def brake_path(pos_ned: np.ndarray, vel_ned: np.ndarray, a_max_m_s2: float) -> BezierPath:

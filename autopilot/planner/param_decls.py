@@ -16,6 +16,7 @@ def planner_param_specs() -> tuple[ParamSpec, ...]:
         ParamSpec("CA_TRACK_TOL_M", 0.5, 0.0, 5.0, "m", "Documented tracking tolerance: clearance >= R_safe - this"),
         ParamSpec("CA_LOOKAHEAD_M", 30.0, 5.0, 200.0, "m", "Route length checked ahead for conflicts"),
         ParamSpec("CA_VMAX_M_S", 6.0, 0.5, 20.0, "m/s", "Speed limit on the detour curve (hodograph bound)"),
+        ParamSpec("CA_CRUISE_M_S", 5.0, 0.5, 20.0, "m/s", "Detour speed when the vehicle flies slower than this"),
         ParamSpec("CA_AMAX_M_S2", 3.0, 0.5, 15.0, "m/s^2", "Acceleration limit on the detour curve (hodograph bound)"),
         ParamSpec("CA_REJOIN_M", 4.0, 0.5, 50.0, "m", "Route distance past the safety sphere where a detour rejoins"),
         ParamSpec("CA_FORGET_S", 20.0, 0.5, 600.0, "s", "An obstacle not detected for this long is forgotten"),
@@ -37,6 +38,7 @@ class PlannerParams:
     track_tol_m: float = 0.5
     lookahead_m: float = 30.0
     v_max_m_s: float = 6.0
+    cruise_m_s: float = 5.0
     a_max_m_s2: float = 3.0
     rejoin_m: float = 4.0
     forget_s: float = 20.0
@@ -57,6 +59,7 @@ class PlannerParams:
             track_tol_m=g("CA_TRACK_TOL_M"),
             lookahead_m=g("CA_LOOKAHEAD_M"),
             v_max_m_s=g("CA_VMAX_M_S"),
+            cruise_m_s=g("CA_CRUISE_M_S"),
             a_max_m_s2=g("CA_AMAX_M_S2"),
             rejoin_m=g("CA_REJOIN_M"),
             forget_s=g("CA_FORGET_S"),

@@ -41,6 +41,8 @@ from .threat import Threat, assess_threat
 
 #: The velocity-direction check reaches the stopping distance plus this many seconds of flight.
 RAY_HORIZON_S = 2.0
+#: ``look_ahead_ned`` is the detour reference this far ahead: yaw the nose (camera) toward it.
+LOOK_AHEAD_S = 2.0
 
 
 class PlannerState(Enum):
@@ -118,6 +120,7 @@ class PlannerOutput:
     obstacles: tuple[TrackedObstacle, ...]
     threat: Threat | None
     clearance_m: float  # vehicle to the nearest tracked obstacle surface (inf if none)
+    look_ahead_ned: Vec3 | None = None  # where the forward camera should look (reference LOOK_AHEAD_S ahead)
 
     @property
     def planned_path_ned(self) -> np.ndarray | None:
@@ -190,6 +193,7 @@ class AvoidancePlanner:
             alt_floor_m=self._alt_floor_m,
             alt_ceiling_m=min(self._alt_ceiling_m, p.ceiling_m),
             fences=self._fences,
+            cruise_m_s=min(p.cruise_m_s, p.v_max_m_s),
         )
 
     def _clear(self, state: PlannerState) -> None:
@@ -225,9 +229,12 @@ class AvoidancePlanner:
             threat = self._step(time_us, pos, vel, route, obstacles, changed, decisions)
         clearance = min((float(o.signed_distance(pos[None, :])[0]) for o in obstacles), default=math.inf)
         setpoint = None
+        look = None
         if self._path is not None:
-            p, v, a = self._path.state_at((time_us - self._t0_us) * 1e-6)
+            t_s = (time_us - self._t0_us) * 1e-6
+            p, v, a = self._path.state_at(t_s)
             setpoint = DetourSetpoint(_vec3(p), _vec3(v), _vec3(a))
+            look = _vec3(self._path.state_at(t_s + LOOK_AHEAD_S)[0])
         return PlannerOutput(
             time_us,
             self._state,
@@ -238,6 +245,7 @@ class AvoidancePlanner:
             obstacles,
             threat,
             clearance,
+            look,
         )
 
     def _step(

@@ -1,0 +1,227 @@
+"""Avoidance benchmark (SPEC §11): seeded Monte Carlo of random obstacle fields on delivery routes.
+
+Each field is flown in-process: the sim's :class:`ObstacleSensor` (stereo + ultrasonic, 10 Hz) feeds
+the autopilot's :class:`AvoidancePlanner`; a point-mass follower with speed and acceleration limits
+(a stand-in for the position loop: PD on the reference plus its acceleration feed-forward) flies the
+route or the planner's detour, nose toward the planner's look-ahead point on a detour and toward
+the next waypoint near a corner (the forward camera looks where the vehicle is going).
+:func:`fly_route` is also what ``tests/test_planner_closed_loop.py`` uses.
+
+Keys: ``avoid_collisions`` (target 0), ``avoid_min_clearance_m``, ``avoid_path_overhead_pct``
+(flown length over the obstacle-free route), ``avoid_completed_pct``, ``plan_p99_ms`` (per replan,
+target <= 5 ms), ``plan_mean_ms``, ``avoid_update_mean_ms`` (every planner step).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from autopilot.planner.geometry import FenceZone
+from autopilot.planner.param_decls import PlannerParams
+from autopilot.planner.planner import AvoidancePlanner
+from mavlink_bridge.frames import quat_from_euler
+from sim.obstacle_sensor import ObstacleSensor, ObstacleSensorConfig
+from sim.world import Box, Cylinder, Sphere, WindConfig, World, empty_world
+from tools.benchmarks import BenchResult
+
+#: Follower gains (1/s², 1/s) and limits: stiffer and more agile than the planner's limits.
+KP_POS = 4.0
+KD_VEL = 4.0
+VEHICLE_ACC_MAX_M_S2 = 6.0
+ACCEPT_RADIUS_M = 1.5
+#: Closer than this to a waypoint, the nose turns to the next one (the camera looks around the corner).
+LOOK_NEXT_WITHIN_M = 10.0
+
+
+@dataclass(frozen=True, slots=True)
+class FlightResult:
+    """One in-process flight: safety, efficiency and planner timing."""
+
+    collisions: int  # entries into any obstacle
+    min_clearance_m: float  # smallest true distance to any obstacle surface
+    path_length_m: float
+    route_length_m: float  # the obstacle-free route from the start
+    completed: bool  # reached the last waypoint
+    sim_time_s: float
+    plan_times_s: tuple[float, ...]  # wall time of each planner update that took a decision
+    update_times_s: tuple[float, ...]  # wall time of every planner update
+    decisions: tuple[str, ...]
+    max_track_err_m: float  # follower vs detour reference
+
+
+def fly_route(
+    world: World,
+    waypoints_ned: np.ndarray,
+    params: PlannerParams | None = None,
+    *,
+    fences: Sequence[FenceZone] = (),
+    sensor_config: ObstacleSensorConfig | None = None,
+    seed: int = 0,
+    speed_m_s: float = 5.0,
+    dt_s: float = 0.04,
+    max_time_s: float | None = None,
+) -> FlightResult:
+    """Fly ``waypoints_ned`` (first row = start) through ``world`` with the planner in the loop."""
+    params = params or PlannerParams()
+    sensor = ObstacleSensor(world, seed=seed, config=sensor_config)
+    planner = AvoidancePlanner(params, fences=fences)
+    wps = np.asarray(waypoints_ned, float)
+    route_len = float(np.linalg.norm(np.diff(wps, axis=0), axis=1).sum())
+    max_time_s = max_time_s or 3.0 * route_len / speed_m_s + 30.0
+    pos, vel = wps[0].copy(), np.zeros(3)
+    yaw = math.atan2(wps[1, 1] - wps[0, 1], wps[1, 0] - wps[0, 0])
+    sensor_every = max(1, round(1.0 / (sensor.config.rate_hz * dt_s)))
+    target_i = 1
+    collisions, inside = 0, False
+    min_clear = math.inf
+    path_len = 0.0
+    plan_t: list[float] = []
+    upd_t: list[float] = []
+    texts: list[str] = []
+    track_err = 0.0
+    steps = int(max_time_s / dt_s)
+    k = 0
+    for k in range(steps):
+        time_us = round(k * dt_s * 1e6)
+        q = quat_from_euler(0.0, 0.0, yaw)
+        dets = sensor.detect(pos, q, time_us) if k % sensor_every == 0 else ()
+        nxt = wps[target_i + 1] if target_i + 1 < len(wps) else None
+        t0 = time.perf_counter()
+        out = planner.update(time_us, pos, vel, q, dets, wps[target_i], nxt)
+        dt_wall = time.perf_counter() - t0
+        upd_t.append(dt_wall)
+        if out.decisions:
+            plan_t.append(dt_wall)
+            texts.extend(d.text for d in out.decisions)
+        if out.setpoint is not None:
+            sp_p, sp_v, sp_a = (
+                np.array(x) for x in (out.setpoint.pos_ned_m, out.setpoint.vel_ned_m_s, out.setpoint.acc_ned_m_s2)
+            )
+            track_err = max(track_err, float(np.linalg.norm(sp_p - pos)))
+            acc = sp_a + KP_POS * (sp_p - pos) + KD_VEL * (sp_v - vel)
+        else:
+            to_target = wps[target_i] - pos
+            dist = float(np.linalg.norm(to_target))
+            last = target_i == len(wps) - 1
+            v_des_mag = min(speed_m_s, math.sqrt(2.0 * 0.5 * params.a_max_m_s2 * dist)) if last else speed_m_s
+            v_des = to_target / max(dist, 1e-9) * v_des_mag
+            acc = KD_VEL * (v_des - vel)
+        norm = float(np.linalg.norm(acc))
+        if norm > VEHICLE_ACC_MAX_M_S2:
+            acc *= VEHICLE_ACC_MAX_M_S2 / norm
+        vel = vel + acc * dt_s
+        step = vel * dt_s
+        pos = pos + step
+        path_len += float(np.linalg.norm(step))
+        look = _look_point(out.look_ahead_ned, pos, wps, target_i)
+        if float(np.hypot(look[0] - pos[0], look[1] - pos[1])) > 0.5:
+            yaw = math.atan2(look[1] - pos[1], look[0] - pos[0])
+        clear = float(world.clearance_m(pos)[0]) if world.obstacles else math.inf
+        min_clear = min(min_clear, clear)
+        if clear < 0.0 and not inside:
+            collisions += 1
+        inside = clear < 0.0
+        if float(np.linalg.norm(wps[target_i] - pos)) < ACCEPT_RADIUS_M:
+            if target_i == len(wps) - 1:
+                break
+            target_i += 1
+    completed = target_i == len(wps) - 1 and float(np.linalg.norm(wps[-1] - pos)) < ACCEPT_RADIUS_M
+    return FlightResult(
+        collisions,
+        min_clear,
+        path_len,
+        route_len,
+        completed,
+        (k + 1) * dt_s,
+        tuple(plan_t),
+        tuple(upd_t),
+        tuple(texts),
+        track_err,
+    )
+
+
+def _look_point(detour_look: tuple[float, float, float] | None, pos: np.ndarray, wps: np.ndarray, i: int) -> np.ndarray:
+    """Where the nose (camera) points: the detour's look-ahead, else the target, or the next one when close."""
+    if detour_look is not None:
+        return np.array(detour_look)
+    if i + 1 < len(wps) and float(np.linalg.norm(wps[i] - pos)) < LOOK_NEXT_WITHIN_M:
+        return wps[i + 1]
+    return wps[i]
+
+
+def random_field(rng: np.random.Generator, r_keep_m: float) -> tuple[World, np.ndarray]:
+    """A delivery route (start + 2-3 waypoints, ~120 m, 8-15 m altitude) with 6-12 obstacles near it.
+
+    Obstacles never cover a waypoint or the start (kept ``r_keep_m`` away), so every field is
+    flyable in principle; they may block each other's gaps (then HOLD is the right answer).
+    """
+    alt = float(rng.uniform(8.0, 15.0))
+    n_wp = int(rng.integers(2, 4))
+    heading = float(rng.uniform(0, 2 * math.pi))
+    pts = [np.array((0.0, 0.0, -alt))]
+    for _ in range(n_wp):
+        heading += float(rng.uniform(-0.8, 0.8))
+        leg = float(rng.uniform(35.0, 55.0))
+        step = np.array((math.cos(heading) * leg, math.sin(heading) * leg, -float(rng.uniform(-2.0, 2.0))))
+        nxt = pts[-1] + step
+        nxt[2] = min(nxt[2], -6.0)
+        pts.append(nxt)
+    wps = np.array(pts)
+    obstacles: list[Sphere | Cylinder | Box] = []
+    tries = 0
+    while len(obstacles) < int(rng.integers(6, 13)) and tries < 200:
+        tries += 1
+        leg = int(rng.integers(0, len(wps) - 1))
+        a, b = wps[leg], wps[leg + 1]
+        t = float(rng.uniform(0.15, 0.85))
+        d = b - a
+        lateral = np.array((-d[1], d[0], 0.0)) / max(float(np.hypot(d[0], d[1])), 1e-9)
+        c = a + t * d + lateral * float(rng.uniform(-5.0, 5.0))
+        kind = rng.choice(3, p=(0.4, 0.3, 0.3))
+        if kind == 0:
+            obs = Cylinder(float(c[0]), float(c[1]), float(rng.uniform(1.0, 3.5)), float(rng.uniform(15.0, 40.0)))
+        elif kind == 1:
+            size = (float(rng.uniform(3.0, 9.0)), float(rng.uniform(3.0, 9.0)), float(rng.uniform(15.0, 40.0)))
+            obs = Box(float(c[0]), float(c[1]), size, float(rng.uniform(-90.0, 90.0)))
+        else:
+            obs = Sphere(float(c[0]), float(c[1]), float(-c[2] + rng.uniform(-3.0, 3.0)), float(rng.uniform(1.0, 3.0)))
+        if float(obs.distance_m(wps).min()) < r_keep_m:
+            continue
+        obstacles.append(obs)
+    world = World(home=empty_world().home, obstacles=tuple(obstacles), wind=WindConfig(), payload_kg=0.0)
+    return world, wps
+
+
+def run(quick: bool) -> list[BenchResult]:
+    """Monte Carlo over seeded random fields (200, or 30 with ``quick``)."""
+    params = PlannerParams()
+    n_fields = 30 if quick else 200
+    rng = np.random.default_rng(20240611)
+    results = []
+    for i in range(n_fields):
+        world, wps = random_field(rng, r_keep_m=params.r_safe_m + 6.0)
+        results.append(fly_route(world, wps, params, seed=i))
+    plan_ms = np.array([t for r in results for t in r.plan_times_s]) * 1e3
+    upd_ms = np.array([t for r in results for t in r.update_times_s]) * 1e3
+    collisions = sum(r.collisions for r in results)
+    min_clear = min(r.min_clearance_m for r in results)
+    done = [r for r in results if r.completed]
+    overhead = 100.0 * float(np.mean([r.path_length_m / r.route_length_m - 1.0 for r in done])) if done else math.nan
+    p99 = float(np.percentile(plan_ms, 99)) if len(plan_ms) else 0.0
+    floor = params.r_safe_m - params.track_tol_m
+    return [
+        BenchResult("avoid_fields", float(n_fields), note="random obstacle fields flown"),
+        BenchResult("avoid_collisions", float(collisions), "== 0", collisions == 0),
+        BenchResult("avoid_min_clearance_m", min_clear, f">= {floor:g}", min_clear >= floor, "R_safe - tracking tol"),
+        BenchResult("avoid_path_overhead_pct", overhead, note="completed flights, vs obstacle-free route"),
+        BenchResult("avoid_completed_pct", 100.0 * len(done) / n_fields, note="others held: no safe gap"),
+        BenchResult("avoid_replans", float(len(plan_ms)), note="planner decisions"),
+        BenchResult("plan_p99_ms", p99, "<= 5", p99 <= 5.0, "per replan"),
+        BenchResult("plan_mean_ms", float(plan_ms.mean()) if len(plan_ms) else 0.0),
+        BenchResult("avoid_update_mean_ms", float(upd_ms.mean()), note="every planner step"),
+    ]
