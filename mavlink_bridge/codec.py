@@ -120,7 +120,8 @@ _KNOWN: dict[int, tuple[bytes, int]] = {
 
 _V2_HEADER = struct.Struct("<BBBBBBBHB")  # magic, len, incompat, compat, seq, sys, comp, id lo16, id hi8
 _V2_HEADER_LEN = _V2_HEADER.size  # 10
-_V1_HEADER_LEN = 6
+_V1_HEADER = struct.Struct("<BBBBBB")  # magic, len, seq, sys, comp, id
+_V1_HEADER_LEN = _V1_HEADER.size  # 6
 _CRC = struct.Struct("<H")
 _V2_MAGIC = 0xFD
 _V1_MAGIC = 0xFE
@@ -372,13 +373,17 @@ def _decode_actuators(p: bytes) -> ActuatorCommand:
     return ActuatorCommand(t, (c0, c1, c2, c3), bool(v[-1] & ACTUATOR_MODE_ARMED), gripper >= 0.5, bool(flags & 1))
 
 
-_DECODERS: dict[int, tuple[Callable[[bytes], WireMessage | None], int]] = {
-    _HEARTBEAT.msg_id: (_decode_heartbeat, _HEARTBEAT.payload.size),
-    _HIL_SENSOR.msg_id: (_decode_sensor, _HIL_SENSOR.payload.size),
-    _HIL_GPS.msg_id: (_decode_gps, _HIL_GPS.payload.size),
-    _HIL_STATE_Q.msg_id: (_decode_truth, _HIL_STATE_Q.payload.size),
-    _OBSTACLE_3D.msg_id: (_decode_detection, _OBSTACLE_3D.payload.size),
-    _HIL_ACTUATORS.msg_id: (_decode_actuators, _HIL_ACTUATORS.payload.size),
+_DECODERS: dict[int, Callable[[bytes], WireMessage | None]] = {
+    _HEARTBEAT.msg_id: _decode_heartbeat,
+    _HIL_SENSOR.msg_id: _decode_sensor,
+    _HIL_GPS.msg_id: _decode_gps,
+    _HIL_STATE_Q.msg_id: _decode_truth,
+    _OBSTACLE_3D.msg_id: _decode_detection,
+    _HIL_ACTUATORS.msg_id: _decode_actuators,
+}
+#: msg id -> (reversed crc_extra, full payload length, decoder or None) for every message of the dialect.
+_TABLE: dict[int, tuple[bytes, int, Callable[[bytes], WireMessage | None] | None]] = {
+    msg_id: (crc_rev, size, _DECODERS.get(msg_id)) for msg_id, (crc_rev, size) in _KNOWN.items()
 }
 
 
@@ -416,54 +421,41 @@ class Decoder:
         n = len(data)
         i = 0
         while i < n:
-            b = data[i]
-            if b == _V2_MAGIC:
-                if n - i < _V2_HEADER_LEN + 2:
-                    stats.malformed += 1
-                    break
-                plen, incompat = data[i + 1], data[i + 2]
-                end = i + _V2_HEADER_LEN + plen
+            magic = data[i]
+            if magic == _V2_MAGIC and n - i >= _V2_HEADER_LEN + 2:
+                _, plen, incompat, _, _, system_id, component_id, id_lo, id_hi = _V2_HEADER.unpack_from(data, i)
+                msg_id = id_lo | (id_hi << 16)
+                start = i + _V2_HEADER_LEN
+                end = start + plen
                 frame_end = end + 2 + (_SIGNATURE_LEN if incompat & _IFLAG_SIGNED else 0)
-                msg_id = data[i + 7] | (data[i + 8] << 8) | (data[i + 9] << 16)
-                payload_start = i + _V2_HEADER_LEN
-                sys_off = 5
-            elif b == _V1_MAGIC:
-                if n - i < _V1_HEADER_LEN + 2:
-                    stats.malformed += 1
-                    break
-                plen, incompat = data[i + 1], 0
-                end = i + _V1_HEADER_LEN + plen
+            elif magic == _V1_MAGIC and n - i >= _V1_HEADER_LEN + 2:
+                _, plen, _, system_id, component_id, msg_id = _V1_HEADER.unpack_from(data, i)
+                incompat = 0
+                start = i + _V1_HEADER_LEN
+                end = start + plen
                 frame_end = end + 2
-                msg_id = data[i + 5]
-                payload_start = i + _V1_HEADER_LEN
-                sys_off = 3
             else:
                 i = self._resync(data, i + 1)
                 continue
-            known = _KNOWN.get(msg_id)
+            entry = _TABLE.get(msg_id)
             if (
-                known is None
+                entry is None
                 or incompat & ~_IFLAG_SIGNED
                 or frame_end > n
-                or _CRC.unpack_from(data, end)[0] != _crc_mcrf4xx(data[i + 1 : end], known[0])
+                or _CRC.unpack_from(data, end)[0] != _crc_mcrf4xx(data[i + 1 : end], entry[0])
             ):
                 i = self._resync(data, i + 1)
                 continue
-            if incompat & _IFLAG_SIGNED:
-                stats.signed += 1
-            self.last_system_id = data[i + sys_off]
-            self.last_component_id = data[i + sys_off + 1]
             i = frame_end
-            decoder = _DECODERS.get(msg_id)
-            if decoder is None:
+            self.last_system_id = system_id
+            self.last_component_id = component_id
+            if incompat:
+                stats.signed += 1
+            _, size, fn = entry
+            if fn is None:
                 stats.ignored += 1
                 continue
-            fn, size = decoder
-            payload = data[payload_start:end]
-            if plen < size:
-                payload += bytes(size - plen)
-            elif plen > size:
-                payload = payload[:size]
+            payload = data[start:end] if plen == size else (data[start:end] + bytes(size))[:size]
             msg = fn(payload)
             if msg is None:
                 stats.ignored += 1
