@@ -30,6 +30,8 @@ from tools.experiments.paper_pipeline import (
     LEVELS,
     RECOVERY_BAND_M,
     STRUCTURES,
+    WIND_GUST_M_S,
+    WIND_MEAN_NED_M_S,
     PaperSettings,
     payload_table,
     portability_table,
@@ -113,11 +115,32 @@ def markdown(table: dict[str, Any], extras: dict[str, Any]) -> str:
             f"| {route} | {_fmt(p['pos_rms_m'])} | {_fmt(n['pos_rms_m'])} | {_pct(rp)} "
             f"| {_fmt(p['att_rms_deg'])} | {_fmt(n['att_rms_deg'])} | {_pct(ra)} |"
         )
+    rc = extras["ratios_small_steps_and_calm_routes"]
     lines += [
+        "",
+        f"Routes flown in wind: mean {extras['routes_wind']['mean_ned_m_s']} m/s NED, gusts "
+        f"{extras['routes_wind']['gust_m_s']} m/s (1σ), the same seeded gusts for both controllers. In calm air:",
+        "",
+        "| Route (calm) | PID pos (m) | NLVG pos (m) | pos change | PID att (°) | NLVG att (°) | att change |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for route in ("storm", "lissajous"):
+        p, n = extras["routes_calm"][route]["pid"], extras["routes_calm"][route]["nlvg"]
+        lines.append(
+            f"| {route} | {_fmt(p['pos_rms_m'])} | {_fmt(n['pos_rms_m'])} | {_pct(rc[route]['pos_rms_m'])} "
+            f"| {_fmt(p['att_rms_deg'])} | {_fmt(n['att_rms_deg'])} | {_pct(rc[route]['att_rms_deg'])} |"
+        )
+    lines += [
+        "",
+        "Small steps (0.02 rad, 0.05 m), NLVG/PID ratios: "
+        + ", ".join(
+            f"{ch} IAE {_fmt(rc[ch]['IAE'], 3)} ITAE {_fmt(rc[ch]['ITAE'], 3)} ITSE {_fmt(rc[ch]['ITSE'], 3)}"
+            for ch in ("phi", "theta", "x", "y")
+        ),
         "",
         "Paper's Lissajous claim: attitude error −50 %, position error −15 %.",
         "",
-        "## Portability: gains tuned on x500, unchanged, Lissajous route",
+        "## Portability: gains tuned on x500, unchanged, Lissajous route (in the same wind)",
         "",
         "| Vehicle | PID pos (m) | NLVG pos (m) | PID att (°) | NLVG att (°) |",
         "|---|---|---|---|---|",
@@ -177,12 +200,16 @@ def main(argv: list[str] | None = None) -> int:
     for (level, s), outcome in pair.outcomes.items():
         plot_convergence(outcome.result, f"{level} {s}", out / f"convergence_{level}_{s}.png")
     steps, step_traces = step_table(pair, args.vehicle, settings)
+    small_steps, _ = step_table(pair, args.vehicle, settings, large=False)
     log("step responses done")
     storm, storm_trace = tracking_table(pair, args.vehicle, "storm", settings.storm_duration_s)
+    storm_calm, _ = tracking_table(pair, args.vehicle, "storm", settings.storm_duration_s, gusty=False)
     log("storm route done")
     liss, liss_trace = tracking_table(pair, args.vehicle, "lissajous", settings.lissajous_duration_s)
+    liss_calm, _ = tracking_table(pair, args.vehicle, "lissajous", settings.lissajous_duration_s, gusty=False)
     log("lissajous route done")
     table = {"step": steps, "storm": storm, "lissajous": liss}
+    calm = {"step": small_steps, "storm": storm_calm, "lissajous": liss_calm}
     port = portability_table(pair, settings.lissajous_duration_s)
     log("portability done")
     payload, payload_traces = payload_table(pair, settings)
@@ -198,6 +225,10 @@ def main(argv: list[str] | None = None) -> int:
         "vehicle": args.vehicle,
         "quick": args.quick,
         "ratios": ratios(table),
+        "routes_wind": {"mean_ned_m_s": list(WIND_MEAN_NED_M_S), "gust_m_s": WIND_GUST_M_S},
+        "small_steps": small_steps,
+        "routes_calm": {"storm": storm_calm, "lissajous": liss_calm},
+        "ratios_small_steps_and_calm_routes": ratios(calm),
         "paper_claims": PAPER_CLAIMS,
         "portability": port,
         "payload": payload,

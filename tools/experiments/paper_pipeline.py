@@ -7,8 +7,8 @@
    iterations needs fewer probes); both start one restart at the paper's gains, the others at random.
 2. Step responses of roll, pitch (attitude loop alone) and x, y (whole cascade): IAE, ITAE, ITSE over
    t_peak = 0.15 s (attitude, errors in degrees as in the paper's Table 1) and 0.37 s (position, m).
-3. Storm spiral and 3D Lissajous tracking: RMS of the position-error norm (m) and of the attitude-error
-   norm (deg) over the route.
+3. Storm spiral and 3D Lissajous tracking in gusty wind (the same seeded gusts for both controllers), and
+   in calm air: RMS of the position-error norm (m) and of the attitude-error norm (deg) over the route.
 4. Portability: the two gain sets tuned on the x500, unchanged, on quad250, x500 and delivery650
    (Lissajous). Payload: delivery650 hovering, total mass −30 % / +30 % mid-flight (controller not told).
 """
@@ -26,7 +26,15 @@ from autopilot.control.gains import CascadeGains
 from autopilot.metrics import T_PEAK_ATTITUDE_S, T_PEAK_POSITION_S, iae, itae, itse, rms
 from autopilot.tuning import CentralEsConfig
 from tools.experiments.references import make_reference
-from tools.experiments.rollout import MassChangeTrace, StepTrace, TrackTrace, run_mass_change, run_step, run_tracking
+from tools.experiments.rollout import (
+    MassChangeTrace,
+    StepTrace,
+    TrackTrace,
+    gusty_world,
+    run_mass_change,
+    run_step,
+    run_tracking,
+)
 from tools.experiments.tune_config import TuneConfig, load_tune_config
 from tools.experiments.tuner import TuneOutcome, tune
 
@@ -36,6 +44,10 @@ STRUCTURES = ("pid", "nlvg")
 STEP_CHANNELS = {"phi": "roll", "theta": "pitch", "x": "x", "y": "y"}
 PORTABILITY_VEHICLES = ("quad250", "x500", "delivery650")
 RECOVERY_BAND_M = 0.1
+#: route disturbance: 2.8 m/s mean wind (towards the south-east... NED (2, 2, 0): blowing towards north-east)
+#: plus 1.5 m/s (1 sigma) Gauss-Markov gusts
+WIND_MEAN_NED_M_S = (2.0, 2.0, 0.0)
+WIND_GUST_M_S = 1.5
 
 
 @dataclass(frozen=True, slots=True)
@@ -51,7 +63,7 @@ class PaperSettings:
     lissajous_duration_s: float = 40.0
     payload_vehicle: str = "delivery650"
     payload_hover_s: float = 3.0
-    payload_after_s: float = 12.0
+    payload_after_s: float = 30.0
     tune_step_scale: float = 1.0  # multiplies the tuning configs' step durations (quick mode shortens them)
 
     @classmethod
@@ -128,10 +140,17 @@ def _stacked(pair: TunedPair) -> CascadeGains:
 
 
 def step_table(
-    pair: TunedPair, vehicle: str, settings: PaperSettings
+    pair: TunedPair, vehicle: str, settings: PaperSettings, large: bool = True
 ) -> tuple[dict[str, dict[str, dict[str, float]]], dict[str, StepTrace]]:
-    """``{"phi"|"theta"|"x"|"y": {"pid"|"nlvg": {"IAE","ITAE","ITSE"}}}`` and the traces."""
-    amplitude = {e.channel: e.amplitude for lvl in LEVELS for e in _config(lvl, "nlvg").experiments}
+    """``{"phi"|"theta"|"x"|"y": {"pid"|"nlvg": {"IAE","ITAE","ITSE"}}}`` and the traces.
+
+    Step amplitudes: the largest (``large``, the paper's "maximum desired angle or position") or the
+    smallest of the tuning configs' steps per channel."""
+    amplitude: dict[str, float] = {}
+    for lvl in LEVELS:
+        for e in _config(lvl, "nlvg").experiments:
+            pick = max if large else min
+            amplitude[e.channel] = pick(amplitude.get(e.channel, e.amplitude), e.amplitude)
     g = _stacked(pair)
     table: dict[str, dict[str, dict[str, float]]] = {}
     traces: dict[str, StepTrace] = {}
@@ -160,18 +179,22 @@ def tracking_errors(tr: TrackTrace, i: int) -> dict[str, float]:
 
 
 def tracking_table(
-    pair: TunedPair, vehicle: str, route: str, duration_s: float
+    pair: TunedPair, vehicle: str, route: str, duration_s: float, gusty: bool = True, seed: int = 0
 ) -> tuple[dict[str, dict[str, float]], TrackTrace]:
-    """``{"pid"|"nlvg": {"pos_rms_m", "att_rms_deg"}}`` on ``route`` and the trace."""
-    tr = run_tracking(vehicle, _stacked(pair), make_reference(route, duration_s), duration_s, m=2)
+    """``{"pid"|"nlvg": {"pos_rms_m", "att_rms_deg"}}`` on ``route`` and the trace.
+
+    ``gusty``: mean wind :data:`WIND_MEAN_NED_M_S` plus gusts of :data:`WIND_GUST_M_S` (seeded, the same
+    for both controllers): the paper's routes are flown "under disturbance"; otherwise calm air."""
+    world = gusty_world(WIND_MEAN_NED_M_S, WIND_GUST_M_S, seed) if gusty else None
+    tr = run_tracking(vehicle, _stacked(pair), make_reference(route, duration_s), duration_s, m=2, world=world)
     return {s: tracking_errors(tr, i) for i, s in enumerate(STRUCTURES)}, tr
 
 
-def portability_table(pair: TunedPair, duration_s: float) -> dict[str, dict[str, dict[str, float]]]:
+def portability_table(pair: TunedPair, duration_s: float, gusty: bool = True) -> dict[str, dict[str, dict[str, float]]]:
     """The same two gain sets on every vehicle on the Lissajous route: ``{vehicle: {structure: errors}}``."""
     out: dict[str, dict[str, dict[str, float]]] = {}
     for vehicle in PORTABILITY_VEHICLES:
-        out[vehicle], _ = tracking_table(pair, vehicle, "lissajous", duration_s)
+        out[vehicle], _ = tracking_table(pair, vehicle, "lissajous", duration_s, gusty)
     return out
 
 

@@ -17,7 +17,7 @@ ES cost (SPEC §6.3, ``J = 1/(tf - t0) ∫ e² dt``) are computed from. Vehicles
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -28,6 +28,7 @@ from autopilot.control.gains import CascadeGains, CascadeLimits
 from autopilot.metrics import es_cost
 from sim.batch import BatchSim
 from sim.vehicle_config import VehicleConfig, load_vehicle
+from sim.world import WindConfig, World, empty_world
 
 ATTITUDE_CHANNELS = ("roll", "pitch", "yaw")
 POSITION_AXES = {"x": 0, "y": 1, "z": 2}
@@ -96,10 +97,18 @@ def _airframe(name: str) -> Airframe:
     return load_airframe(name)
 
 
-def _hovering_batch(vehicle: str, m: int, alt_m: float, seed: int, payload_kg: float = 0.0) -> BatchSim:
+def gusty_world(mean_ned_m_s: tuple[float, float, float], gust_m_s: float, seed: int) -> World:
+    """No obstacles, a mean wind plus seeded Gauss-Markov gusts (every vehicle of a batch feels the same gusts
+    when the batch shares one seed)."""
+    return replace(empty_world(), wind=WindConfig(mean_ned_m_s=mean_ned_m_s, gust_m_s=gust_m_s, seed=seed))
+
+
+def _hovering_batch(
+    vehicle: str, m: int, alt_m: float, seed: int, payload_kg: float = 0.0, world: World | None = None
+) -> BatchSim:
     """m vehicles hovering (rotors at hover speed) at ``alt_m``; the payload is written after the reset so
     an experiment may exceed the vehicle's rated payload (the mass-change experiment needs +-30 %)."""
-    sim = BatchSim(_vehicle(vehicle), m, seed=seed, payload_kg=0.0)
+    sim = BatchSim(_vehicle(vehicle), m, seed=seed, payload_kg=0.0, world=world)
     sim.reset(pos_ned=np.array([0.0, 0.0, -alt_m]))
     sim.payload_kg[:] = payload_kg
     sim.omega_rad_s[:] = sim.hover_omega_rad_s()[:, None]
@@ -181,11 +190,14 @@ def run_tracking(
     seed: int = 0,
     limits: CascadeLimits | None = None,
     record_every: int = 1,
+    world: World | None = None,
 ) -> TrackTrace:
-    """Track ``reference`` for ``duration_s`` starting in hover at the reference's start point."""
+    """Track ``reference`` for ``duration_s`` starting in hover at the reference's start point.
+
+    ``world``: e.g. :func:`gusty_world`; all vehicles share ``seed``, so they meet the same gusts."""
     m = gains.n if m is None else m
     ref0 = reference(0.0)
-    sim = _hovering_batch(vehicle, m, 0.0, seed)
+    sim = _hovering_batch(vehicle, m, 0.0, seed, world=world)
     sim.reset(pos_ned=ref0.pos_ned, yaw_rad=ref0.yaw_rad)
     sim.omega_rad_s[:] = sim.hover_omega_rad_s()[:, None]
     sim.on_ground[:] = False
