@@ -1,0 +1,65 @@
+"""Telemetry to Rerun (SPEC §9): ``--rerun off|save:PATH|connect:URL`` and the passive step listener.
+
+``make_listener(spec, vehicle=...)`` is what ``autopilot.cli`` calls; it returns a
+:class:`RerunTelemetry` (``on_step(record)``, ``on_event``, ``on_mission``, ``on_fence``,
+``on_world``, ``close()``) or None for ``off``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from autopilot.telemetry.blueprint import flight_blueprint
+from autopilot.telemetry.rerun_logger import RerunTelemetry
+from autopilot.telemetry.sinks import RerunSink, RerunSpecError, SinkKind, open_recording, parse_rerun_spec
+
+__all__ = [
+    "RerunSink",
+    "RerunSpecError",
+    "RerunTelemetry",
+    "SinkKind",
+    "make_listener",
+    "open_recording",
+    "parse_rerun_spec",
+]
+
+
+def make_listener(
+    spec: str,
+    *,
+    vehicle: str | None = None,
+    mission_file: str | Path | None = None,
+    safety_radius_m: float = 2.0,
+    recording_id: str | None = None,
+    rate_3d_hz: float = 25.0,
+) -> RerunTelemetry | None:
+    """The Rerun listener for a ``--rerun`` value (None for ``off``). Raises :class:`RerunSpecError`.
+
+    ``vehicle`` names the airframe drawn (rotor positions); ``mission_file`` (YAML/.plan/.waypoints)
+    draws its route and fence about its home, and its ``world:`` obstacles as the *true* obstacles
+    (which the autopilot itself never uses). Raises ``MissionFileError`` for a bad mission file.
+    """
+    sink = parse_rerun_spec(spec)
+    rec = open_recording(sink, flight_blueprint(), recording_id=recording_id)
+    if rec is None:
+        return None
+    rotors = None
+    if vehicle:
+        from autopilot.control.airframe import AirframeError, load_airframe
+
+        try:
+            rotors = load_airframe(vehicle).rotor_pos_frd_m
+        except AirframeError:
+            rotors = None
+    telemetry = RerunTelemetry(rec, safety_radius_m=safety_radius_m, rotor_pos_frd_m=rotors, rate_3d_hz=rate_3d_hz)
+    if mission_file is not None:
+        from autopilot.mission.fence import geofence_from_items
+        from autopilot.mission.files import load_mission_file
+
+        plan = load_mission_file(mission_file)
+        telemetry.on_world(plan.world)
+        if plan.items:
+            telemetry.on_mission(plan.items, plan.home)
+        if plan.fence:
+            telemetry.on_fence(geofence_from_items(plan.fence, plan.home).zones)
+    return telemetry

@@ -1,0 +1,502 @@
+"""The Rerun telemetry: a passive listener of the autopilot loop (SPEC §9, issue 7).
+
+``RerunTelemetry.on_step(record)`` is called by ``autopilot.runner.run_loop`` after each
+control step has been answered; it never changes what it is given. Cost is kept low:
+
+- every step writes one preallocated row of scalar series (positions, errors, live gains
+  k(s), motors, thrust, battery, clearance); rows are flushed with ``send_columns`` every
+  ``batch_rows`` steps (one chunk per entity per batch);
+- the 3D pose, setpoint and trail are sampled at ``rate_3d_hz`` (default 25 Hz) into another
+  preallocated buffer flushed with the same batch;
+- rare things (events, home, route, detours, obstacles, fence) are logged when they change.
+
+Timeline ``sim_time`` only (a duration from the simulator's ``time_us``); wall-clock timelines
+are disabled by :func:`autopilot.telemetry.sinks.open_recording`. Angles are logged in degrees.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import rerun as rr
+
+from autopilot.setpoints import TargetKind
+from autopilot.telemetry import entities as ent
+from autopilot.telemetry.blueprint import flight_blueprint
+from autopilot.telemetry.scene import TrueObstacle, fence_outlines, route_points_ned, true_obstacles
+from mavlink_bridge.frames import GeoPoint
+from mavlink_bridge.gcs_types import FlightMode, MissionItem, Severity
+
+if TYPE_CHECKING:
+    from autopilot.runner import StepRecord
+
+# ---- scalar row layout (angles in rad while buffered, degrees once flushed) ----
+C_POS, C_POS_SP, C_POS_ERR, C_ATT = 0, 3, 6, 9
+C_MOTOR, C_BAT_PCT, C_BAT_V, C_CLEARANCE, C_SEQ = 12, 16, 17, 18, 19
+# the controller block (CascadeDiagnostics, NaN while the controller is off)
+C_ATT_ERR, C_ATT_SP = 20, 23
+C_KP, C_KI, C_KD = 26, 32, 38  # 6 channels each: x, y, z, roll, pitch, yaw
+C_THRUST, C_TORQUE = 44, 45
+N_COLS = 48
+_N_CTRL = N_COLS - C_ATT_ERR
+_ANGLE_COLS = (slice(C_ATT, C_ATT + 3), slice(C_ATT_ERR, C_ATT_SP + 3))
+_NAN_CTRL = (math.nan,) * _N_CTRL
+
+#: (entity path, first column, width, series names)
+SERIES: tuple[tuple[str, int, int, tuple[str, ...]], ...] = (
+    (ent.POS_NED, C_POS, 3, ent.XYZ),
+    (ent.POS_SP_NED, C_POS_SP, 3, tuple(f"{n} sp" for n in ent.XYZ)),
+    (ent.POS_ERR_NED, C_POS_ERR, 3, ent.XYZ),
+    (ent.ATT_ERR, C_ATT_ERR, 3, ent.RPY),
+    (ent.ATT, C_ATT, 3, ent.RPY),
+    (ent.ATT_SP, C_ATT_SP, 3, tuple(f"{n} sp" for n in ent.RPY)),
+    (ent.gain_path("position", "kp"), C_KP, 3, ("x", "y", "z")),
+    (ent.gain_path("attitude", "kp"), C_KP + 3, 3, ent.RPY),
+    (ent.gain_path("position", "ki"), C_KI, 3, ("x", "y", "z")),
+    (ent.gain_path("attitude", "ki"), C_KI + 3, 3, ent.RPY),
+    (ent.gain_path("position", "kd"), C_KD, 3, ("x", "y", "z")),
+    (ent.gain_path("attitude", "kd"), C_KD + 3, 3, ent.RPY),
+    (ent.MOTORS, C_MOTOR, 4, ent.MOTOR_NAMES),
+    (ent.THRUST, C_THRUST, 1, ("thrust",)),
+    (ent.TORQUE, C_TORQUE, 3, ("roll", "pitch", "yaw")),
+    (ent.BATTERY_REMAINING, C_BAT_PCT, 1, ("remaining %",)),
+    (ent.BATTERY_VOLTAGE, C_BAT_V, 1, ("voltage",)),
+    (ent.CLEARANCE, C_CLEARANCE, 1, ("clearance",)),
+    (ent.MISSION_SEQ, C_SEQ, 1, ("current item",)),
+)
+
+# ---- 3D row layout ----
+D_POS, D_QUAT, D_SP = 0, 3, 7  # quaternion stored x, y, z, w (Rerun order)
+N_3D = 10
+
+_LEVEL = {
+    Severity.EMERGENCY: rr.TextLogLevel.CRITICAL,
+    Severity.ALERT: rr.TextLogLevel.CRITICAL,
+    Severity.CRITICAL: rr.TextLogLevel.CRITICAL,
+    Severity.ERROR: rr.TextLogLevel.ERROR,
+    Severity.WARNING: rr.TextLogLevel.WARN,
+    Severity.NOTICE: rr.TextLogLevel.INFO,
+    Severity.INFO: rr.TextLogLevel.INFO,
+    Severity.DEBUG: rr.TextLogLevel.DEBUG,
+}
+
+_COLOR_TRAIL = (60, 140, 255)
+_COLOR_ROUTE = (240, 200, 40)
+_COLOR_DETOUR = (40, 220, 120)
+_COLOR_SENSED = (255, 120, 40, 200)
+_COLOR_SAFETY = (255, 60, 60, 120)
+_COLOR_TRUE = (150, 150, 160, 160)
+_COLOR_FENCE_EXCL = (255, 40, 40)
+_COLOR_FENCE_INCL = (40, 200, 255)
+_NAN3 = (math.nan, math.nan, math.nan)
+
+
+class _DiagGather:
+    """Copies vehicle 0 of a ``CascadeDiagnostics`` into one row with a single ``np.take``.
+
+    The diagnostics are live views into one work buffer of the controller; their element
+    offsets in that buffer are found once from the views themselves (addresses and strides).
+    When the views do not share one float64 buffer, falls back to per-field copies.
+    """
+
+    __slots__ = ("_diag", "_flat", "_index")
+
+    def __init__(self, diag: Any) -> None:
+        self._diag = diag
+        fields = [diag.att_err_rad, diag.att_sp_rad, diag.kp, diag.ki, diag.kd, diag.thrust_n, diag.torque_frd_nm]
+        self._flat: np.ndarray | None = None
+        self._index = np.zeros(0, dtype=np.intp)
+        base = fields[0].base
+        if not isinstance(base, np.ndarray) or base.dtype != np.float64 or not base.flags.c_contiguous:
+            return
+        origin = base.__array_interface__["data"][0]
+        index: list[int] = []
+        for a in fields:
+            if a.dtype != np.float64 or a.base is not base:
+                return
+            row = a[0] if a.ndim == 2 else a[:1]
+            start = row.__array_interface__["data"][0]
+            index += [(start - origin + j * row.strides[0]) // 8 for j in range(row.shape[0])]
+        if len(index) != _N_CTRL or min(index) < 0 or max(index) >= base.size:
+            return
+        self._flat = base.reshape(-1)
+        self._index = np.asarray(index, dtype=np.intp)
+
+    def matches(self, diag: Any) -> bool:
+        return diag is self._diag
+
+    def gather(self, out: np.ndarray) -> None:
+        """Write the controller block (``_N_CTRL`` values, CHANNELS order for gains) into ``out``."""
+        if self._flat is not None:
+            np.take(self._flat, self._index, out=out)
+            return
+        d = self._diag
+        out[0:3] = d.att_err_rad[0]
+        out[3:6] = d.att_sp_rad[0]
+        out[6:12] = d.kp[0]
+        out[12:18] = d.ki[0]
+        out[18:24] = d.kd[0]
+        out[24] = d.thrust_n[0]
+        out[25:28] = d.torque_frd_nm[0]
+
+
+def _time_column(t_us: np.ndarray) -> rr.TimeColumn:
+    return rr.TimeColumn(ent.TIMELINE, duration=t_us.astype("timedelta64[us]"))
+
+
+class RerunTelemetry:
+    """Passive per-step listener that writes one flight into a Rerun recording stream.
+
+    Methods (all take sim time, never wall time):
+    ``on_step(record)`` each control step; ``on_event(text, severity, time_us)``;
+    ``on_route(points_ned_home)`` / ``on_mission(items, home)``; ``on_fence(zones)``;
+    ``on_true_obstacles(obstacles)`` / ``on_world(world_mapping)``; ``on_obstacles(tracked, time_us)``;
+    ``on_detour(points_ned_home, time_us)``; ``flush()``; ``close()``.
+    Things "about home" are drawn under ``world/home`` whose transform follows the home position.
+    """
+
+    def __init__(
+        self,
+        rec: rr.RecordingStream,
+        *,
+        rate_3d_hz: float = 25.0,
+        batch_rows: int = 1000,
+        trail_segment_points: int = 125,
+        safety_radius_m: float = 2.0,
+        rotor_pos_frd_m: Sequence[Sequence[float]] | None = None,
+        obstacle_period_s: float = 0.5,
+    ) -> None:
+        if not (rate_3d_hz > 0.0 and batch_rows >= 1 and trail_segment_points >= 2):
+            raise ValueError("need rate_3d_hz > 0, batch_rows >= 1 and trail_segment_points >= 2")
+        self.rec = rec
+        self.safety_radius_m = float(safety_radius_m)
+        self._period_3d_us = round(1e6 / rate_3d_hz)
+        self._obstacle_period_us = round(obstacle_period_s * 1e6)
+        self._batch_rows = int(batch_rows)
+        self._vals: list[float] = []
+        self._times: list[int] = []
+        self._ctrl = np.full((self._batch_rows, _N_CTRL), math.nan)
+        self._gather: _DiagGather | None = None
+        self._has_battery: bool | None = None
+        self._vals3: list[float] = []
+        self._times3: list[int] = []
+        self._trail = np.zeros((trail_segment_points, 3))
+        self._trail_n = 0
+        self._trail_segment = 0
+        self._trail_dirty = False
+        self._trail_t_us = 0
+        self._next_3d_us = -1
+        self._next_obstacles_us = -1
+        self._last_t_us = -1
+        self._last_mode: FlightMode | None = None
+        self._last_armed: bool | None = None
+        self._last_seq: int | None = None
+        self._last_home: tuple[float, float, float] | None = None
+        self._last_detour: object | None = None
+        self._last_obstacle_key: tuple[Any, ...] | None = None
+        self.steps_logged = 0
+        self.closed = False
+        self._log_static(rotor_pos_frd_m)
+
+    # ------------------------------------------------------------------ static content
+    def _log_static(self, rotor_pos_frd_m: Sequence[Sequence[float]] | None) -> None:
+        rec = self.rec
+        rec.log(ent.WORLD, rr.ViewCoordinates.FRD, static=True)  # X north, Y east, Z down: NED
+        rotors = np.asarray(rotor_pos_frd_m if rotor_pos_frd_m is not None else _DEFAULT_ROTORS_FRD, dtype=float)
+        arm = float(np.max(np.linalg.norm(rotors[:, :2], axis=1)))
+        rec.log(ent.VEHICLE, rr.TransformAxes3D(axis_length=max(0.5, 2.0 * arm)), static=True)
+        colors = [(230, 60, 60) if p[0] > 0.0 else (200, 200, 200) for p in rotors]
+        rec.log(
+            ent.VEHICLE_BODY,
+            rr.LineStrips3D([[(0.0, 0.0, 0.0), tuple(p)] for p in rotors], colors=colors, radii=0.01 * (1 + arm)),
+            rr.Ellipsoids3D(
+                centers=rotors,
+                half_sizes=[(0.5 * arm, 0.5 * arm, 0.01)] * len(rotors),
+                colors=colors,
+                fill_mode=rr.components.FillMode.Solid,
+            ),
+            static=True,
+        )
+        for path, _, _, names in SERIES:
+            rec.log(path, rr.SeriesLines(names=list(names)), static=True)
+
+    # ------------------------------------------------------------------ per step
+    def on_step(self, record: StepRecord) -> None:
+        """Buffer one control step (every step goes to the series; 3D at ``rate_3d_hz``)."""
+        t_us = int(record.time_us)
+        if t_us <= self._last_t_us:  # a repeated frame: keep sim time strictly increasing
+            return
+        self._last_t_us = t_us
+        state = record.state
+        pos = state.pos_ned_m
+        sp = record.pos_sp_ned_m
+        v = self._vals  # one flat list per batch: the cheapest per-step append in CPython
+        v += pos
+        v += sp
+        v += (sp[0] - pos[0], sp[1] - pos[1], sp[2] - pos[2], state.roll_rad, state.pitch_rad, state.yaw_rad)
+        v += record.motor_cmd
+        planner = record.planner_output
+        clearance = getattr(planner, "clearance_m", math.nan) if planner is not None else math.nan
+        battery = self._battery_fields(record)
+        v += (
+            getattr(record, "battery_remaining_pct") if battery else math.nan,  # noqa: B009
+            getattr(record, "battery_voltage_v") if battery else math.nan,  # noqa: B009
+            clearance if math.isfinite(clearance) else math.nan,
+            record.mission_seq,
+        )
+        i = len(self._times)
+        controller = record.controller
+        if controller is not None and record.target.kind is not TargetKind.IDLE:
+            diag = controller.diagnostics
+            gather = self._gather
+            if gather is None or not gather.matches(diag):
+                gather = self._gather = _DiagGather(diag)
+            gather.gather(self._ctrl[i])
+        else:
+            self._ctrl[i] = math.nan
+        self._times.append(t_us)
+        self.steps_logged += 1
+
+        if t_us >= self._next_3d_us:
+            self._next_3d_us = t_us + self._period_3d_us
+            self._sample_3d(t_us, pos, state.q_ned_frd, sp)
+            if planner is not None:
+                self._planner_3d(t_us, planner)
+        if record.texts or record.mode is not self._last_mode or record.armed is not self._last_armed:
+            self._events(record)
+        if record.mission_seq != self._last_seq:
+            if self._last_seq is not None:
+                self.on_event(f"mission: current item {record.mission_seq}", Severity.INFO, t_us)
+            self._last_seq = record.mission_seq
+        home = record.home_ned_m
+        if home is not None and home != self._last_home:
+            self._last_home = (float(home[0]), float(home[1]), float(home[2]))
+            self._set_time(t_us)
+            self.rec.log(ent.HOME, rr.Transform3D(translation=self._last_home))
+        if len(self._times) >= self._batch_rows:
+            self.flush()
+
+    def _battery_fields(self, record: StepRecord) -> bool:
+        """Whether records carry ``battery_remaining_pct``/``battery_voltage_v`` (checked once)."""
+        has = self._has_battery
+        if has is None:
+            has = self._has_battery = hasattr(record, "battery_remaining_pct") and hasattr(record, "battery_voltage_v")
+        return has
+
+    def _sample_3d(self, t_us: int, pos: Sequence[float], q_ned_frd: Sequence[float], sp: Sequence[float]) -> None:
+        self._times3.append(t_us)
+        v = self._vals3
+        v += pos
+        v += (q_ned_frd[1], q_ned_frd[2], q_ned_frd[3], q_ned_frd[0])  # Rerun quaternions are x, y, z, w
+        v += sp
+        k = self._trail_n
+        if k == len(self._trail):  # segment full: log it for good and start the next at its last point
+            self._log_trail(self._trail_t_us)
+            self._trail[0] = self._trail[k - 1]
+            self._trail_segment += 1
+            k = 1
+        self._trail[k] = pos
+        self._trail_n = k + 1
+        self._trail_t_us = t_us
+        self._trail_dirty = True
+
+    def _log_trail(self, t_us: int) -> None:
+        self._set_time(t_us)
+        self.rec.log(
+            f"{ent.TRAIL}/seg{self._trail_segment:05d}",
+            rr.LineStrips3D([self._trail[: self._trail_n]], colors=[_COLOR_TRAIL], radii=0.05),
+        )
+        self._trail_dirty = False
+
+    def _events(self, record: StepRecord) -> None:
+        t_us = record.time_us
+        if record.armed is not self._last_armed:
+            if self._last_armed is not None or record.armed:
+                self.on_event("armed" if record.armed else "disarmed", Severity.INFO, t_us)
+            self._last_armed = record.armed
+        if record.mode is not self._last_mode:
+            self.on_event(f"mode {record.mode.name}", Severity.INFO, t_us)
+            self._last_mode = record.mode
+        for text in record.texts:
+            self.on_event(text.text, text.severity, t_us)
+
+    def _planner_3d(self, t_us: int, planner: Any) -> None:
+        """Draw the planner's tracked obstacles (rate-limited, on change) and its detour (on change)."""
+        detour = getattr(planner, "detour", None) or getattr(planner, "hold_path", None)
+        if detour is not self._last_detour:
+            self._last_detour = detour
+            path = getattr(planner, "planned_path_ned", None)
+            self.on_detour(None if path is None else np.asarray(path), t_us)
+        obstacles = getattr(planner, "obstacles", ())
+        if t_us >= self._next_obstacles_us:
+            key = tuple((o.obstacle_id, round(o.radius_m, 1), *(round(c, 1) for c in o.center_ned)) for o in obstacles)
+            if key != self._last_obstacle_key:
+                self._last_obstacle_key = key
+                self._next_obstacles_us = t_us + self._obstacle_period_us
+                self.on_obstacles(obstacles, t_us)
+
+    # ------------------------------------------------------------------ events and scene
+    def _set_time(self, t_us: int) -> None:
+        self.rec.set_time(ent.TIMELINE, duration=np.timedelta64(int(t_us), "us"))
+
+    def on_event(self, text: str, severity: Severity = Severity.INFO, time_us: int | None = None) -> None:
+        """A text-log line (mode change, mission item, avoidance decision, failsafe) at sim time."""
+        self._set_time(self._last_t_us if time_us is None else time_us)
+        self.rec.log(ent.LOG, rr.TextLog(text, level=_LEVEL.get(severity, rr.TextLogLevel.INFO)))
+
+    def on_route(self, points_ned_home: np.ndarray | Sequence[Sequence[float]]) -> None:
+        """The reference route (k, 3) NED about home, as a line with its waypoints (static)."""
+        pts = np.asarray(points_ned_home, dtype=np.float64).reshape(-1, 3)
+        self.rec.log(
+            ent.ROUTE,
+            rr.LineStrips3D([pts], colors=[_COLOR_ROUTE], radii=0.08),
+            rr.Points3D(pts, colors=[_COLOR_ROUTE], radii=0.3),
+            static=True,
+        )
+        if len(pts):
+            lo, hi = pts[:, :2].min(axis=0), pts[:, :2].max(axis=0)
+            home = self._last_home or (0.0, 0.0, 0.0)
+            center = (float(lo[0] + hi[0]) / 2 + home[0], float(lo[1] + hi[1]) / 2 + home[1])
+            span = max(30.0, 1.6 * float(np.max(hi - lo)))
+            self.rec.send_blueprint(flight_blueprint(center, span), make_active=True, make_default=True)
+
+    def on_mission(self, items: Sequence[MissionItem], home: GeoPoint) -> None:
+        """The uploaded mission as the reference route (see :func:`scene.route_points_ned`)."""
+        self.on_route(route_points_ned(items, home))
+
+    def on_fence(self, zones: Sequence[object], ceiling_alt_m: float = 0.0) -> None:
+        """Fence zones (circles/polygons) as outlines on the ground (and at ``ceiling_alt_m`` if > 0); static."""
+        outlines, inclusion = fence_outlines(zones)
+        strips, colors = [], []
+        for ne, inc in zip(outlines, inclusion, strict=True):
+            color = _COLOR_FENCE_INCL if inc else _COLOR_FENCE_EXCL
+            for down in (0.0, -ceiling_alt_m) if ceiling_alt_m > 0.0 else (0.0,):
+                strips.append(np.column_stack([ne, np.full(len(ne), down)]))
+                colors.append(color)
+        self.rec.log(ent.FENCE, rr.LineStrips3D(strips, colors=colors, radii=0.1), static=True)
+
+    def on_world(self, world: Mapping[str, Any] | None) -> None:
+        """True obstacles of a mission ``world:`` mapping (what the simulator knows; the autopilot does not)."""
+        self.on_true_obstacles(true_obstacles(world))
+
+    def on_true_obstacles(self, obstacles: Sequence[TrueObstacle]) -> None:
+        """True obstacles about home (static): cylinders, boxes and spheres."""
+        by_shape: dict[str, list[TrueObstacle]] = {"cylinder": [], "box": [], "sphere": []}
+        for o in obstacles:
+            by_shape[o.shape.value].append(o)
+        cyl, box, sph = by_shape["cylinder"], by_shape["box"], by_shape["sphere"]
+        base = ent.OBSTACLES_TRUE
+        rec = self.rec
+        if cyl:
+            rec.log(
+                f"{base}/cylinders",
+                rr.Cylinders3D(
+                    lengths=[2.0 * o.half_size_m[2] for o in cyl],
+                    radii=[o.half_size_m[0] for o in cyl],
+                    centers=[o.center_ned_m for o in cyl],
+                    colors=[_COLOR_TRUE],
+                    fill_mode=rr.components.FillMode.Solid,
+                ),
+                static=True,
+            )
+        if box:
+            rec.log(
+                f"{base}/boxes",
+                rr.Boxes3D(
+                    centers=[o.center_ned_m for o in box],
+                    half_sizes=[o.half_size_m for o in box],
+                    rotation_axis_angles=[rr.RotationAxisAngle(axis=(0, 0, 1), radians=o.yaw_rad) for o in box],
+                    colors=[_COLOR_TRUE],
+                    fill_mode=rr.components.FillMode.Solid,
+                ),
+                static=True,
+            )
+        if sph:
+            rec.log(
+                f"{base}/spheres",
+                rr.Ellipsoids3D(
+                    centers=[o.center_ned_m for o in sph],
+                    half_sizes=[o.half_size_m for o in sph],
+                    colors=[_COLOR_TRUE],
+                    fill_mode=rr.components.FillMode.Solid,
+                ),
+                static=True,
+            )
+
+    def on_obstacles(self, tracked: Sequence[Any], time_us: int) -> None:
+        """Sensed (tracked) obstacles about home and their safety spheres (radius + ``safety_radius_m``).
+
+        Each item needs ``obstacle_id``, ``center_ned`` (about home) and ``radius_m``
+        (``autopilot.planner.obstacle_map.TrackedObstacle``).
+        """
+        self._set_time(time_us)
+        if not tracked:
+            self.rec.log(ent.OBSTACLES_SENSED, rr.Clear(recursive=False))
+            self.rec.log(ent.OBSTACLES_SAFETY, rr.Clear(recursive=False))
+            return
+        centers = [tuple(o.center_ned) for o in tracked]
+        radii = [float(o.radius_m) for o in tracked]
+        labels = [f"obs {o.obstacle_id}" for o in tracked]
+        self.rec.log(
+            ent.OBSTACLES_SENSED,
+            rr.Ellipsoids3D(centers=centers, radii=radii, colors=[_COLOR_SENSED], labels=labels,
+                            fill_mode=rr.components.FillMode.Solid),
+        )  # fmt: skip
+        self.rec.log(
+            ent.OBSTACLES_SAFETY,
+            rr.Ellipsoids3D(centers=centers, radii=[r + self.safety_radius_m for r in radii], colors=[_COLOR_SAFETY]),
+        )
+
+    def on_detour(self, points_ned_home: np.ndarray | None, time_us: int) -> None:
+        """The planned detour (m, 3) about home; None clears it (back on the route)."""
+        self._set_time(time_us)
+        if points_ned_home is None or len(points_ned_home) < 2:
+            self.rec.log(ent.DETOUR, rr.Clear(recursive=False))
+            return
+        self.rec.log(ent.DETOUR, rr.LineStrips3D([points_ned_home], colors=[_COLOR_DETOUR], radii=0.12))
+
+    # ------------------------------------------------------------------ flushing
+    def flush(self) -> None:
+        """Send the buffered rows (one ``send_columns`` per entity) and the open trail segment."""
+        rec = self.rec
+        if self._times:
+            n = len(self._times)
+            rows = np.empty((n, N_COLS))
+            rows[:, :C_ATT_ERR] = np.array(self._vals, dtype=np.float64).reshape(n, C_ATT_ERR)
+            rows[:, C_ATT_ERR:] = self._ctrl[:n]
+            for cols in _ANGLE_COLS:
+                rows[:, cols] *= 180.0 / math.pi
+            times = [_time_column(np.array(self._times, dtype=np.int64))]
+            for path, c0, width, _ in SERIES:
+                rec.send_columns(path, indexes=times, columns=rr.Scalars.columns(scalars=rows[:, c0 : c0 + width]))
+            self._vals.clear()
+            self._times.clear()
+        if self._times3:
+            r3 = np.array(self._vals3, dtype=np.float64).reshape(len(self._times3), N_3D)
+            times3 = [_time_column(np.array(self._times3, dtype=np.int64))]
+            rec.send_columns(
+                ent.VEHICLE,
+                indexes=times3,
+                columns=rr.Transform3D.columns(translation=r3[:, 0:3], quaternion=r3[:, 3:7]),
+            )
+            rec.send_columns(ent.SETPOINT, indexes=times3, columns=rr.Points3D.columns(positions=r3[:, 7:10]))
+            self._vals3.clear()
+            self._times3.clear()
+        if self._trail_dirty:
+            self._log_trail(self._trail_t_us)
+
+    def close(self) -> None:
+        """Flush everything and finalize the sink (the ``.rrd`` footer is written). Idempotent."""
+        if self.closed:
+            return
+        self.flush()
+        self.closed = True
+        self.rec.flush()
+        self.rec.disconnect()
+
+
+#: x500-like rotor layout (PX4 quad-x order) used when no airframe is given.
+_DEFAULT_ROTORS_FRD = ((0.174, 0.174, 0.0), (-0.174, -0.174, 0.0), (0.174, -0.174, 0.0), (-0.174, 0.174, 0.0))

@@ -1,0 +1,94 @@
+"""Where a Rerun recording goes: ``--rerun off|save:PATH|connect:URL`` (SPEC §9, §12).
+
+``save:PATH`` writes an ``.rrd`` file (parent directories are created); ``connect:URL``
+streams to a running viewer over gRPC (``rerun+http://127.0.0.1:9876/proxy`` when URL is
+empty or ``default``). Parsing is pure; :func:`open_recording` is the only place that
+opens a sink.
+"""
+
+from __future__ import annotations
+
+import uuid
+from dataclasses import dataclass
+from enum import Enum
+from pathlib import Path
+
+import rerun as rr
+import rerun.blueprint as rrb
+
+#: The application id every quadsitl recording carries (the viewer groups blueprints by it).
+APPLICATION_ID = "quadsitl"
+DEFAULT_CONNECT_URL = "rerun+http://127.0.0.1:9876/proxy"
+_URL_SCHEMES = ("rerun://", "rerun+http://", "rerun+https://")
+
+
+class RerunSpecError(ValueError):
+    """A ``--rerun`` value that is not ``off``, ``save:PATH`` or ``connect:URL``."""
+
+
+class SinkKind(Enum):
+    """What a recording is attached to."""
+
+    OFF = "off"
+    SAVE = "save"
+    CONNECT = "connect"
+
+
+@dataclass(frozen=True, slots=True)
+class RerunSink:
+    """A parsed ``--rerun`` option: ``target`` is the file path (SAVE) or the gRPC URL (CONNECT)."""
+
+    kind: SinkKind
+    target: str = ""
+
+    def __str__(self) -> str:
+        return self.kind.value if self.kind is SinkKind.OFF else f"{self.kind.value}:{self.target}"
+
+
+def parse_rerun_spec(text: str) -> RerunSink:
+    """Parse ``off``, ``save:PATH`` or ``connect:URL`` (``connect`` alone: the default viewer)."""
+    spec = text.strip()
+    if spec == "off":
+        return RerunSink(SinkKind.OFF)
+    kind, sep, target = spec.partition(":")
+    if kind == "save":
+        if not sep or not target:
+            raise RerunSpecError(f"--rerun {text!r}: save needs a file path, e.g. save:runs/flight.rrd")
+        if Path(target).suffix != ".rrd":
+            raise RerunSpecError(f"--rerun {text!r}: the recording path must end in .rrd")
+        return RerunSink(SinkKind.SAVE, target)
+    if kind == "connect":
+        url = target if target and target != "default" else DEFAULT_CONNECT_URL
+        if not url.startswith(_URL_SCHEMES):
+            raise RerunSpecError(
+                f"--rerun {text!r}: the viewer URL must start with one of {', '.join(_URL_SCHEMES)} "
+                f"(e.g. {DEFAULT_CONNECT_URL})"
+            )
+        return RerunSink(SinkKind.CONNECT, url)
+    raise RerunSpecError(f"--rerun {text!r}: expected off, save:PATH or connect:URL")
+
+
+def open_recording(
+    sink: RerunSink,
+    blueprint: rrb.Blueprint | None = None,
+    *,
+    recording_id: str | None = None,
+    application_id: str = APPLICATION_ID,
+) -> rr.RecordingStream | None:
+    """A recording stream attached to ``sink`` (None for OFF); wall-clock timelines are disabled.
+
+    Only ``sim_time`` (and whatever timeline the caller sets) indexes the data: ``log_time``
+    and ``log_tick`` are turned off so a recording is a function of the flight alone.
+    """
+    if sink.kind is SinkKind.OFF:
+        return None
+    rec = rr.RecordingStream(application_id, recording_id=recording_id or str(uuid.uuid4()))
+    rec.set_log_time_enabled(False)
+    rec.set_log_tick_enabled(False)
+    if sink.kind is SinkKind.SAVE:
+        path = Path(sink.target)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        rec.save(path, default_blueprint=blueprint)
+    else:
+        rec.connect_grpc(sink.target, default_blueprint=blueprint)
+    return rec
