@@ -11,6 +11,7 @@ import pytest
 
 from mavlink_bridge.link import LinkUrlError
 from mavlink_bridge.lockstep import LockstepClient, LockstepFrame
+from mavlink_bridge.lossy import LossProfile, LossyUdpProxy
 from mavlink_bridge.wire import ActuatorCommand, ObstacleShape
 from sim.cli import (
     EXIT_AUTOPILOT_LOST,
@@ -27,10 +28,13 @@ from sim.server import SimConfig, SimServer, SimSetupError, SimSummary, tilt_deg
 Law = Callable[[LockstepFrame], ActuatorCommand]
 
 
-def fly(config: SimConfig, law: Law) -> tuple[SimSummary, list[LockstepFrame]]:
-    """Run the sim in a thread and answer every frame with ``law`` until the sim stops."""
+def fly(config: SimConfig, law: Law, loss: LossProfile | None = None) -> tuple[SimSummary, list[LockstepFrame]]:
+    """Run the sim in a thread; answer every frame with ``law`` until the sim stops (optionally via a lossy relay)."""
     server = SimServer(config)
     host, port = server.local_address
+    proxy = LossyUdpProxy((host, port), loss).start() if loss else None
+    if proxy:
+        host, port = proxy.listen_address
     result: list[SimSummary] = []
     thread = threading.Thread(target=lambda: result.append(server.run()), daemon=True)
     thread.start()
@@ -42,6 +46,8 @@ def fly(config: SimConfig, law: Law) -> tuple[SimSummary, list[LockstepFrame]]:
                 frames.append(frame)
                 client.answer(law(frame))
     thread.join()
+    if proxy:
+        proxy.stop()
     return result[0], frames
 
 
@@ -145,3 +151,26 @@ def test_cli_options_instance_offset_and_errors(tmp_path: Path) -> None:
     assert exit_code("COMPLETED") == exit_code("STOPPED") == EXIT_OK
     assert exit_code("AUTOPILOT_LOST") == EXIT_AUTOPILOT_LOST
     assert exit_code("COLLISION") == exit_code("GROUND_IMPACT") == EXIT_VEHICLE_ENDED
+
+
+class VzHold:
+    """A stateful PI law on the true vertical speed: any lost or doubled answer would change the flight."""
+
+    def __init__(self) -> None:
+        self.integral = 0.0
+
+    def __call__(self, f: LockstepFrame) -> ActuatorCommand:
+        err = f.truth.vel_ned_m_s[2] + 1.0  # climb at 1 m/s
+        self.integral += 0.5 * err / 250.0
+        u = min(1.0, max(0.0, 0.75 + 0.25 * err + self.integral))
+        return ActuatorCommand(f.time_us, (u, u, u, u), True)
+
+
+def test_lossy_link_flight_is_identical_in_sim_time(tmp_path: Path) -> None:
+    world = "world:\n  wind: {north_m_s: 2.0, gust_m_s: 1.0, seed: 3}\n"
+    clean, _ = fly(config(tmp_path, world, duration_s=1.0, seed=4), VzHold())
+    loss = LossProfile(drop_p=0.1, duplicate_p=0.05, reorder_p=0.05, hold_s=0.01, seed=1)
+    lossy, frames = fly(config(tmp_path, world, duration_s=1.0, seed=4, resend_timeout_s=0.01), VzHold(), loss)
+    assert lossy.resends > 0 and len(frames) == 250  # each frame reached the law exactly once
+    assert lossy.truth_sha256 == clean.truth_sha256
+    assert lossy.final_pos_ned_m == clean.final_pos_ned_m and clean.final_pos_ned_m[2] < -0.2
