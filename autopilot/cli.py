@@ -25,6 +25,7 @@ from types import FrameType
 from autopilot.control.airframe import AirframeError
 from autopilot.params import ParamError
 from autopilot.runner import Autopilot, AutopilotConfig, AutopilotEndReason, Links, VehicleAdapter, run_loop
+from autopilot.scripted_commands import CommandScript, ScriptError, load_script
 from mavlink_bridge.gcs_server import GcsServer
 from mavlink_bridge.link import LinkUrl, LinkUrlError
 from mavlink_bridge.lockstep import LockstepClient
@@ -62,6 +63,7 @@ def add_autopilot_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--params", default=None, metavar="FILE", help="YAML of NAME: value applied at start")
     p.add_argument("--rerun", default="off", metavar="off|save:PATH|connect:URL", help="Rerun telemetry")
     p.add_argument("--estimator", default="truth", choices=["truth"], help="state estimator")
+    p.add_argument("--script", default=None, metavar="FILE", help="commands at fixed sim times (YAML)")
     p.add_argument("--sim-timeout-s", type=float, default=3.0, help="wall s of sim silence that ends the run")
     p.add_argument("--connect-timeout-s", type=float, default=60.0, help="wall s to wait for the first frame")
 
@@ -109,7 +111,9 @@ def main(argv: list[str] | None = None) -> int:
     servers: list[GcsServer] = []
     client: LockstepClient | None = None
     try:
-        autopilot = Autopilot(config, listener=_make_listener(args.rerun, args.vehicle))  # type: ignore[arg-type]
+        script = CommandScript(load_script(args.script)) if args.script else None
+        listener = _make_listener(args.rerun, args.vehicle)
+        autopilot = Autopilot(config, listener=listener, script=script)  # type: ignore[arg-type]
         client = LockstepClient(_offset(args.sim, args.instance), sim_lost_timeout_s=args.sim_timeout_s)
         vehicle = VehicleAdapter(autopilot)
         for url, target in ((args.gcs, args.gcs_target), (args.api, args.api_target)):
@@ -122,7 +126,7 @@ def main(argv: list[str] | None = None) -> int:
                         default_target_url=_offset(target, args.instance),
                     )
                 )
-    except (AirframeError, ParamError, LinkUrlError, OSError, ValueError) as exc:
+    except (AirframeError, ParamError, ScriptError, LinkUrlError, OSError, ValueError) as exc:
         print(f"quadsitl autopilot: {exc}", file=sys.stderr)
         for server in servers:
             server.close()

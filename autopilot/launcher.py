@@ -84,6 +84,8 @@ def commands(args: argparse.Namespace) -> tuple[list[str], list[str]]:
     ap += ["--sim-timeout-s", str(args.sim_timeout_s), "--connect-timeout-s", str(args.connect_timeout_s)]
     if args.params:
         ap += ["--params", args.params]
+    if args.script:
+        ap += ["--script", args.script]
     if args.log_dir:
         sim += ["--log-dir", args.log_dir]
         ap += ["--log-dir", args.log_dir]

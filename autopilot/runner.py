@@ -32,7 +32,7 @@ import numpy as np
 from autopilot.commander import CMD_MISSION_START, Commander
 from autopilot.control.airframe import Airframe, load_airframe
 from autopilot.control.cascade import GRAVITY_M_S2, CascadeController
-from autopilot.control.gains import CascadeGains
+from autopilot.control.param_decls import gains_from_params, limits_from_params
 from autopilot.estimator import Estimator, FrameLike, VehicleState, make_estimator
 from autopilot.failsafe import BatteryModel, FailsafeInputs, FailsafeMonitor
 from autopilot.mission.commands import MissionState
@@ -49,6 +49,7 @@ from autopilot.mission.fence import FenceError, geofence_from_items
 from autopilot.mission.validation import MissionLimits, validate_mission
 from autopilot.param_schema import make_param_store
 from autopilot.params import ParamError, ParamStore
+from autopilot.scripted_commands import CommandScript
 from autopilot.setpoints import NavTarget, SetpointGenerator, SetpointLimits, TargetKind
 from mavlink_bridge.frames import GeoPoint
 from mavlink_bridge.gcs_types import (
@@ -71,6 +72,10 @@ _SENSORS_PRESENT = 0x1 | 0x2 | 0x4 | 0x8 | 0x20 | 0x400 | 0x800 | 0x4000 | 0x800
 _SENSOR_GPS = 0x20
 #: Publish the telemetry snapshot every this many control steps (62.5 Hz at 250 Hz) and on any event.
 _SNAPSHOT_EVERY = 4
+#: Controller parameters that are cascade limits rather than gains (the cascade packs them at construction).
+_CONTROL_LIMIT_PARAMS = frozenset(
+    {"MPC_TILTMAX_DEG", "MPC_ACC_HOR_MAX", "MPC_ACC_UP_MAX", "MPC_ACC_DOWN_MAX", "NV_AACC_RP_MAX", "NV_AACC_Y_MAX"}
+)
 #: Failsafe conditions are evaluated every this much sim time (µs).
 FAILSAFE_PERIOD_US = 100_000
 #: Poll the GCS/API links at most this often (wall seconds).
@@ -194,6 +199,7 @@ class Autopilot:
         estimator: Estimator | None = None,
         listener: StepListener | None = None,
         planner: RoutePlanner | None = None,
+        script: CommandScript | None = None,
     ) -> None:
         self.config = config or AutopilotConfig()
         self.params = params or make_param_store(self.config.params_file)
@@ -201,13 +207,16 @@ class Autopilot:
         self.estimator = estimator or make_estimator(self.config.estimator)
         self.listener = listener
         self.planner = planner
+        self.script = script
         self.commander = Commander(self.params)
         self.setpoints = SetpointGenerator(self._setpoint_limits())
         self.failsafe = FailsafeMonitor(self.params)
         self.battery = BatteryModel(self.params.get("BAT_HOVER_ENDUR"))
         self.executor: MissionExecutor | None = None
         self.controller: CascadeController | None = None
-        self.gains = CascadeGains.paper_default()
+        values = self.params.values()
+        self.gains = gains_from_params(values)
+        self.limits = limits_from_params(values)
         self.mission: list[MissionItem] = []
         self.fence: list[MissionItem] = []
         self.state: VehicleState | None = None
@@ -243,14 +252,26 @@ class Autopilot:
         self._next_failsafe_us = 0
         self.params.subscribe(self._on_param)
         self.frame_detections: tuple[ObstacleDetection, ...] = ()
+        self._warm_up()
+
+    def _warm_up(self) -> None:
+        """Build the cascade and run it once now: its first call JIT-loads the numba kernels (seconds),
+        which must not happen inside the lockstep, where the sim would declare the autopilot lost."""
+        controller = CascadeController(self.airframe, self.gains, 1, self._dt_s, self.limits)
+        self._q[0, 0] = 1.0
+        controller.update_position(
+            self._pos, self._vel, self._q, self._rate, self._pos_sp, self._vel_sp, self._acc_sp, self._yaw_sp
+        )
+        controller.reset()
+        self.controller = controller
 
     # ------------------------------------------------------------------ parameters
     def _setpoint_limits(self) -> SetpointLimits:
         p = self.params.get
         return SetpointLimits(
             acc_xy_m_s2=p("MPC_ACC_HOR"),
-            acc_up_m_s2=p("MPC_ACC_UP_MAX"),
-            acc_down_m_s2=p("MPC_ACC_DOWN_MAX"),
+            acc_up_m_s2=p("MPC_ACC_UP_AUTO"),
+            acc_down_m_s2=p("MPC_ACC_DN_AUTO"),
             jerk_m_s3=p("MPC_JERK_AUTO"),
             yaw_rate_rad_s=math.radians(p("MPC_YAWRAUTO_MAX")),
         )
@@ -259,10 +280,23 @@ class Autopilot:
         """Parameter changes take effect at once (in flight too)."""
         if name.startswith(("MPC_ACC", "MPC_JERK", "MPC_YAWRAUTO")):
             self.setpoints.limits = self._setpoint_limits()
+        if name.startswith("NV_") or name in _CONTROL_LIMIT_PARAMS:
+            self._update_controller_params()
         elif name == "BAT_HOVER_ENDUR":
             self.battery.hover_endurance_s = value
         elif name.startswith("MIS_") and self.executor is not None:
             self.executor.configure(ExecutorConfig.from_params(self.params))
+
+    def _update_controller_params(self) -> None:
+        """Gains change live (integrators kept); a limit change rebuilds the cascade (its integrators restart)."""
+        values = self.params.values()
+        self.gains = gains_from_params(values)
+        limits = limits_from_params(values)
+        if limits != self.limits:
+            self.limits = limits
+            self.controller = None  # rebuilt with the new limits at the next step
+        elif self.controller is not None:
+            self.controller.set_gains(self.gains)
 
     # ------------------------------------------------------------------ geography
     @property
@@ -353,6 +387,8 @@ class Autopilot:
         commander = self.commander
         commander.local_frame = self.estimator.local_frame
         self._track_home()
+        if self.script is not None:
+            self._run_script(state)
         self._run_failsafes(state)
         self._run_mission(state)
         target = commander.update(state, self.thrust_ratio)
@@ -361,6 +397,21 @@ class Autopilot:
         motor = self._control(state, target)
         self._motor = motor
         return ActuatorCommand(t_us, motor, commander.armed, commander.gripper_release)
+
+    def _run_script(self, state: VehicleState) -> None:
+        """Scripted commands due at this sim time, through the same path as GCS commands."""
+        assert self.script is not None
+        for step in self.script.due(state.time_us):
+            request = step.request()
+            if request is not None:
+                result = self.handle_command(request)
+            else:  # goto: metres about home
+                n, e, alt = step.args
+                home = self.home_ned
+                self.commander.goto(state, (home[0] + n, home[1] + e, home[2] - alt))
+                result = CommandResult.ACCEPTED
+            reason = f" ({self.commander.last_reason})" if result is not CommandResult.ACCEPTED else ""
+            self._say(f"Script {step.cmd}: {result.name}{reason}")
 
     def _track_home(self) -> None:
         home = self.commander.home
@@ -434,7 +485,7 @@ class Autopilot:
             return (idle, idle, idle, idle)
         controller = self.controller
         if controller is None or abs(controller.dt_s - self._dt_s) > 1e-9:
-            controller = self.controller = CascadeController(self.airframe, self.gains, 1, self._dt_s)
+            controller = self.controller = CascadeController(self.airframe, self.gains, 1, self._dt_s, self.limits)
         if self._last_kind is TargetKind.IDLE:
             gen.reset(state.pos_ned_m, state.vel_ned_m_s, state.yaw_rad)
             controller.reset()

@@ -1,0 +1,125 @@
+"""Commands at fixed sim times (``quadsitl autopilot --script FILE``): deterministic flights without a GCS.
+
+GCS commands arrive at whatever sim time the wall clock lets them, so two runs differ. A
+script makes a flight a function of the seed only (the determinism and lossy-link tests,
+the lockstep benchmark). The YAML file is a list of steps, each ``at_s`` (sim seconds) plus
+one command; altitudes are metres above home, positions metres north/east of home::
+
+    - {at_s: 0.5, cmd: arm}
+    - {at_s: 1.0, cmd: takeoff, alt_m: 10}
+    - {at_s: 12.0, cmd: goto, north_m: 20, east_m: 5, alt_m: 10}
+    - {at_s: 25.0, cmd: land}
+
+Commands: ``arm``, ``disarm``, ``takeoff`` (alt_m), ``land``, ``rtl``, ``mission_start``, ``hold``,
+``goto`` (north_m, east_m, alt_m). Each runs through the same commander path as a GCS command.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+
+from mavlink_bridge.gcs_types import CommandRequest
+
+_ARGS = {
+    "arm": (),
+    "disarm": (),
+    "takeoff": ("alt_m",),
+    "land": (),
+    "rtl": (),
+    "mission_start": (),
+    "hold": (),
+    "goto": ("north_m", "east_m", "alt_m"),
+}
+_GLOBAL_RELATIVE_ALT_INT = 6
+
+
+class ScriptError(ValueError):
+    """A script file that cannot run; the message names the step and the problem."""
+
+
+@dataclass(frozen=True, slots=True)
+class ScriptStep:
+    """One command at ``at_us`` of sim time; ``args`` are the command's numbers in ``_ARGS`` order."""
+
+    at_us: int
+    cmd: str
+    args: tuple[float, ...] = ()
+
+    def request(self) -> CommandRequest | None:
+        """The MAVLink command this step sends (None for ``goto``, which the commander takes directly)."""
+        nan = math.nan
+        params: tuple[float, ...] | None = {
+            "arm": (1.0, 0.0),
+            "disarm": (0.0, 0.0),
+            "takeoff": (0.0, 0.0, 0.0, nan, nan, nan, *self.args),
+            "land": (0.0, 0.0, 0.0, nan, nan, nan, nan),
+            "rtl": (),
+            "mission_start": (0.0, 0.0),
+            "hold": (1.0, 4.0, 3.0),
+        }.get(self.cmd)
+        number = {"arm": 400, "disarm": 400, "takeoff": 22, "land": 21, "rtl": 20, "mission_start": 300, "hold": 176}
+        if params is None:
+            return None
+        full = (*params, *([0.0] * (7 - len(params))))
+        return CommandRequest(number[self.cmd], full, 0, 0, is_int=True, frame=_GLOBAL_RELATIVE_ALT_INT)  # type: ignore[arg-type]
+
+
+def parse_script(entries: object, origin: str = "<script>") -> list[ScriptStep]:
+    """Validate a list of ``{at_s, cmd, ...}`` mappings into steps sorted by time."""
+    if not isinstance(entries, list):
+        raise ScriptError(f"{origin}: expected a list of steps")
+    steps = []
+    for i, entry in enumerate(entries):
+        where = f"{origin}: step {i}"
+        if not isinstance(entry, dict):
+            raise ScriptError(f"{where}: expected a mapping with at_s and cmd")
+        cmd = entry.get("cmd")
+        if cmd not in _ARGS:
+            raise ScriptError(f"{where}: cmd must be one of {sorted(_ARGS)}, got {cmd!r}")
+        unknown = set(entry) - {"at_s", "cmd", *_ARGS[cmd]}
+        if unknown:
+            raise ScriptError(f"{where}: unknown keys {sorted(unknown)} for {cmd}")
+        try:
+            at_s = float(entry["at_s"])
+            args = tuple(float(entry[k]) for k in _ARGS[cmd])
+        except KeyError as exc:
+            raise ScriptError(f"{where}: missing {exc.args[0]}") from None
+        except (TypeError, ValueError):
+            raise ScriptError(f"{where}: at_s and the arguments must be numbers") from None
+        if not (math.isfinite(at_s) and at_s >= 0.0) or not all(math.isfinite(a) for a in args):
+            raise ScriptError(f"{where}: times and arguments must be finite, at_s >= 0")
+        steps.append(ScriptStep(round(at_s * 1e6), cmd, args))
+    return sorted(steps, key=lambda s: s.at_us)
+
+
+def load_script(path: str | Path) -> list[ScriptStep]:
+    """Read a script YAML file (ScriptError on any problem)."""
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise ScriptError(f"{path}: {exc}") from None
+    return parse_script(data, str(path))
+
+
+class CommandScript:
+    """Hands out the steps that are due at a sim time, each once."""
+
+    def __init__(self, steps: Sequence[ScriptStep]) -> None:
+        self._steps = list(steps)
+        self._next = 0
+
+    def due(self, time_us: int) -> list[ScriptStep]:
+        out = []
+        while self._next < len(self._steps) and self._steps[self._next].at_us <= time_us:
+            out.append(self._steps[self._next])
+            self._next += 1
+        return out
+
+    @property
+    def finished(self) -> bool:
+        return self._next >= len(self._steps)
