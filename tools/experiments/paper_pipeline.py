@@ -71,13 +71,13 @@ class PaperSettings:
         return cls(
             nlvg_iterations=1,
             restarts=1,
-            step_duration_attitude_s=0.4,
-            step_duration_position_s=1.0,
-            storm_duration_s=4.0,
-            lissajous_duration_s=4.0,
-            payload_hover_s=0.5,
-            payload_after_s=1.5,
-            tune_step_scale=0.25,
+            step_duration_attitude_s=0.3,
+            step_duration_position_s=0.6,
+            storm_duration_s=2.0,
+            lissajous_duration_s=2.0,
+            payload_hover_s=0.3,
+            payload_after_s=0.7,
+            tune_step_scale=0.2,
         )
 
 
