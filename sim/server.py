@@ -185,12 +185,10 @@ class SimServer:
 
     def _apply(self, cmd: ActuatorCommand) -> None:
         """Motors when armed (else stopped; non-finite commands stop that motor), gripper release."""
-        out = self._motor_cmd
         if cmd.armed:
-            out[:] = cmd.motor_cmd
-            np.nan_to_num(out, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
+            self._motor_cmd[:] = [u if math.isfinite(u) else 0.0 for u in cmd.motor_cmd]
         else:
-            out[:] = 0.0
+            self._motor_cmd[:] = 0.0
         if cmd.gripper_release and self.vehicle.payload_kg > 0.0:
             self.vehicle.release_payload()
             log.info("payload released at t=%.3f s", self.vehicle.t_s)
