@@ -54,8 +54,8 @@ def signing_timestamp_now(wall_time_unix_s: float | None = None) -> int:
 def enable_signing(mav: mavlink2.MAVLink, key: bytes, *, require_incoming: bool, link_id: int = 0) -> None:
     """Sign outgoing packets with ``key``; if ``require_incoming``, unsigned/badly signed input is rejected.
 
-    Without ``require_incoming`` unsigned input is accepted (a signed link can still talk to an
-    unsigned peer) but a *present* signature that is wrong is still accepted only as unsigned.
+    Without ``require_incoming`` every packet is accepted (unsigned, or with a signature that
+    does not verify), so a keyed link still talks to an unkeyed peer.
     """
     if len(key) != 32:
         raise SigningKeyError(f"a MAVLink signing key has 32 bytes, got {len(key)}")
