@@ -9,7 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from autopilot.planner.geometry import CircleZone
+from autopilot.mission.files import expand_pattern
+from autopilot.planner.geometry import CircleZone, PolygonZone
 from autopilot.planner.param_decls import PlannerParams
 from sim.world import load_world
 from tools.benchmarks.avoidance import fly_route, random_field
@@ -65,3 +66,21 @@ def test_random_fields_are_flown_without_collision() -> None:
         result = fly_route(world, wps, PARAMS, seed=i)
         assert result.collisions == 0
         assert result.min_clearance_m > 0.0
+
+
+def test_mission_worlds_are_flown_safely(repo_root) -> None:
+    """The city-block route (fences from its YAML) and the storm spiral with its obstacles."""
+    city = load_world(repo_root / "missions" / "city_block_delivery.yaml")
+    fences = (
+        PolygonZone(((22.0, -19.0), (22.0, -11.0), (38.0, -11.0), (38.0, -19.0))),
+        CircleZone((150.0, 0.0), 15.0),
+        CircleZone((0.0, 0.0), 300.0, inclusion=True),
+    )
+    route = np.array([[0, 0, -15], [60, 0, -15], [120, 40, -15], [0, 0, -15.0]])
+    _check(fly_route(city, route, PARAMS, fences=fences, seed=1))
+    storm = load_world(repo_root / "missions" / "storm_obstacles.yaml")
+    spiral = np.array(expand_pattern("storm", 2.0, {}))
+    spiral[:, 2] = -np.maximum(spiral[:, 2], 2.0)  # pattern altitudes above home -> down
+    result = fly_route(storm, spiral, PARAMS, speed_m_s=3.0, seed=2)
+    _check(result)
+    assert len(result.decisions) >= 2

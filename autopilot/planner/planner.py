@@ -209,12 +209,14 @@ class AvoidancePlanner:
         q_ned_frd: Sequence[float],
         detections: Iterable[ObstacleDetection],
         route_target_ned: Sequence[float],
-        route_next_ned: Sequence[float] | None = None,
+        route_next_ned: Sequence[float] | np.ndarray | None = None,
     ) -> PlannerOutput:
         """One planner step at sim time ``time_us`` with the vehicle state and this step's detections.
 
-        ``route_target_ned`` is the current mission target, ``route_next_ned`` the one after it
-        (None if none); the detour rejoins the route they define.
+        ``route_target_ned`` is the current mission target, ``route_next_ned`` the one after it, or
+        an ``(n, 3)`` array of the upcoming ones (pass several when waypoints are dense, e.g. expanded
+        patterns), or None; the detour rejoins the route they define, possibly past some of them:
+        the mission executor should then skip the waypoints the detour bypassed.
         """
         pos = np.asarray(pos_ned, float)
         vel = np.asarray(vel_ned, float)
@@ -222,7 +224,7 @@ class AvoidancePlanner:
         obstacles = self.map.obstacles
         route = np.asarray(route_target_ned, float)[None, :]
         if route_next_ned is not None:
-            route = np.vstack((route, np.asarray(route_next_ned, float)))
+            route = np.vstack((route, np.asarray(route_next_ned, float).reshape(-1, 3)))
         decisions: list[AvoidanceDecision] = []
         threat: Threat | None = None
         if self._state is not PlannerState.DISABLED:

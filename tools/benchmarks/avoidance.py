@@ -36,6 +36,8 @@ VEHICLE_ACC_MAX_M_S2 = 6.0
 ACCEPT_RADIUS_M = 1.5
 #: Closer than this to a waypoint, the nose turns to the next one (the camera looks around the corner).
 LOOK_NEXT_WITHIN_M = 10.0
+#: Upcoming waypoints handed to the planner (dense expanded patterns need more than one).
+ROUTE_AHEAD_WAYPOINTS = 12
 
 
 @dataclass(frozen=True, slots=True)
@@ -86,11 +88,12 @@ def fly_route(
     track_err = 0.0
     steps = int(max_time_s / dt_s)
     k = 0
+    on_detour = False
     for k in range(steps):
         time_us = round(k * dt_s * 1e6)
         q = quat_from_euler(0.0, 0.0, yaw)
         dets = sensor.detect(pos, q, time_us) if k % sensor_every == 0 else ()
-        nxt = wps[target_i + 1] if target_i + 1 < len(wps) else None
+        nxt = wps[target_i + 1 : target_i + 1 + ROUTE_AHEAD_WAYPOINTS] if target_i + 1 < len(wps) else None
         t0 = time.perf_counter()
         out = planner.update(time_us, pos, vel, q, dets, wps[target_i], nxt)
         dt_wall = time.perf_counter() - t0
@@ -98,6 +101,12 @@ def fly_route(
         if out.decisions:
             plan_t.append(dt_wall)
             texts.extend(d.text for d in out.decisions)
+        if out.setpoint is None and on_detour:  # detour over: skip the waypoints it bypassed
+            ahead = wps[target_i : target_i + ROUTE_AHEAD_WAYPOINTS]
+            target_i += int(np.argmin(np.linalg.norm(ahead - pos, axis=1)))
+            if target_i + 1 < len(wps) and float(np.linalg.norm(wps[target_i] - pos)) < 3.0 * ACCEPT_RADIUS_M:
+                target_i += 1
+        on_detour = out.setpoint is not None
         if out.setpoint is not None:
             sp_p, sp_v, sp_a = (
                 np.array(x) for x in (out.setpoint.pos_ned_m, out.setpoint.vel_ned_m_s, out.setpoint.acc_ned_m_s2)
