@@ -187,32 +187,36 @@ world:
 """
 
 
-def fly_steady(tmp_path: Path, name: str, speed: str, seed: int) -> dict:
-    """1 s of climb in gusty wind with the minimal autopilot; returns the summary."""
+def start_steady(tmp_path: Path, name: str, speed: str, seed: int) -> tuple[subprocess.Popen[str], ...]:
+    """Start 1 s of climb in gusty wind with the minimal autopilot (sim, pilot)."""
     world = tmp_path / "gusty.yaml"
     world.write_text(WINDY_WORLD)
-    log_dir = tmp_path / name
     port = free_udp_port()
-    sim = start_sim(port, log_dir, "--speed", speed, "--seed", str(seed), "--world", str(world), "--duration-s", "1")
-    pilot = start_minimal_autopilot(port, "steady")
+    args = ("--speed", speed, "--seed", str(seed), "--world", str(world), "--duration-s", "1")
+    sim = start_sim(port, tmp_path / name, *args)
+    return sim, start_minimal_autopilot(port, "steady")
+
+
+def finish_steady(tmp_path: Path, name: str, sim: subprocess.Popen[str], pilot: subprocess.Popen[str]) -> dict:
+    """Wait for the sim to end by itself (--duration-s); its summary."""
     try:
-        _, sim_err = sim.communicate(timeout=60)
+        _, sim_err = sim.communicate(timeout=120)
     finally:
         pilot.kill()
         pilot.wait(10)
         if sim.poll() is None:
             sim.kill()
     assert sim.returncode == 0, sim_err
-    summary = read_summary(log_dir)
+    summary = read_summary(tmp_path / name)
     assert summary["end_reason"] == "COMPLETED" and summary["sim_time_s"] == 1.0
     return summary
 
 
 @pytest.mark.slow
 def test_same_seed_bit_identical_at_max_speed_and_real_time(tmp_path: Path) -> None:
-    fast = fly_steady(tmp_path, "max", "max", seed=11)
-    paced = fly_steady(tmp_path, "rt", "1", seed=11)
-    other = fly_steady(tmp_path, "other", "max", seed=12)
+    runs = {"max": ("max", 11), "rt": ("1", 11), "other": ("max", 12)}
+    procs = {name: start_steady(tmp_path, name, speed, seed) for name, (speed, seed) in runs.items()}  # in parallel
+    fast, paced, other = (finish_steady(tmp_path, name, *procs[name]) for name in runs)
     assert fast["truth_sha256"] == paced["truth_sha256"]
     assert fast["final_pos_ned_m"] == paced["final_pos_ned_m"]
     assert other["truth_sha256"] != fast["truth_sha256"]  # the seed drives the gusts: the check has teeth
