@@ -42,7 +42,12 @@ def build_parser() -> argparse.ArgumentParser:
     """The option set of SPEC §12 plus run-length, rates and test helpers."""
     p = argparse.ArgumentParser(prog="quadsitl sim", description="Lockstep quadrotor simulator (MAVLink over UDP).")
     p.add_argument("--world", type=Path, default=None, metavar="MISSION.yaml", help="mission/world YAML (obstacles)")
-    p.add_argument("--vehicle", default=None, metavar="NAME", help="vehicle config name or YAML path (default: x500)")
+    p.add_argument(
+        "--vehicle",
+        default=None,
+        metavar="NAME",
+        help="vehicle config name or YAML path (default: the mission's vehicle:, else x500)",
+    )
     p.add_argument("--seed", type=int, default=0, help="seed of sensor noise and gusts")
     p.add_argument("--speed", type=_speed, default=None, metavar="{max|FLOAT}", help="sim s per wall s (default max)")
     p.add_argument("--instance", type=int, default=0, metavar="N", help="offset of the listen port (14560 + N)")

@@ -222,3 +222,15 @@ def test_same_seed_bit_identical_at_max_speed_and_real_time(tmp_path: Path) -> N
     assert other["truth_sha256"] != fast["truth_sha256"]  # the seed drives the gusts: the check has teeth
     assert fast["final_pos_ned_m"][2] < -0.05  # it did fly
     assert paced["wall_time_s"] >= 0.99  # --speed 1 paces to the wall clock (a lower bound, not a timing)
+
+
+def test_sigint_while_waiting_for_the_autopilot_writes_a_summary(tmp_path: Path) -> None:
+    sim = start_sim(free_udp_port(), tmp_path, "-v")
+    assert sim.stderr is not None
+    assert "waiting for the autopilot" in sim.stderr.readline()  # started and listening
+    sim.send_signal(signal.SIGINT)
+    _, err = sim.communicate(timeout=30)
+    assert sim.returncode == 0, err
+    summary = read_summary(tmp_path)
+    assert summary["end_reason"] == "STOPPED" and summary["sim_time_s"] == 0.0
+    assert summary["autopilot_connected"] is False
