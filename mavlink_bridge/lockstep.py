@@ -110,7 +110,6 @@ class LockstepServer:
         self._link = UdpLink(url, follow_sender=False)
         self._encoder = Encoder(SIM_SYSTEM_ID, SIM_COMPONENT_ID)
         self._decoder = Decoder()
-        self._last_heard_s = -1.0
         self._frames = 0
         self._resends = 0
         self._stale = 0
@@ -149,23 +148,21 @@ class LockstepServer:
 
     def _heard(self) -> None:
         """A valid message came from the autopilot: reply to it from now on."""
-        self._last_heard_s = time.monotonic()
         self._link.set_peer(self._link.last_sender)
 
     def exchange(self, frame: LockstepFrame) -> ActuatorCommand:
         """Send ``frame`` and return the HIL_ACTUATOR_CONTROLS answering it (``time_us`` echoed).
 
         Re-sends after ``resend_timeout_s`` without the answer; raises ``AutopilotLost``
-        after ``peer_lost_timeout_s`` without any valid message from the autopilot
-        (counted from the later of the last message heard and this call), and
-        ``LockstepInterrupted`` after ``interrupt``.
+        after ``peer_lost_timeout_s`` (wall) without any valid message from the autopilot
+        during this call, and ``LockstepInterrupted`` after ``interrupt``.
         """
         frame_time_us = frame.sensor.time_us
         datagram = encode_frame(self._encoder, frame)
         link, decoder = self._link, self._decoder
         link.send(datagram)
         now = time.monotonic()
-        silent_since = max(self._last_heard_s, now)
+        silent_since = now  # the sim may have been busy before this call: count silence from here
         resend_at = now + self.resend_timeout_s
         while True:
             data = link.recv(resend_at - now)
