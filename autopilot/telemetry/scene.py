@@ -130,7 +130,7 @@ def fence_outlines(zones: Sequence[object], n_circle: int = 48) -> tuple[list[np
     """
     outlines: list[np.ndarray] = []
     inclusion: list[bool] = []
-    angles = np.linspace(0.0, 2.0 * math.pi, n_circle + 1)
+    angles = np.linspace(0.0, 2.0 * math.pi, n_circle, endpoint=False)
     for zone in zones:
         vertices = getattr(zone, "vertices_ne_m", None) or getattr(zone, "vertices_ne", None)
         if vertices is not None:
@@ -143,6 +143,7 @@ def fence_outlines(zones: Sequence[object], n_circle: int = 48) -> tuple[list[np
             c = np.asarray(center, dtype=np.float64)
             r = float(zone.radius_m)  # type: ignore[attr-defined]
             ne = np.column_stack([c[0] + r * np.cos(angles), c[1] + r * np.sin(angles)])
+            ne = np.vstack([ne, ne[:1]])
         outlines.append(ne)
         inclusion.append(bool(getattr(zone, "inclusion", False)))
     return outlines, inclusion
