@@ -64,7 +64,7 @@ def _pid(ch, e, de, w, u_max, i_max, gains, prm, wk):  # pragma: no cover - numb
     return nlvg_pid_step(e, de, gains[ch], w, prm[P_DT], u_max, i_max, wk[s0 : s0 + N_STATE_COLS], wk[k0 : k0 + 3])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _attitude_stage(q4, rate3, roll_d, pitch_d, yaw_d, thrust_n, gains, prm, wk):  # pragma: no cover - numba kernel
     """Steps 5-7 for one vehicle (rows of the batch arrays); returns False (nothing written) on bad input."""
     qw, qx, qy, qz = q4[0], q4[1], q4[2], q4[3]
@@ -75,11 +75,17 @@ def _attitude_stage(q4, rate3, roll_d, pitch_d, yaw_d, thrust_n, gains, prm, wk)
     if not (math.isfinite(roll_d) and math.isfinite(pitch_d) and math.isfinite(yaw_d) and math.isfinite(thrust_n)):
         return False
     qw, qx, qy, qz = qw / qn, qx / qn, qy / qn, qz / qn
-    roll = math.atan2(2.0 * (qw * qx + qy * qz), 1.0 - 2.0 * (qx * qx + qy * qy))
-    pitch = math.asin(min(max(2.0 * (qw * qy - qz * qx), -1.0), 1.0))
+    r21 = 2.0 * (qw * qx + qy * qz)
+    r22 = 1.0 - 2.0 * (qx * qx + qy * qy)
+    sp = min(max(2.0 * (qw * qy - qz * qx), -1.0), 1.0)  # sin(pitch) = −R20
+    roll = math.atan2(r21, r22)
+    pitch = math.asin(sp)
     yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
-    sr, cr = math.sin(roll), math.cos(roll)
-    sp, cp = math.sin(pitch), math.cos(pitch)
+    cp = math.sqrt(r21 * r21 + r22 * r22)  # cos(pitch) >= 0, and (sin, cos)(roll) = (R21, R22)/cos(pitch)
+    if cp > 1e-9:
+        sr, cr = r21 / cp, r22 / cp
+    else:
+        sr, cr = 0.0, 1.0
     cp_safe = max(cp, 0.05)
     roll_rate = p + (q * sr + r * cr) * sp / cp_safe
     pitch_rate = q * cr - r * sr
@@ -125,61 +131,73 @@ def _attitude_kernel(qv, rate, att_in, thrust_in, gains, prm, work):  # pragma: 
 
 
 @njit(cache=True)
-def _position_kernel(pos, vel, qv, rate, pos_sp, vel_sp, acc_ff, yaw_sp, gains, mass, prm, work):  # pragma: no cover
+def _position_one(pos, vel, q4, rate3, pos_sp, vel_sp, acc_ff, yaw_sp, m, g, prm, wk):  # pragma: no cover
+    """Steps 1-7 for one vehicle (1-D rows); writes ``wk`` and returns False on a non-finite input."""
+    finite = math.isfinite(m) and m > 0.0 and math.isfinite(yaw_sp)
+    for k in range(3):
+        finite = finite and math.isfinite(pos[k] + vel[k] + pos_sp[k])
+    if not finite:
+        return False
     w = 1.0 / prm[L_T_POS]
     i_max = prm[L_I_POS]
-    tan_tilt = math.tan(prm[L_TILT])
     acc_xy = prm[L_ACC_XY]
     u_z = max(prm[L_ACC_UP], prm[L_ACC_DOWN])
+    e0 = pos_sp[0] - pos[0]
+    e1 = pos_sp[1] - pos[1]
+    e2 = pos_sp[2] - pos[2]
+    de0 = _finite_or_zero(vel_sp[0]) - vel[0]
+    de1 = _finite_or_zero(vel_sp[1]) - vel[1]
+    de2 = _finite_or_zero(vel_sp[2]) - vel[2]
+    a0 = _finite_or_zero(acc_ff[0]) + _pid(0, e0, de0, w, acc_xy, i_max, g, prm, wk)
+    a1 = _finite_or_zero(acc_ff[1]) + _pid(1, e1, de1, w, acc_xy, i_max, g, prm, wk)
+    a2 = _finite_or_zero(acc_ff[2]) + _pid(2, e2, de2, w, u_z, i_max, g, prm, wk)
+    wk[W_ERR] = e0
+    wk[W_ERR + 1] = e1
+    wk[W_ERR + 2] = e2
+    a2 = min(max(a2, -prm[L_ACC_UP]), prm[L_ACC_DOWN])
+    h = math.sqrt(a0 * a0 + a1 * a1)
+    if h > acc_xy:
+        a0 *= acc_xy / h
+        a1 *= acc_xy / h
+    fx, fy, fz = a0, a1, a2 - GRAVITY_M_S2  # specific force wanted, NED; fz < 0
+    h = math.sqrt(fx * fx + fy * fy)
+    h_max = -fz * math.tan(prm[L_TILT])
+    if h > h_max:
+        fx *= h_max / h
+        fy *= h_max / h
+    fn = math.sqrt(fx * fx + fy * fy + fz * fz)
+    wk[W_ACC] = fx
+    wk[W_ACC + 1] = fy
+    wk[W_ACC + 2] = fz + GRAVITY_M_S2
+    zx, zy, zz = -fx / fn, -fy / fn, -fz / fn  # desired body z (down) in NED
+    sy, cy = math.sin(yaw_sp), math.cos(yaw_sp)
+    # x_B = y_C × z_B with y_C = (−sin ψ, cos ψ, 0)
+    xx, xy, xz = cy * zz, sy * zz, -sy * zy - cy * zx
+    xn = math.sqrt(xx * xx + xy * xy + xz * xz)
+    xx, xy, xz = xx / xn, xy / xn, xz / xn
+    # y_B = z_B × x_B; roll = atan2(R21, R22), pitch = −asin(R20)
+    yz = zx * xy - zy * xx
+    roll_d = math.atan2(yz, zz)
+    pitch_d = -math.asin(min(max(xz, -1.0), 1.0))
+    return _attitude_stage(q4, rate3, roll_d, pitch_d, yaw_sp, m * fn, g, prm, wk)
+
+
+@njit(cache=True)
+def _position_kernel(pos, vel, qv, rate, pos_sp, vel_sp, acc_ff, yaw_sp, gains, mass, prm, work):  # pragma: no cover
     for v in range(pos.shape[0]):
         wk = work[v]
-        g = gains[v]
-        wk[W_OK] = 0.0
-        m = mass[v]
-        finite = math.isfinite(m) and m > 0.0 and math.isfinite(yaw_sp[v])
-        for k in range(3):
-            finite = finite and math.isfinite(pos[v, k] + vel[v, k] + pos_sp[v, k])
-        if not finite:
-            continue
-        e0 = pos_sp[v, 0] - pos[v, 0]
-        e1 = pos_sp[v, 1] - pos[v, 1]
-        e2 = pos_sp[v, 2] - pos[v, 2]
-        de0 = _finite_or_zero(vel_sp[v, 0]) - vel[v, 0]
-        de1 = _finite_or_zero(vel_sp[v, 1]) - vel[v, 1]
-        de2 = _finite_or_zero(vel_sp[v, 2]) - vel[v, 2]
-        a0 = _finite_or_zero(acc_ff[v, 0]) + _pid(0, e0, de0, w, acc_xy, i_max, g, prm, wk)
-        a1 = _finite_or_zero(acc_ff[v, 1]) + _pid(1, e1, de1, w, acc_xy, i_max, g, prm, wk)
-        a2 = _finite_or_zero(acc_ff[v, 2]) + _pid(2, e2, de2, w, u_z, i_max, g, prm, wk)
-        wk[W_ERR] = e0
-        wk[W_ERR + 1] = e1
-        wk[W_ERR + 2] = e2
-        a2 = min(max(a2, -prm[L_ACC_UP]), prm[L_ACC_DOWN])
-        h = math.sqrt(a0 * a0 + a1 * a1)
-        if h > acc_xy:
-            a0 *= acc_xy / h
-            a1 *= acc_xy / h
-        fx, fy, fz = a0, a1, a2 - GRAVITY_M_S2  # specific force wanted, NED; fz < 0
-        h = math.sqrt(fx * fx + fy * fy)
-        h_max = -fz * tan_tilt
-        if h > h_max:
-            fx *= h_max / h
-            fy *= h_max / h
-        fn = math.sqrt(fx * fx + fy * fy + fz * fz)
-        wk[W_ACC] = fx
-        wk[W_ACC + 1] = fy
-        wk[W_ACC + 2] = fz + GRAVITY_M_S2
-        zx, zy, zz = -fx / fn, -fy / fn, -fz / fn  # desired body z (down) in NED
-        sy, cy = math.sin(yaw_sp[v]), math.cos(yaw_sp[v])
-        # x_B = y_C × z_B with y_C = (−sin ψ, cos ψ, 0)
-        xx, xy, xz = cy * zz, sy * zz, -sy * zy - cy * zx
-        xn = math.sqrt(xx * xx + xy * xy + xz * xz)
-        xx, xy, xz = xx / xn, xy / xn, xz / xn
-        # y_B = z_B × x_B; roll = atan2(R21, R22), pitch = −asin(R20)
-        yz = zx * xy - zy * xx
-        roll_d = math.atan2(yz, zz)
-        pitch_d = -math.asin(min(max(xz, -1.0), 1.0))
-        ok = _attitude_stage(qv[v], rate[v], roll_d, pitch_d, yaw_sp[v], m * fn, g, prm, wk)
+        ok = _position_one(
+            pos[v], vel[v], qv[v], rate[v], pos_sp[v], vel_sp[v], acc_ff[v], yaw_sp[v], mass[v], gains[v], prm, wk
+        )
         wk[W_OK] = 1.0 if ok else 0.0
+
+
+@njit(cache=True)
+def _position_single(pos, vel, q4, rate3, pos_sp, vel_sp, acc_ff, yaw_sp, gains, mass, prm, work):  # pragma: no cover
+    """n = 1 entry with 1-D inputs (no reshaping on the Python side); the same per-vehicle code."""
+    wk = work[0]
+    ok = _position_one(pos, vel, q4, rate3, pos_sp, vel_sp, acc_ff, yaw_sp, mass[0], gains[0], prm, wk)
+    wk[W_OK] = 1.0 if ok else 0.0
 
 
 @dataclass(frozen=True)
@@ -211,6 +229,11 @@ def _rows(x: object, n: int, k: int) -> np.ndarray:
     if n == 1 and a.shape == (k,):
         return a.reshape(1, k)
     return np.ascontiguousarray(np.broadcast_to(a, (n, k)))
+
+
+def _row1(x: object, k: int) -> np.ndarray:
+    a = np.asarray(x, dtype=np.float64)
+    return a if a.shape == (k,) else np.ascontiguousarray(a.reshape(k))
 
 
 def _vector(x: object, n: int) -> np.ndarray:
@@ -308,8 +331,25 @@ class CascadeController:
     ) -> np.ndarray:
         """Full cascade step (SPEC §6.2); returns motor commands (n, 4) in [0, 1], PX4 quad-x order."""
         n = self.n
+        pos = np.asarray(pos_ned, dtype=np.float64)
+        if n == 1 and pos.shape == (3,):
+            _position_single(
+                pos,
+                _row1(vel_ned, 3),
+                _row1(q_ned_frd, 4),
+                _row1(rate_frd, 3),
+                _row1(pos_sp_ned, 3),
+                _row1(vel_sp_ned, 3),
+                _row1(acc_ff_ned, 3),
+                yaw_sp_rad if type(yaw_sp_rad) is float else float(np.asarray(yaw_sp_rad, dtype=np.float64).flat[0]),
+                self._gains,
+                self._mass,
+                self._prm,
+                self._work,
+            )
+            return self._work[:, W_U : W_U + 4].copy()
         _position_kernel(
-            _rows(pos_ned, n, 3),
+            _rows(pos, n, 3),
             _rows(vel_ned, n, 3),
             _rows(q_ned_frd, n, 4),
             _rows(rate_frd, n, 3),
