@@ -54,6 +54,7 @@ def test_entities_present(flight) -> None:
         ent.VEHICLE,
         ent.VEHICLE_BODY,
         ent.SETPOINT,
+        ent.TARGETS,
         ent.HOME,
         ent.LOG,
         ent.DETOUR,
@@ -116,6 +117,12 @@ def test_trail_segments_join_into_the_whole_path(flight) -> None:
         pts.extend(s if k == 0 else s[1:])  # each segment starts at the previous one's end
     tr = recording.translations()
     np.testing.assert_allclose(np.asarray(pts), tr.values, atol=1e-5)
+
+
+def test_targets_are_drawn_once_each(flight) -> None:
+    recording, _ = flight
+    strip = recording.latest_component(ent.TARGETS, "LineStrips3D:strips")[0]
+    assert strip == [[20.0, 0.0, -5.0]]  # one target in the 6 s flight (a new one every 10 s)
 
 
 def test_text_log_has_modes_arming_and_events_in_sim_time(flight) -> None:

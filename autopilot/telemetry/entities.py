@@ -14,6 +14,7 @@ WORLD = "world"
 VEHICLE = "world/vehicle"
 VEHICLE_BODY = "world/vehicle/body"
 SETPOINT = "world/setpoint"
+TARGETS = "world/targets"  # navigation targets as they were commanded (about the origin)
 TRAIL = "world/trail"
 HOME = "world/home"
 ROUTE = "world/home/route"

@@ -91,7 +91,8 @@ _COLOR_SAFETY = (255, 60, 60, 120)
 _COLOR_TRUE = (150, 150, 160, 160)
 _COLOR_FENCE_EXCL = (255, 40, 40)
 _COLOR_FENCE_INCL = (40, 200, 255)
-_NAN3 = (math.nan, math.nan, math.nan)
+_COLOR_TARGETS = (255, 150, 0)
+_MAX_TARGETS = 2000
 
 
 class _DiagGather:
@@ -195,6 +196,8 @@ class RerunTelemetry:
         self._last_armed: bool | None = None
         self._last_seq: int | None = None
         self._last_home: tuple[float, float, float] | None = None
+        self._last_target_pos: Sequence[float] | None = None
+        self._targets: list[tuple[float, float, float]] = []
         self._last_detour: object | None = None
         self._last_obstacle_key: tuple[Any, ...] | None = None
         self.steps_logged = 0
@@ -263,6 +266,9 @@ class RerunTelemetry:
         if t_us >= self._next_3d_us:
             self._next_3d_us = t_us + self._period_3d_us
             self._sample_3d(t_us, pos, state.q_ned_frd, sp)
+            target = record.target
+            if target.kind is not TargetKind.IDLE and target.pos_ned_m != self._last_target_pos:
+                self._add_target(t_us, target.pos_ned_m)
             if planner is not None:
                 self._planner_3d(t_us, planner)
         if record.texts or record.mode is not self._last_mode or record.armed is not self._last_armed:
@@ -278,6 +284,19 @@ class RerunTelemetry:
             self.rec.log(ent.HOME, rr.Transform3D(translation=self._last_home))
         if len(self._times) >= self._batch_rows:
             self.flush()
+
+    def _add_target(self, t_us: int, pos_ned: Sequence[float]) -> None:
+        """The navigation targets flown so far (about the origin): the reference route as commanded."""
+        self._last_target_pos = pos_ned
+        if len(self._targets) >= _MAX_TARGETS:
+            del self._targets[: _MAX_TARGETS // 2]
+        self._targets.append((float(pos_ned[0]), float(pos_ned[1]), float(pos_ned[2])))
+        self._set_time(t_us)
+        self.rec.log(
+            ent.TARGETS,
+            rr.LineStrips3D([self._targets], colors=[_COLOR_TARGETS], radii=0.05),
+            rr.Points3D(self._targets, colors=[_COLOR_TARGETS], radii=0.25),
+        )
 
     def _battery_fields(self, record: StepRecord) -> bool:
         """Whether records carry ``battery_remaining_pct``/``battery_voltage_v`` (checked once)."""
@@ -312,13 +331,17 @@ class RerunTelemetry:
         self._trail_dirty = False
 
     def _events(self, record: StepRecord) -> None:
+        """Arming and mode changes (unless the step's own texts already say so), then the texts."""
         t_us = record.time_us
+        said = " ".join(t.text for t in record.texts).lower()
         if record.armed is not self._last_armed:
-            if self._last_armed is not None or record.armed:
-                self.on_event("armed" if record.armed else "disarmed", Severity.INFO, t_us)
+            word = "armed" if record.armed else "disarmed"
+            if (self._last_armed is not None or record.armed) and word not in said:
+                self.on_event(word, Severity.INFO, t_us)
             self._last_armed = record.armed
         if record.mode is not self._last_mode:
-            self.on_event(f"mode {record.mode.name}", Severity.INFO, t_us)
+            if record.mode.name.lower() not in said:
+                self.on_event(f"mode {record.mode.name}", Severity.INFO, t_us)
             self._last_mode = record.mode
         for text in record.texts:
             self.on_event(text.text, text.severity, t_us)

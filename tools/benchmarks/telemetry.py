@@ -111,7 +111,7 @@ def synthetic_records(n_steps: int, *, with_planner: bool = True, t0_us: int = 1
         yield StepRecord(
             time_us=t_us,
             state=state,
-            target=NavTarget(TargetKind.IDLE if idle else TargetKind.POSITION, sp),
+            target=NavTarget(TargetKind.IDLE if idle else TargetKind.POSITION, (20.0 * (1 + k // 2500), 0.0, -5.0)),
             pos_sp_ned_m=sp,
             vel_sp_ned_m_s=(0.0, 0.0, 0.0),
             acc_sp_ned_m_s2=(0.0, 0.0, 0.0),
