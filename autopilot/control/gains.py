@@ -237,7 +237,7 @@ class CascadeLimits:
     acc_down_max_m_s2: float = 6.0
     ang_acc_max_rp_rad_s2: float = 150.0
     ang_acc_max_yaw_rad_s2: float = 40.0
-    pos_i_max_m_s2: float = 3.0
+    pos_i_max_m_s2: float = 5.0  # covers a ±30 % mass mismatch (0.3 g / 0.7 ≈ 4.2 m/s²)
     att_i_max_rad_s2: float = 20.0
     pos_time_scale_s: float = 1.0
     att_time_scale_s: float = 0.15
