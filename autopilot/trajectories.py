@@ -111,13 +111,21 @@ class Trajectory(ABC):
             yaw_rad=yaw.reshape(t.shape),
         )
 
-    def waypoints(self, spacing_m: float) -> list[tuple[float, float, float]]:
-        """Points (north_m, east_m, alt_m) about every ``spacing_m`` of path length, first and last included."""
+    def waypoints(self, spacing_m: float, min_alt_m: float = 1.0) -> list[tuple[float, float, float]]:
+        """Points (north_m, east_m, alt_m) about every ``spacing_m`` of path length, first and last included.
+
+        Parts of the route below ``min_alt_m`` (e.g. the storm's ground start) are left out: a mission's
+        takeoff item flies that part.
+        """
         _check("spacing_m", spacing_m, positive=True)
+        _check("min_alt_m", min_alt_m, nonneg=True)
         t = np.arange(0.0, self.duration_s + 1e-9, 0.01)
         if t[-1] < self.duration_s:
             t = np.append(t, self.duration_s)
         p = self.sample(t).pos_ned
+        p = p[-p[:, 2] >= min_alt_m]
+        if p.shape[0] == 0:
+            raise ValueError(f"min_alt_m: the whole route is below {min_alt_m} m")
         length = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))))
         marks = np.arange(0.0, length[-1], spacing_m)
         idx = np.unique(np.searchsorted(length, marks))
@@ -370,10 +378,10 @@ class Steps(Trajectory):
         z = np.zeros_like(p)
         return p, z, z
 
-    def waypoints(self, spacing_m: float) -> list[tuple[float, float, float]]:
-        """The step setpoints themselves (spacing is irrelevant for steps)."""
+    def waypoints(self, spacing_m: float, min_alt_m: float = 1.0) -> list[tuple[float, float, float]]:
+        """The step setpoints at or above ``min_alt_m`` (spacing is irrelevant for steps)."""
         _check("spacing_m", spacing_m, positive=True)
-        return [(r[1], r[2], r[3]) for r in self.steps]
+        return [(r[1], r[2], r[3]) for r in self.steps if r[3] >= min_alt_m]
 
 
 TRAJECTORY_TYPES: dict[str, Callable[..., Trajectory]] = {

@@ -82,13 +82,22 @@ def test_tangent_yaw_follows_velocity() -> None:
 @pytest.mark.parametrize("kind", CONTINUOUS)
 def test_waypoints_are_spaced_along_the_route(kind: str) -> None:
     traj = make_trajectory(kind)
-    wps = np.array(traj.waypoints(2.0))
+    wps = np.array(traj.waypoints(2.0, min_alt_m=0.0))
     end = traj.sample(traj.duration_s).pos_ned
     np.testing.assert_allclose(wps[0], [0.0, 0.0, -traj.sample(0.0).pos_ned[2]], atol=1e-9)
     np.testing.assert_allclose(wps[-1], [end[0], end[1], -end[2]], atol=1e-9)
     gaps = np.linalg.norm(np.diff(wps, axis=0), axis=1)
     assert np.all(gaps[:-1] <= 2.0 + 0.1) and np.all(gaps[:-1] > 1.0)  # chord <= arc spacing
     assert np.all(wps[:, 2] >= 0.0)
+
+
+def test_waypoints_leave_out_the_part_below_min_alt() -> None:
+    storm = make_trajectory("storm")  # starts on the ground at home
+    wps = np.array(storm.waypoints(2.0))
+    assert wps[:, 2].min() >= 1.0
+    assert wps[-1, 2] == pytest.approx(storm.alt_end_m)
+    with pytest.raises(ValueError, match="min_alt_m"):
+        storm.waypoints(2.0, min_alt_m=50.0)
 
 
 def test_steps_reference_and_waypoints() -> None:
