@@ -182,3 +182,13 @@ def test_gain_file_round_trip_stacking_and_validation(tmp_path) -> None:
     path.write_text("format: something-else\n")
     with pytest.raises(ValueError, match="format"):
         CascadeGains.from_yaml(path)
+
+
+def test_per_term_schedule_in_the_cascade_uses_velocity_error_for_kd() -> None:
+    g = CascadeGains.paper_default(k1_scale=0.5, k2_scale=2.0, schedule="per_term")
+    c = _ctrl(gains=g)
+    _step(c, vel=np.array([0.0, -3.0, 0.0]), sp=np.array([0.001, 0.001, 0.0]))
+    kd = c.diagnostics.kd[0]
+    kp = c.diagnostics.kp[0]
+    assert kd[0] == pytest.approx(2.5) and kd[1] == pytest.approx(10.0)  # |ė_y| = 3 m/s > δ2 → k2
+    assert kp[1] == pytest.approx(2.5)  # |e_y| = 1 mm < δ1 → k1
