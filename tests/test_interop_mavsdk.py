@@ -1,0 +1,144 @@
+"""Interoperability with MAVSDK-Python 4.x (issue 5): a raw mission uploaded, flown and completed.
+
+Sim and autopilot run as two processes on free loopback ports; MAVSDK talks to the API link
+(SPEC §3) from ``interop_clients/mavsdk_fly_mission.py`` in a separate interpreter with a hard
+timeout, so a hang in the native library cannot hang pytest. MAVSDK's ``MissionRaw`` uploads the
+items, downloads them back, ``Action.arm`` arms and ``MissionRaw.start_mission`` switches to
+AUTO.MISSION; the flight must reach the last item, land and disarm. Skipped when no interpreter
+imports ``mavsdk`` >= 4 (see ``interop_clients`` for ``QUADSITL_INTEROP_PYTHON``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+from dataclasses import dataclass
+from itertools import pairwise
+from typing import Any
+
+import pytest
+from conftest import REPO_ROOT, free_udp_port
+from interop_clients import MAVSDK_DRIVER, mavsdk4_python
+from sitl_procs import logs, read_json, start_autopilot, start_sim, stop
+
+from autopilot.mission.commands import GripperAction, MavCmd, MavFrame
+from autopilot.mission.files import load_mission_file
+from mavlink_bridge.frames import GeoPoint, LocalNedFrame
+from mavlink_bridge.gcs_types import MissionItem
+
+pytestmark = [pytest.mark.sitl, pytest.mark.slow]
+
+WORLD = REPO_ROOT / "missions" / "delivery.yaml"  # home, wind and the 1 kg payload the sim carries
+DRIVER_TIMEOUT_S = 75.0  # the driver's own limit; the process is killed 15 s later
+
+
+def _short_delivery(home: GeoPoint) -> list[MissionItem]:
+    """Speed, take off, fly out, release the payload, hold, return to launch: every executor phase, ~40 s sim."""
+    out = LocalNedFrame(home).geodetic_from_ned(25.0, 15.0, 0.0)
+    nan = math.nan
+    rel = MavFrame.GLOBAL_RELATIVE_ALT_INT
+    return [
+        MissionItem(0, MavCmd.DO_CHANGE_SPEED, MavFrame.MISSION, 1.0, 6.0, -1.0, 0.0),
+        MissionItem(1, MavCmd.NAV_TAKEOFF, rel, 0.0, 0.0, 0.0, nan, 0.0, 0.0, 8.0),
+        MissionItem(2, MavCmd.NAV_WAYPOINT, rel, 0.0, 1.0, 0.0, nan, out.lat_deg, out.lon_deg, 8.0),
+        MissionItem(3, MavCmd.DO_GRIPPER, MavFrame.MISSION, 1.0, float(GripperAction.RELEASE)),
+        MissionItem(4, MavCmd.NAV_LOITER_TIME, rel, 1.0, 0.0, 0.0, nan, out.lat_deg, out.lon_deg, 8.0),
+        MissionItem(5, MavCmd.NAV_RETURN_TO_LAUNCH, MavFrame.MISSION),
+    ]
+
+
+def _mission_item_int(item: MissionItem) -> dict[str, Any]:
+    """MISSION_ITEM_INT fields as MAVSDK's MissionRaw.MissionItem takes them (x/y in degE7, seq 0 current)."""
+    return {
+        "seq": item.seq,
+        "frame": int(item.frame),
+        "command": int(item.command),
+        "current": int(item.seq == 0),
+        "autocontinue": int(item.autocontinue),
+        "param1": item.param1,
+        "param2": item.param2,
+        "param3": item.param3,
+        "param4": item.param4,
+        "x": round(item.x_lat_deg * 1e7),
+        "y": round(item.y_lon_deg * 1e7),
+        "z": item.z_alt_m,
+        "mission_type": 0,
+    }
+
+
+@dataclass(frozen=True)
+class Flight:
+    """What one MAVSDK session observed, what it was given, and both processes' summaries."""
+
+    sent: list[dict[str, Any]]
+    result: dict[str, Any]
+    home: GeoPoint
+    autopilot: dict[str, Any]
+    sim: dict[str, Any]
+
+
+@pytest.fixture(scope="module")
+def flight(tmp_path_factory: pytest.TempPathFactory) -> Flight:
+    """Fly the short delivery once with MAVSDK (module scope: the tests below read the same flight)."""
+    python = mavsdk4_python()
+    if python is None:
+        pytest.skip("mavsdk>=4 not importable here nor in $QUADSITL_INTEROP_PYTHON")
+    tmp_path = tmp_path_factory.mktemp("mavsdk")
+    plan = load_mission_file(WORLD)
+    sent = [_mission_item_int(item) for item in _short_delivery(plan.home)]
+    (tmp_path / "items.json").write_text(json.dumps(sent))
+    sim_port, api_port, api_target = free_udp_port(), free_udp_port(), free_udp_port()
+    sim = start_sim(tmp_path, sim_port, "--world", str(WORLD), "--seed", "5")
+    api = ["--api", f"udpin:127.0.0.1:{api_port}", "--api-target", f"udpout:127.0.0.1:{api_target}"]
+    ap = start_autopilot(tmp_path, sim_port, None, "--vehicle", plan.vehicle, *api)
+    driver = [
+        python, str(MAVSDK_DRIVER), "--connect", f"udpin://127.0.0.1:{api_target}",
+        "--items", str(tmp_path / "items.json"), "--result", str(tmp_path / "mavsdk.json"),
+        "--timeout-s", str(DRIVER_TIMEOUT_S),
+    ]  # fmt: skip
+    try:
+        run = subprocess.run(driver, cwd=tmp_path, capture_output=True, text=True, timeout=DRIVER_TIMEOUT_S + 15.0)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"MAVSDK driver hung past its own timeout\n{logs(tmp_path)}")
+    finally:
+        ap_rc, sim_rc = stop(ap), stop(sim)
+    result = read_json(tmp_path / "mavsdk.json")
+    context = f"{result.get('error')}\n{run.stdout[-3000:]}\n{run.stderr[-2000:]}\n{logs(tmp_path)}"
+    assert run.returncode == 0 and result["ok"], context
+    assert (ap_rc, sim_rc) == (0, 0), logs(tmp_path)
+    summaries = read_json(tmp_path / "autopilot_summary.json"), read_json(tmp_path / "sim_summary.json")
+    return Flight(sent, result, plan.home, *summaries)
+
+
+def test_mavsdk_mission_raw_upload_arm_start_complete(flight: Flight) -> None:
+    result, sent, total = flight.result, flight.sent, len(flight.sent)
+    steps = {s["step"]: s for s in result["steps"]}
+    assert steps["discovered"]["autopilot"] == "PX4" and steps["discovered"]["vehicle"] == "MULTICOPTER"
+    downloaded = result["downloaded"]
+    key = ("seq", "command", "frame", "current", "autocontinue", "x", "y", "mission_type")
+    assert [[d[k] for k in key] for d in downloaded] == [[s[k] for k in key] for s in sent]
+    for got, want in zip(downloaded, sent, strict=True):
+        fields = ("param1", "param2", "param3", "param4", "z")
+        assert [got[f] for f in fields] == pytest.approx([want[f] for f in fields], nan_ok=True, abs=1e-5)
+    assert "MISSION" in result["flight_modes"]
+    progress = result["progress"]
+    assert progress[-1] == [total, total]
+    assert {current for current, _ in progress} == set(range(total + 1))  # every item became current
+    assert "Payload released" in result["status_texts"]
+    assert flight.autopilot["reached_seqs"] == list(range(total))
+    assert flight.autopilot["landed"] and flight.autopilot["disarmed"] and flight.autopilot["payload_released"]
+    assert flight.sim["collisions"] == 0 and flight.sim["payload_released_at_s"] is not None
+    landed = steps["landed"]
+    north_m, east_m, _ = LocalNedFrame(flight.home).ned_from_geodetic(landed["lat_deg"], landed["lon_deg"], 0.0)
+    assert math.hypot(north_m, east_m) < 1.5  # RTL brought it home, in MAVSDK's own position telemetry
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="known: MISSION_CURRENT of a step goes out before that step's MISSION_ITEM_REACHED "
+    "(mavlink_bridge/telemetry_streams.py publish), so MAVSDK's progress steps back once",
+)
+def test_mavsdk_mission_progress_never_steps_back(flight: Flight) -> None:
+    progress = flight.result["progress"]
+    assert all(a[0] <= b[0] for a, b in pairwise(progress)), progress
