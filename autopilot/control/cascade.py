@@ -32,12 +32,12 @@ from numba import njit
 from autopilot.control.airframe import Airframe
 from autopilot.control.gains import CascadeGains, CascadeLimits
 from autopilot.control.mixer import QuadXMixer, mix_one
-from autopilot.control.pid import N_STATE_COLS, nlvg_pid_step
+from autopilot.control.pid import N_GAIN_COLS, N_STATE_COLS, nlvg_pid_step
 
 GRAVITY_M_S2 = 9.80665
 # packed parameter vector: CascadeLimits.as_array() then airframe constants, then A⁻¹ (row-major)
 L_TILT, L_ACC_XY, L_ACC_UP, L_ACC_DOWN, L_AA_RP, L_AA_YAW, L_I_POS, L_I_ATT, L_T_POS, L_T_ATT, L_GYRO = range(11)
-P_FMAX, P_KF, P_WMAX, P_DT, P_IX, P_IY, P_IZ, P_AINV = range(11, 19)
+P_FMAX, P_KF, P_WMAX, P_DT, P_IX, P_IY, P_IZ, P_TAN_TILT, P_AINV = range(11, 20)
 N_PARAMS = P_AINV + 16
 # work array columns per vehicle: PID states, live gains, errors, setpoints, outputs
 W_ST = 0  # 6 channels × N_STATE_COLS
@@ -58,18 +58,35 @@ def _finite_or_zero(x):  # pragma: no cover - numba kernel
 
 
 @njit(cache=True, inline="always")
-def _pid(ch, e, de, w, u_max, i_max, gains, prm, wk):  # pragma: no cover - numba kernel
-    s0 = W_ST + ch * N_STATE_COLS
-    k0 = W_K + 3 * ch
-    return nlvg_pid_step(e, de, gains[ch], w, prm[P_DT], u_max, i_max, wk[s0 : s0 + N_STATE_COLS], wk[k0 : k0 + 3])
+def _pid(ch, e, de, w, u_max, i_max, gf, gb, prm, wf, wb):  # pragma: no cover - numba kernel
+    """Channel ``ch`` of the vehicle whose gain rows start at gf[gb] and work row at wf[wb]."""
+    return nlvg_pid_step(
+        e,
+        de,
+        gf,
+        gb + ch * N_GAIN_COLS,
+        w,
+        prm[P_DT],
+        u_max,
+        i_max,
+        wf,
+        wb + W_ST + ch * N_STATE_COLS,
+        wf,
+        wb + W_K + 3 * ch,
+    )
 
 
 @njit(cache=True)
-def _attitude_stage(q4, rate3, roll_d, pitch_d, yaw_d, thrust_n, gains, prm, wk):  # pragma: no cover - numba kernel
-    """Steps 5-7 for one vehicle (rows of the batch arrays); returns False (nothing written) on bad input."""
-    qw, qx, qy, qz = q4[0], q4[1], q4[2], q4[3]
+def _attitude_stage(qv, rate, v, roll_d, pitch_d, yaw_d, thrust_n, gf, prm, wf):  # pragma: no cover - numba kernel
+    """Steps 5-7 for vehicle v (rows of qv, rate (n, 4), (n, 3)); returns False (nothing written) on bad input.
+
+    ``gf``/``wf`` are the flat gain table and work array (indexed, never sliced, in the hot loop).
+    """
+    gb = v * 6 * N_GAIN_COLS
+    wb = v * N_WORK
+    qw, qx, qy, qz = qv[v, 0], qv[v, 1], qv[v, 2], qv[v, 3]
     qn = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
-    p, q, r = rate3[0], rate3[1], rate3[2]
+    p, q, r = rate[v, 0], rate[v, 1], rate[v, 2]
     if not (math.isfinite(qn) and qn > 1e-9 and math.isfinite(p + q + r)):
         return False
     if not (math.isfinite(roll_d) and math.isfinite(pitch_d) and math.isfinite(yaw_d) and math.isfinite(thrust_n)):
@@ -92,12 +109,14 @@ def _attitude_stage(q4, rate3, roll_d, pitch_d, yaw_d, thrust_n, gains, prm, wk)
     yaw_rate = (q * sr + r * cr) / cp_safe
     e_roll = roll_d - roll
     e_pitch = pitch_d - pitch
-    e_yaw = (yaw_d - yaw + math.pi) % (2.0 * math.pi) - math.pi
+    e_yaw = yaw_d - yaw
+    if not (-math.pi <= e_yaw < math.pi):
+        e_yaw = (e_yaw + math.pi) % (2.0 * math.pi) - math.pi
     w = 1.0 / prm[L_T_ATT]
     i_max = prm[L_I_ATT]
-    acc_roll = _pid(3, e_roll, -roll_rate, w, prm[L_AA_RP], i_max, gains, prm, wk)
-    acc_pitch = _pid(4, e_pitch, -pitch_rate, w, prm[L_AA_RP], i_max, gains, prm, wk)
-    acc_yaw = _pid(5, e_yaw, -yaw_rate, w, prm[L_AA_YAW], i_max, gains, prm, wk)
+    acc_roll = _pid(3, e_roll, -roll_rate, w, prm[L_AA_RP], i_max, gf, gb, prm, wf, wb)
+    acc_pitch = _pid(4, e_pitch, -pitch_rate, w, prm[L_AA_RP], i_max, gf, gb, prm, wf, wb)
+    acc_yaw = _pid(5, e_yaw, -yaw_rate, w, prm[L_AA_YAW], i_max, gf, gb, prm, wf, wb)
     dp = acc_roll - sp * acc_yaw
     dq = cr * acc_pitch + sr * cp * acc_yaw
     dr = -sr * acc_pitch + cr * cp * acc_yaw
@@ -107,53 +126,55 @@ def _attitude_stage(q4, rate3, roll_d, pitch_d, yaw_d, thrust_n, gains, prm, wk)
         tx += q * iz * r - r * iy * q
         ty += r * ix * p - p * iz * r
         tz += p * iy * q - q * ix * p
-    wk[W_ERR + 3] = e_roll
-    wk[W_ERR + 4] = e_pitch
-    wk[W_ERR + 5] = e_yaw
-    wk[W_ATT] = roll_d
-    wk[W_ATT + 1] = pitch_d
-    wk[W_ATT + 2] = yaw_d
-    wk[W_TQ] = tx
-    wk[W_TQ + 1] = ty
-    wk[W_TQ + 2] = tz
-    wk[W_THR] = thrust_n
-    a_inv = prm[P_AINV : P_AINV + 16].reshape((4, 4))
-    mix_one(thrust_n, tx, ty, tz, a_inv, prm[P_FMAX], prm[P_KF], prm[P_WMAX], wk[W_U : W_U + 4])
+    wf[wb + W_ERR + 3] = e_roll
+    wf[wb + W_ERR + 4] = e_pitch
+    wf[wb + W_ERR + 5] = e_yaw
+    wf[wb + W_ATT] = roll_d
+    wf[wb + W_ATT + 1] = pitch_d
+    wf[wb + W_ATT + 2] = yaw_d
+    wf[wb + W_TQ] = tx
+    wf[wb + W_TQ + 1] = ty
+    wf[wb + W_TQ + 2] = tz
+    wf[wb + W_THR] = thrust_n
+    mix_one(thrust_n, tx, ty, tz, prm, P_AINV, prm[P_FMAX], prm[P_KF], prm[P_WMAX], wf, wb + W_U)
     return True
 
 
 @njit(cache=True)
 def _attitude_kernel(qv, rate, att_in, thrust_in, gains, prm, work):  # pragma: no cover - numba kernel
+    gf = gains.reshape(-1)
+    wf = work.reshape(-1)
     for v in range(qv.shape[0]):
-        wk = work[v]
-        ok = _attitude_stage(qv[v], rate[v], att_in[v, 0], att_in[v, 1], att_in[v, 2], thrust_in[v], gains[v], prm, wk)
-        wk[W_OK] = 1.0 if ok else 0.0
+        ok = _attitude_stage(qv, rate, v, att_in[v, 0], att_in[v, 1], att_in[v, 2], thrust_in[v], gf, prm, wf)
+        wf[v * N_WORK + W_OK] = 1.0 if ok else 0.0
 
 
 @njit(cache=True)
-def _position_one(pos, vel, q4, rate3, pos_sp, vel_sp, acc_ff, yaw_sp, m, g, prm, wk):  # pragma: no cover
-    """Steps 1-7 for one vehicle (1-D rows); writes ``wk`` and returns False on a non-finite input."""
+def _position_one(pos, vel, qv, rate, pos_sp, vel_sp, acc_ff, yaw_sp, m, v, gf, prm, wf):  # pragma: no cover
+    """Steps 1-7 for vehicle v (rows of the (n, k) inputs; yaw_sp, m its scalars); False on non-finite input."""
     finite = math.isfinite(m) and m > 0.0 and math.isfinite(yaw_sp)
     for k in range(3):
-        finite = finite and math.isfinite(pos[k] + vel[k] + pos_sp[k])
+        finite = finite and math.isfinite(pos[v, k] + vel[v, k] + pos_sp[v, k])
     if not finite:
         return False
+    gb = v * 6 * N_GAIN_COLS
+    wb = v * N_WORK
     w = 1.0 / prm[L_T_POS]
     i_max = prm[L_I_POS]
     acc_xy = prm[L_ACC_XY]
     u_z = max(prm[L_ACC_UP], prm[L_ACC_DOWN])
-    e0 = pos_sp[0] - pos[0]
-    e1 = pos_sp[1] - pos[1]
-    e2 = pos_sp[2] - pos[2]
-    de0 = _finite_or_zero(vel_sp[0]) - vel[0]
-    de1 = _finite_or_zero(vel_sp[1]) - vel[1]
-    de2 = _finite_or_zero(vel_sp[2]) - vel[2]
-    a0 = _finite_or_zero(acc_ff[0]) + _pid(0, e0, de0, w, acc_xy, i_max, g, prm, wk)
-    a1 = _finite_or_zero(acc_ff[1]) + _pid(1, e1, de1, w, acc_xy, i_max, g, prm, wk)
-    a2 = _finite_or_zero(acc_ff[2]) + _pid(2, e2, de2, w, u_z, i_max, g, prm, wk)
-    wk[W_ERR] = e0
-    wk[W_ERR + 1] = e1
-    wk[W_ERR + 2] = e2
+    e0 = pos_sp[v, 0] - pos[v, 0]
+    e1 = pos_sp[v, 1] - pos[v, 1]
+    e2 = pos_sp[v, 2] - pos[v, 2]
+    de0 = _finite_or_zero(vel_sp[v, 0]) - vel[v, 0]
+    de1 = _finite_or_zero(vel_sp[v, 1]) - vel[v, 1]
+    de2 = _finite_or_zero(vel_sp[v, 2]) - vel[v, 2]
+    a0 = _finite_or_zero(acc_ff[v, 0]) + _pid(0, e0, de0, w, acc_xy, i_max, gf, gb, prm, wf, wb)
+    a1 = _finite_or_zero(acc_ff[v, 1]) + _pid(1, e1, de1, w, acc_xy, i_max, gf, gb, prm, wf, wb)
+    a2 = _finite_or_zero(acc_ff[v, 2]) + _pid(2, e2, de2, w, u_z, i_max, gf, gb, prm, wf, wb)
+    wf[wb + W_ERR] = e0
+    wf[wb + W_ERR + 1] = e1
+    wf[wb + W_ERR + 2] = e2
     a2 = min(max(a2, -prm[L_ACC_UP]), prm[L_ACC_DOWN])
     h = math.sqrt(a0 * a0 + a1 * a1)
     if h > acc_xy:
@@ -161,14 +182,14 @@ def _position_one(pos, vel, q4, rate3, pos_sp, vel_sp, acc_ff, yaw_sp, m, g, prm
         a1 *= acc_xy / h
     fx, fy, fz = a0, a1, a2 - GRAVITY_M_S2  # specific force wanted, NED; fz < 0
     h = math.sqrt(fx * fx + fy * fy)
-    h_max = -fz * math.tan(prm[L_TILT])
+    h_max = -fz * prm[P_TAN_TILT]
     if h > h_max:
         fx *= h_max / h
         fy *= h_max / h
     fn = math.sqrt(fx * fx + fy * fy + fz * fz)
-    wk[W_ACC] = fx
-    wk[W_ACC + 1] = fy
-    wk[W_ACC + 2] = fz + GRAVITY_M_S2
+    wf[wb + W_ACC] = fx
+    wf[wb + W_ACC + 1] = fy
+    wf[wb + W_ACC + 2] = fz + GRAVITY_M_S2
     zx, zy, zz = -fx / fn, -fy / fn, -fz / fn  # desired body z (down) in NED
     sy, cy = math.sin(yaw_sp), math.cos(yaw_sp)
     # x_B = y_C × z_B with y_C = (−sin ψ, cos ψ, 0)
@@ -179,25 +200,37 @@ def _position_one(pos, vel, q4, rate3, pos_sp, vel_sp, acc_ff, yaw_sp, m, g, prm
     yz = zx * xy - zy * xx
     roll_d = math.atan2(yz, zz)
     pitch_d = -math.asin(min(max(xz, -1.0), 1.0))
-    return _attitude_stage(q4, rate3, roll_d, pitch_d, yaw_sp, m * fn, g, prm, wk)
+    return _attitude_stage(qv, rate, v, roll_d, pitch_d, yaw_sp, m * fn, gf, prm, wf)
 
 
 @njit(cache=True)
 def _position_kernel(pos, vel, qv, rate, pos_sp, vel_sp, acc_ff, yaw_sp, gains, mass, prm, work):  # pragma: no cover
+    gf = gains.reshape(-1)
+    wf = work.reshape(-1)
     for v in range(pos.shape[0]):
-        wk = work[v]
-        ok = _position_one(
-            pos[v], vel[v], qv[v], rate[v], pos_sp[v], vel_sp[v], acc_ff[v], yaw_sp[v], mass[v], gains[v], prm, wk
-        )
-        wk[W_OK] = 1.0 if ok else 0.0
+        ok = _position_one(pos, vel, qv, rate, pos_sp, vel_sp, acc_ff, yaw_sp[v], mass[v], v, gf, prm, wf)
+        wf[v * N_WORK + W_OK] = 1.0 if ok else 0.0
 
 
 @njit(cache=True)
 def _position_single(pos, vel, q4, rate3, pos_sp, vel_sp, acc_ff, yaw_sp, gains, mass, prm, work):  # pragma: no cover
-    """n = 1 entry with 1-D inputs (no reshaping on the Python side); the same per-vehicle code."""
-    wk = work[0]
-    ok = _position_one(pos, vel, q4, rate3, pos_sp, vel_sp, acc_ff, yaw_sp, mass[0], gains[0], prm, wk)
-    wk[W_OK] = 1.0 if ok else 0.0
+    """n = 1 entry with 1-D inputs (viewed as one-row batches here, not in Python); the same per-vehicle code."""
+    ok = _position_one(
+        pos.reshape((1, 3)),
+        vel.reshape((1, 3)),
+        q4.reshape((1, 4)),
+        rate3.reshape((1, 3)),
+        pos_sp.reshape((1, 3)),
+        vel_sp.reshape((1, 3)),
+        acc_ff.reshape((1, 3)),
+        yaw_sp,
+        mass[0],
+        0,
+        gains.reshape(-1),
+        prm,
+        work.reshape(-1),
+    )
+    work[0, W_OK] = 1.0 if ok else 0.0
 
 
 @dataclass(frozen=True)
@@ -273,6 +306,7 @@ class CascadeController:
         prm[P_WMAX] = airframe.omega_max_rad_s
         prm[P_DT] = self.dt_s
         prm[P_IX : P_IZ + 1] = airframe.inertia_kg_m2
+        prm[P_TAN_TILT] = math.tan(self.limits.tilt_max_rad)
         prm[P_AINV:] = mixer.a_inv.ravel()
         self._prm = prm
         self._mass = np.full(n, airframe.mass_kg)

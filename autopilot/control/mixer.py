@@ -23,54 +23,61 @@ from autopilot.control.airframe import Airframe
 
 
 @njit(cache=True, inline="always")
-def mix_one(thrust_n, tx, ty, tz, a_inv, f_max, k_f, omega_max, u_out):  # pragma: no cover - numba kernel
-    """Write motor commands for one vehicle into ``u_out`` (4,); returns the roll/pitch scale in [0, 1]."""
+def mix_one(thrust_n, tx, ty, tz, a, ai, f_max, k_f, omega_max, u, ui):  # pragma: no cover - numba kernel
+    """Write motor commands for one vehicle into ``u[ui:ui+4]``; A⁻¹ is ``a[ai:ai+16]`` row-major.
+
+    Returns the roll/pitch scale in [0, 1] (0 and nothing written on a non-finite input).
+    """
     if not (math.isfinite(thrust_n) and math.isfinite(tx) and math.isfinite(ty) and math.isfinite(tz)):
         return 0.0
     k = 1.0
     for i in range(4):
-        ri = (a_inv[i, 1] * tx + a_inv[i, 2] * ty) / a_inv[i, 0]
+        ri = (a[ai + 4 * i + 1] * tx + a[ai + 4 * i + 2] * ty) / a[ai + 4 * i]
         for j in range(4):
-            rj = (a_inv[j, 1] * tx + a_inv[j, 2] * ty) / a_inv[j, 0]
+            rj = (a[ai + 4 * j + 1] * tx + a[ai + 4 * j + 2] * ty) / a[ai + 4 * j]
             diff = rj - ri
             if diff > 0.0:
-                k = min(k, f_max / (a_inv[j, 0] * diff))
+                k = min(k, f_max / (a[ai + 4 * j] * diff))
     t_lo = -1e300
     t_hi = 1e300
     for i in range(4):
-        d = k * (a_inv[i, 1] * tx + a_inv[i, 2] * ty)
-        t_lo = max(t_lo, -d / a_inv[i, 0])
-        t_hi = min(t_hi, (f_max - d) / a_inv[i, 0])
+        d = k * (a[ai + 4 * i + 1] * tx + a[ai + 4 * i + 2] * ty)
+        t_lo = max(t_lo, -d / a[ai + 4 * i])
+        t_hi = min(t_hi, (f_max - d) / a[ai + 4 * i])
     t = min(max(thrust_n, t_lo), t_hi)
     s = 1.0
     for i in range(4):
-        f = t * a_inv[i, 0] + k * (a_inv[i, 1] * tx + a_inv[i, 2] * ty)
-        y = a_inv[i, 3] * tz
+        f = t * a[ai + 4 * i] + k * (a[ai + 4 * i + 1] * tx + a[ai + 4 * i + 2] * ty)
+        y = a[ai + 4 * i + 3] * tz
         if y > 0.0:
             s = min(s, (f_max - f) / y)
         elif y < 0.0:
             s = min(s, f / -y)
     s = max(s, 0.0)
     for i in range(4):
-        f = t * a_inv[i, 0] + k * (a_inv[i, 1] * tx + a_inv[i, 2] * ty) + s * a_inv[i, 3] * tz
-        u = math.sqrt(max(f, 0.0) / k_f) / omega_max
-        u_out[i] = min(max(u, 0.0), 1.0)
+        f = t * a[ai + 4 * i] + k * (a[ai + 4 * i + 1] * tx + a[ai + 4 * i + 2] * ty) + s * a[ai + 4 * i + 3] * tz
+        cmd = math.sqrt(max(f, 0.0) / k_f) / omega_max
+        u[ui + i] = min(max(cmd, 0.0), 1.0)
     return k
 
 
 @njit(cache=True)
 def _mix_batch(thrust_n, torque_frd_nm, a_inv, f_max, k_f, omega_max, u_out):  # pragma: no cover - numba kernel
+    a = a_inv.reshape(-1)
+    uf = u_out.reshape(-1)
     for v in range(thrust_n.shape[0]):
         mix_one(
             thrust_n[v],
             torque_frd_nm[v, 0],
             torque_frd_nm[v, 1],
             torque_frd_nm[v, 2],
-            a_inv,
+            a,
+            0,
             f_max,
             k_f,
             omega_max,
-            u_out[v],
+            uf,
+            4 * v,
         )
 
 

@@ -50,45 +50,51 @@ class Schedule(IntEnum):
 
 
 @njit(cache=True, inline="always")
-def nlvg_pid_step(e, de, g, w, dt_s, u_max, i_max, st, k_out):  # pragma: no cover - numba kernel
-    """Advance one term by dt_s; returns u. ``g``: gain row, ``st``: state row, ``k_out``: live (kp, ki, kd)."""
+def nlvg_pid_step(e, de, g, gi, w, dt_s, u_max, i_max, st, si, k_out, ki_out):  # pragma: no cover - numba kernel
+    """Advance one term by dt_s; returns u.
+
+    Flat arrays with offsets (no slicing in the hot loop): gain row ``g[gi:gi+N_GAIN_COLS]``, state row
+    ``st[si:si+N_STATE_COLS]``, live gains (kp, ki, kd) written to ``k_out[ki_out:ki_out+3]``.
+    """
     if not (math.isfinite(e) and math.isfinite(de)):
-        return st[S_OUT]
-    variant = int(g[G_VARIANT])
-    d1 = g[G_D1]
-    d2 = g[G_D2]
-    s_p = e
+        return st[si + S_OUT]
+    variant = int(g[gi + G_VARIANT])
+    d1 = g[gi + G_D1]
+    d2 = g[gi + G_D2]
     s_i = e
     s_d = e
-    if g[G_SCHED] == 1.0:
-        s_i = st[S_EINT] * w
+    if g[gi + G_SCHED] == 1.0:
+        s_i = st[si + S_EINT] * w
         s_d = de / w
-    kp = gain_scalar(s_p, g[G_K1P], g[G_K2P], d1, d2, variant)
-    ki = gain_scalar(s_i, g[G_K1I], g[G_K2I], d1, d2, variant)
-    kd = gain_scalar(s_d, g[G_K1D], g[G_K2D], d1, d2, variant)
-    k_out[0] = kp
-    k_out[1] = ki
-    k_out[2] = kd
+    kp = gain_scalar(e, g[gi + G_K1P], g[gi + G_K2P], d1, d2, variant)
+    ki = gain_scalar(s_i, g[gi + G_K1I], g[gi + G_K2I], d1, d2, variant)
+    kd = gain_scalar(s_d, g[gi + G_K1D], g[gi + G_K2D], d1, d2, variant)
+    k_out[ki_out] = kp
+    k_out[ki_out + 1] = ki
+    k_out[ki_out + 2] = kd
     pd = w * w * kp * e + w * kd * de
-    i_term = st[S_I]
+    i_term = st[si + S_I]
     u_pre = pd + i_term
     winding = (u_pre >= u_max and e > 0.0) or (u_pre <= -u_max and e < 0.0)
     if not winding:
         i_term += w * w * w * ki * e * dt_s
         i_term = min(max(i_term, -i_max), i_max)
-        st[S_EINT] += e * dt_s
+        st[si + S_EINT] += e * dt_s
     u = min(max(pd + i_term, -u_max), u_max)
     if not math.isfinite(u):
-        return st[S_OUT]
-    st[S_I] = i_term
-    st[S_OUT] = u
+        return st[si + S_OUT]
+    st[si + S_I] = i_term
+    st[si + S_OUT] = u
     return u
 
 
 @njit(cache=True)
 def _pid_batch(e, de, g, w, dt_s, u_max, i_max, st, k_out, out):  # pragma: no cover - numba kernel
+    gf = g.reshape(-1)
+    sf = st.reshape(-1)
+    kf = k_out.reshape(-1)
     for j in range(e.shape[0]):
-        out[j] = nlvg_pid_step(e[j], de[j], g[j], w, dt_s, u_max, i_max, st[j], k_out[j])
+        out[j] = nlvg_pid_step(e[j], de[j], gf, j * N_GAIN_COLS, w, dt_s, u_max, i_max, sf, j * N_STATE_COLS, kf, 3 * j)
 
 
 def gain_row(
