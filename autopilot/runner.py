@@ -49,6 +49,8 @@ from autopilot.mission.fence import FenceError, geofence_from_items
 from autopilot.mission.validation import MissionLimits, validate_mission
 from autopilot.param_schema import make_param_store
 from autopilot.params import ParamError, ParamStore
+from autopilot.planner.param_decls import PlannerParams
+from autopilot.planner.planner import AvoidancePlanner
 from autopilot.scripted_commands import CommandScript
 from autopilot.setpoints import NavTarget, SetpointGenerator, SetpointLimits, TargetKind
 from mavlink_bridge.frames import GeoPoint
@@ -146,6 +148,7 @@ class AutopilotConfig:
     params_file: str | None = None
     log_dir: str | None = None
     speed_factor: float = 1.0  # only stretches GCS timeouts when < 1 (the sim owns time)
+    avoidance: bool = True  # run the obstacle-avoidance planner in AUTO_MISSION (CA_ENABLE switches detours)
 
 
 @dataclass
@@ -206,6 +209,8 @@ class Autopilot:
         self.airframe = airframe or load_airframe(self.config.vehicle)
         self.estimator = estimator or make_estimator(self.config.estimator)
         self.listener = listener
+        if planner is None and self.config.avoidance:
+            planner = AvoidancePlanner(PlannerParams.from_store(self.params))
         self.planner = planner
         self.script = script
         self.commander = Commander(self.params)
@@ -286,6 +291,8 @@ class Autopilot:
             self.battery.hover_endurance_s = value
         elif name.startswith("MIS_") and self.executor is not None:
             self.executor.configure(ExecutorConfig.from_params(self.params))
+        elif name.startswith("CA_") and isinstance(self.planner, AvoidancePlanner):
+            self.planner.set_params(PlannerParams.from_store(self.params))
 
     def _update_controller_params(self) -> None:
         """Gains change live (integrators kept); a limit change rebuilds the cascade (its integrators restart)."""
@@ -495,7 +502,8 @@ class Autopilot:
         pos_sp[0] = gen.pos_ned
         vel_sp[0] = gen.vel_ned
         acc_sp[0] = gen.acc_ned
-        if self.planner is not None and commander.mode is FlightMode.AUTO_MISSION:
+        avoiding = commander.mode is FlightMode.AUTO_MISSION and target.kind is TargetKind.POSITION
+        if self.planner is not None and avoiding:
             self._apply_planner(state, target)
         self._pos[0] = state.pos_ned_m
         self._vel[0] = state.vel_ned_m_s
