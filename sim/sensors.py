@@ -32,6 +32,8 @@ from sim.vehicle_config import VehicleConfig
 MAG_FIELD_NED_GAUSS = (0.21, 0.0, 0.42)
 GPS_PERIOD_US = 100_000
 _SEA_LEVEL_PA = 101325.0
+#: Standard normals drawn from the generator at once (the per-sample stream is unchanged).
+NOISE_BLOCK = 4000
 
 
 @dataclass(frozen=True)
@@ -63,7 +65,12 @@ def isa_altitude_m(pressure_pa: float) -> float:
 
 
 class SensorModel:
-    """Measurements of one vehicle for the autopilot, deterministic for a seed."""
+    """Measurements of one vehicle for the autopilot, deterministic for a seed.
+
+    Per-step work is scalar ``math`` on one ``tolist()`` of the state; the white noise is drawn
+    from the seeded generator in blocks of ``NOISE_BLOCK`` standard normals and consumed in
+    order (10 per IMU sample, 6 per GPS fix), which is the same stream as drawing per sample.
+    """
 
     def __init__(
         self,
@@ -86,73 +93,82 @@ class SensorModel:
         self.gyro_bias_frd_rad_s = s * nm.gyro_bias_rad_s * self._rng.standard_normal(3)
         self.mag_bias_frd_gauss = s * nm.mag_bias_gauss * self._rng.standard_normal(3)
         self.baro_bias_m = s * nm.baro_bias_m * float(self._rng.standard_normal())
-        self._imu_draw = np.zeros(10)
-        self._gps_draw = np.zeros(6)
-        self._gps_error_ned_m = np.zeros(3)
-        self._gps_sigma_ned_m = s * np.array([nm.gps_pos_horizontal_m, nm.gps_pos_horizontal_m, nm.gps_pos_vertical_m])
+        gps_sigma_ned_m = s * np.array([nm.gps_pos_horizontal_m, nm.gps_pos_horizontal_m, nm.gps_pos_vertical_m])
         self._gps_decay = math.exp(-GPS_PERIOD_US * 1e-6 / nm.gps_error_time_constant_s)
-        self._gps_error_ned_m[:] = self._gps_sigma_ned_m * self._rng.standard_normal(3)
+        self._gps_error_ned_m: list[float] = (gps_sigma_ned_m * self._rng.standard_normal(3)).tolist()
+        self._gps_innovation_ned_m: list[float] = (gps_sigma_ned_m * math.sqrt(1.0 - self._gps_decay**2)).tolist()
+        self._gps_vel_sigma_m_s = s * nm.gps_vel_noise_m_s
+        self._gps_eph_m = max(2.0 * nm.gps_pos_horizontal_m * s, 0.01)
+        self._gps_epv_m = max(2.0 * nm.gps_pos_vertical_m * s, 0.01)
         self._next_gps_us = 0
-        self._mag_ned = np.array(MAG_FIELD_NED_GAUSS)
+        # per-step constants as Python floats (scalar math is several times faster than numpy on 3-vectors)
+        self._accel_bias: list[float] = self.accel_bias_frd_m_s2.tolist()
+        self._gyro_bias: list[float] = self.gyro_bias_frd_rad_s.tolist()
+        self._mag_bias: list[float] = self.mag_bias_frd_gauss.tolist()
+        self._noise: list[float] = []  # scaled standard normals not yet used
+        self._noise_pos = 0
+
+    def _take_noise(self, count: int) -> int:
+        """Index in ``self._noise`` of the next ``count`` scaled standard normals (refilled by blocks)."""
+        pos = self._noise_pos
+        if pos + count > len(self._noise):
+            block = self._rng.standard_normal(NOISE_BLOCK)
+            block *= self._scale
+            self._noise = self._noise[pos:] + block.tolist()
+            pos = 0
+        self._noise_pos = pos + count
+        return pos
 
     def imu_baro_mag(self, sim: VehicleSim) -> SensorSample:
         """IMU, magnetometer and barometer at the current sim time (call once per control step)."""
         nm = self.noise_model
-        n = self._imu_draw
-        self._rng.standard_normal(out=n)
-        n *= self._scale
-        x = sim.batch.state[0]
+        i = self._take_noise(10)
+        n = self._noise
+        batch = sim.batch
+        x = batch.state[0].tolist()
+        sf = batch.specific_force_frd[0].tolist()
         w, a, b, c = x[6], x[7], x[8], x[9]
         # Rᵀ m_ned (frames.dcm_from_quat transposed), written out: this runs at 250 Hz
-        mn, me, md = self._mag_ned
+        mn, me, md = MAG_FIELD_NED_GAUSS
         mag_x = (1 - 2 * (b * b + c * c)) * mn + 2 * (a * b + w * c) * me + 2 * (a * c - w * b) * md
         mag_y = 2 * (a * b - w * c) * mn + (1 - 2 * (a * a + c * c)) * me + 2 * (b * c + w * a) * md
         mag_z = 2 * (a * c + w * b) * mn + 2 * (b * c - w * a) * me + (1 - 2 * (a * a + b * b)) * md
-        sf = sim.batch.specific_force_frd[0]
-        ab, gb, mb = self.accel_bias_frd_m_s2, self.gyro_bias_frd_rad_s, self.mag_bias_frd_gauss
-        alt_amsl = self.home.alt_amsl_m - float(x[2]) + self.baro_bias_m + nm.baro_noise_m * n[9]
-        pressure_pa = isa_pressure_pa(alt_amsl)
+        ab, gb, mb = self._accel_bias, self._gyro_bias, self._mag_bias
+        an, gn, mgn = nm.accel_noise_m_s2, nm.gyro_noise_rad_s, nm.mag_noise_gauss
+        alt_amsl = self.home.alt_amsl_m - x[2] + self.baro_bias_m + nm.baro_noise_m * n[i + 9]
         return SensorSample(
-            time_us=sim.t_us,
-            accel_frd_m_s2=tuple(float(sf[k] + ab[k] + nm.accel_noise_m_s2 * n[k]) for k in range(3)),  # type: ignore[arg-type]
-            gyro_frd_rad_s=tuple(float(x[10 + k] + gb[k] + nm.gyro_noise_rad_s * n[3 + k]) for k in range(3)),  # type: ignore[arg-type]
-            mag_frd_gauss=(
-                float(mag_x + mb[0] + nm.mag_noise_gauss * n[6]),
-                float(mag_y + mb[1] + nm.mag_noise_gauss * n[7]),
-                float(mag_z + mb[2] + nm.mag_noise_gauss * n[8]),
-            ),
-            abs_pressure_hpa=pressure_pa / 100.0,
-            pressure_alt_m=alt_amsl,
-            temperature_degc=15.0 - 0.0065 * alt_amsl,
+            batch.t_us,
+            (sf[0] + ab[0] + an * n[i], sf[1] + ab[1] + an * n[i + 1], sf[2] + ab[2] + an * n[i + 2]),
+            (x[10] + gb[0] + gn * n[i + 3], x[11] + gb[1] + gn * n[i + 4], x[12] + gb[2] + gn * n[i + 5]),
+            (mag_x + mb[0] + mgn * n[i + 6], mag_y + mb[1] + mgn * n[i + 7], mag_z + mb[2] + mgn * n[i + 8]),
+            isa_pressure_pa(alt_amsl) / 100.0,
+            alt_amsl,
+            15.0 - 0.0065 * alt_amsl,
         )
 
     def gps(self, sim: VehicleSim) -> GpsSample | None:
         """A GPS fix when one is due (every 100 ms of sim time, the first at t = 0), else None."""
-        t_us = sim.t_us
+        t_us = sim.batch.t_us
         if t_us < self._next_gps_us:
             return None
         self._next_gps_us += GPS_PERIOD_US * (1 + (t_us - self._next_gps_us) // GPS_PERIOD_US)
-        nm = self.noise_model
-        d = self._gps_draw
-        self._rng.standard_normal(out=d)
-        err = self._gps_error_ned_m
-        err *= self._gps_decay
-        err += self._gps_sigma_ned_m * math.sqrt(1.0 - self._gps_decay**2) * d[:3]
-        x = sim.batch.state[0]
-        geo = self._frame.geodetic_from_ned(float(x[0] + err[0]), float(x[1] + err[1]), float(x[2] + err[2]))
-        vel_sigma = self._scale * nm.gps_vel_noise_m_s
+        i = self._take_noise(6)
+        n = self._noise
+        err, g, decay = self._gps_error_ned_m, self._gps_innovation_ned_m, self._gps_decay
+        err[0] = err[0] * decay + g[0] * n[i]
+        err[1] = err[1] * decay + g[1] * n[i + 1]
+        err[2] = err[2] * decay + g[2] * n[i + 2]
+        x = sim.batch.state[0].tolist()
+        geo = self._frame.geodetic_from_ned(x[0] + err[0], x[1] + err[1], x[2] + err[2])
+        vs = self._gps_vel_sigma_m_s
         return GpsSample(
-            time_us=t_us,
-            lat_deg=round(geo.lat_deg * DEG_E7) / DEG_E7,
-            lon_deg=round(geo.lon_deg * DEG_E7) / DEG_E7,
-            alt_amsl_m=round(geo.alt_amsl_m, 3),
-            vel_ned_m_s=(
-                float(x[3] + vel_sigma * d[3]),
-                float(x[4] + vel_sigma * d[4]),
-                float(x[5] + vel_sigma * d[5]),
-            ),
-            eph_m=max(2.0 * nm.gps_pos_horizontal_m * self._scale, 0.01),
-            epv_m=max(2.0 * nm.gps_pos_vertical_m * self._scale, 0.01),
-            fix_type=3,
-            satellites_visible=12,
+            t_us,
+            round(geo.lat_deg * DEG_E7) / DEG_E7,
+            round(geo.lon_deg * DEG_E7) / DEG_E7,
+            round(geo.alt_amsl_m, 3),
+            (x[3] + vs * n[i + 3], x[4] + vs * n[i + 4], x[5] + vs * n[i + 5]),
+            self._gps_eph_m,
+            self._gps_epv_m,
+            3,
+            12,
         )

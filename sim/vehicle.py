@@ -35,7 +35,8 @@ class VehicleSim:
         self.vehicle = vehicle
         self.world = self.batch.world
         self._cmd = np.zeros((1, 4))
-        self._frames: dict[GeoPoint, LocalNedFrame] = {}
+        self._home_frame = LocalNedFrame(self.world.home)
+        self._frames: dict[GeoPoint, LocalNedFrame] = {self.world.home: self._home_frame}
 
     # views into the batch arrays (row 0)
     @property
@@ -141,21 +142,25 @@ class VehicleSim:
         return float(self.batch.hover_omega_rad_s()[0])
 
     def ground_truth(self, home: GeoPoint | None = None) -> GroundTruth:
-        """The true state as the wire's :class:`GroundTruth` (geodetic about ``home``, default the world's)."""
-        home = home or self.world.home
-        frame = self._frames.get(home)
-        if frame is None:
-            frame = self._frames[home] = LocalNedFrame(home)
-        x = self.batch.state[0]
-        geo = frame.geodetic_from_ned(float(x[0]), float(x[1]), float(x[2]))
-        sf = self.batch.specific_force_frd[0]
+        """The true state as the wire's :class:`GroundTruth` (geodetic about ``home``, default the world's).
+
+        Runs every control step: one ``tolist()`` of the state, scalar geodetic conversion.
+        """
+        if home is None:
+            frame = self._home_frame
+        else:
+            frame = self._frames.get(home) or self._frames.setdefault(home, LocalNedFrame(home))
+        batch = self.batch
+        x = batch.state[0].tolist()
+        a = batch.specific_force_frd[0].tolist()
+        geo = frame.geodetic_from_ned(x[0], x[1], x[2])
         return GroundTruth(
-            time_us=self.t_us,
-            q_ned_frd=(float(x[6]), float(x[7]), float(x[8]), float(x[9])),
-            rate_frd_rad_s=(float(x[10]), float(x[11]), float(x[12])),
-            lat_deg=geo.lat_deg,
-            lon_deg=geo.lon_deg,
-            alt_amsl_m=geo.alt_amsl_m,
-            vel_ned_m_s=(float(x[3]), float(x[4]), float(x[5])),
-            accel_frd_m_s2=(float(sf[0]), float(sf[1]), float(sf[2])),
+            batch.t_us,
+            (x[6], x[7], x[8], x[9]),
+            (x[10], x[11], x[12]),
+            geo.lat_deg,
+            geo.lon_deg,
+            geo.alt_amsl_m,
+            (x[3], x[4], x[5]),
+            (a[0], a[1], a[2]),
         )

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from mavlink_bridge.frames import GRAVITY_M_S2, GeoPoint, LocalNedFrame, deg_e7_from_deg, deg_from_deg_e7
-from sim.sensors import MAG_FIELD_NED_GAUSS, SensorModel, isa_altitude_m, isa_pressure_pa
+from sim.sensors import MAG_FIELD_NED_GAUSS, NOISE_BLOCK, SensorModel, isa_altitude_m, isa_pressure_pa
 from sim.vehicle import VehicleSim
 from sim.vehicle_config import load_vehicle
 
@@ -98,3 +98,29 @@ def test_sim_ground_truth_is_noise_free_and_geodetic() -> None:
     assert np.allclose(ned, sim.pos_ned, atol=1e-6)
     assert gt.q_ned_frd == tuple(sim.q_ned_frd) and gt.vel_ned_m_s == tuple(sim.vel_ned)
     assert gt.time_us == 0
+
+
+def test_sim_block_noise_is_the_per_sample_stream_across_block_refills() -> None:
+    """Noise drawn in blocks equals drawing 10 normals per IMU sample and 6 per GPS fix, in call order."""
+    sim = _flying_sim()
+    sensors = SensorModel(X500, HOME, seed=9)
+    nm = sensors.noise_model
+    ref = np.random.default_rng(9)
+    ref.standard_normal(3 * 3 + 1 + 3)  # turn-on biases and the initial GPS error
+    cmd = np.full(4, sim.hover_omega_rad_s() / X500.omega_max_rad_s)
+    assert NOISE_BLOCK % (25 * 10 + 6) != 0  # a GPS cycle uses 256 normals: refills must split a sample
+    n_samples = 2 * NOISE_BLOCK // 10 + 7  # crosses block boundaries, GPS draws interleaved
+    for _ in range(n_samples):
+        s = sensors.imu_baro_mag(sim)
+        n = ref.standard_normal(10)
+        sf, rate = sim.specific_force_frd, sim.rate_frd
+        for k in range(3):
+            assert s.accel_frd_m_s2[k] == sf[k] + sensors.accel_bias_frd_m_s2[k] + nm.accel_noise_m_s2 * n[k]
+            assert s.gyro_frd_rad_s[k] == rate[k] + sensors.gyro_bias_frd_rad_s[k] + nm.gyro_noise_rad_s * n[3 + k]
+        alt = HOME.alt_amsl_m - sim.pos_ned[2] + sensors.baro_bias_m + nm.baro_noise_m * n[9]
+        assert s.pressure_alt_m == alt
+        fix = sensors.gps(sim)
+        if fix is not None:
+            d = ref.standard_normal(6)
+            assert fix.vel_ned_m_s == tuple(sim.vel_ned + nm.gps_vel_noise_m_s * d[3:])
+        sim.step(cmd)
