@@ -1,0 +1,13 @@
+"""The k(s) comparison figure (SPEC §6.1: show raised cosine vs paper literal in a plot) is written."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from tools.plot_gain_schedule import main
+
+
+def test_gain_schedule_plot_is_written(tmp_path: Path) -> None:
+    out = tmp_path / "k.png"
+    assert main(["--out", str(out)]) == 0
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 10_000
