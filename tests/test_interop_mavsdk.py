@@ -20,9 +20,9 @@ from typing import Any
 import pytest
 from conftest import REPO_ROOT, free_udp_port
 from interop_clients import MAVSDK_DRIVER, mavsdk4_python
+from interop_clients.missions import short_delivery
 from sitl_procs import logs, read_json, start_autopilot, start_sim, stop
 
-from autopilot.mission.commands import GripperAction, MavCmd, MavFrame
 from autopilot.mission.files import load_mission_file
 from mavlink_bridge.frames import GeoPoint, LocalNedFrame
 from mavlink_bridge.gcs_types import MissionItem
@@ -31,21 +31,6 @@ pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 
 WORLD = REPO_ROOT / "missions" / "delivery.yaml"  # home, wind and the 1 kg payload the sim carries
 DRIVER_TIMEOUT_S = 75.0  # the driver's own limit; the process is killed 15 s later
-
-
-def _short_delivery(home: GeoPoint) -> list[MissionItem]:
-    """Speed, take off, fly out, release the payload, hold, return to launch: every executor phase, ~40 s sim."""
-    out = LocalNedFrame(home).geodetic_from_ned(25.0, 15.0, 0.0)
-    nan = math.nan
-    rel = MavFrame.GLOBAL_RELATIVE_ALT_INT
-    return [
-        MissionItem(0, MavCmd.DO_CHANGE_SPEED, MavFrame.MISSION, 1.0, 6.0, -1.0, 0.0),
-        MissionItem(1, MavCmd.NAV_TAKEOFF, rel, 0.0, 0.0, 0.0, nan, 0.0, 0.0, 8.0),
-        MissionItem(2, MavCmd.NAV_WAYPOINT, rel, 0.0, 1.0, 0.0, nan, out.lat_deg, out.lon_deg, 8.0),
-        MissionItem(3, MavCmd.DO_GRIPPER, MavFrame.MISSION, 1.0, float(GripperAction.RELEASE)),
-        MissionItem(4, MavCmd.NAV_LOITER_TIME, rel, 1.0, 0.0, 0.0, nan, out.lat_deg, out.lon_deg, 8.0),
-        MissionItem(5, MavCmd.NAV_RETURN_TO_LAUNCH, MavFrame.MISSION),
-    ]
 
 
 def _mission_item_int(item: MissionItem) -> dict[str, Any]:
@@ -86,7 +71,7 @@ def flight(tmp_path_factory: pytest.TempPathFactory) -> Flight:
         pytest.skip("mavsdk>=4 not importable here nor in $QUADSITL_INTEROP_PYTHON")
     tmp_path = tmp_path_factory.mktemp("mavsdk")
     plan = load_mission_file(WORLD)
-    sent = [_mission_item_int(item) for item in _short_delivery(plan.home)]
+    sent = [_mission_item_int(item) for item in short_delivery(plan.home)]
     (tmp_path / "items.json").write_text(json.dumps(sent))
     sim_port, api_port, api_target = free_udp_port(), free_udp_port(), free_udp_port()
     sim = start_sim(tmp_path, sim_port, "--world", str(WORLD), "--seed", "5")
