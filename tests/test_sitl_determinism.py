@@ -22,6 +22,7 @@ SCRIPT = """
 def _start_pair(log_dir: Path, script: Path, duration_s: float, speed: str, via_port: int | None = None):  # type: ignore[no-untyped-def]
     port = Ports.free().sim
     extra = ("--seed", "11", "--duration-s", str(duration_s), "--speed", speed, "--start-timeout-s", "120")
+    extra += ("--autopilot-timeout-s", "30")  # a stall on a loaded machine must not end the run
     sim = start_sim(log_dir, port, *extra)
     ap_port = via_port(port) if via_port is not None else port  # type: ignore[operator]
     ap = start_autopilot(log_dir, ap_port, None, "--script", str(script))

@@ -24,7 +24,7 @@ MAV_CMD_DO_REPOSITION = 192
 
 def test_gcs_arm_takeoff_hold_reposition_land_disarm(tmp_path: Path) -> None:
     ports = Ports.free()
-    sim = start_sim(tmp_path, ports.sim, "--seed", "4")
+    sim = start_sim(tmp_path, ports.sim, "--seed", "4", "--autopilot-timeout-s", "30")
     ap = start_autopilot(tmp_path, ports.sim, ports)
     try:
         with GcsClient(f"udpin:127.0.0.1:{ports.gcs_target}", timeout_s=20.0) as gcs:
