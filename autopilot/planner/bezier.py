@@ -109,23 +109,41 @@ class BezierPath:
         return np.concatenate((self.ctrl_ned[0, :1], body))
 
 
-def _turn_speed(
-    prev: np.ndarray, here: np.ndarray, nxt: np.ndarray, v: float, a_max: float
-) -> tuple[float, np.ndarray]:
-    """Joint speed limited by ``v²/r <= a_max`` on the circle through three points, and the tangent."""
-    ux, uy, uz = (float(here[i] - prev[i]) for i in range(3))
-    wx, wy, wz = (float(nxt[i] - here[i]) for i in range(3))
-    l1 = max(math.sqrt(ux * ux + uy * uy + uz * uz), 1e-9)
-    l2 = max(math.sqrt(wx * wx + wy * wy + wz * wz), 1e-9)
-    tx, ty, tz = ux / l1 + wx / l2, uy / l1 + wy / l2, uz / l1 + wz / l2
-    tn = max(math.sqrt(tx * tx + ty * ty + tz * tz), 1e-9)
-    tangent = np.array((tx / tn, ty / tn, tz / tn))
-    cx, cy, cz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
-    sin_turn = math.sqrt(cx * cx + cy * cy + cz * cz) / (l1 * l2)
-    if sin_turn < 1e-6:
-        return v, tangent
-    chord = math.sqrt((ux + wx) ** 2 + (uy + wy) ** 2 + (uz + wz) ** 2)
-    return min(v, math.sqrt(a_max * chord / (2.0 * sin_turn))), tangent
+def _turn_speeds(pts: np.ndarray, v: float, a_max: float) -> tuple[np.ndarray, np.ndarray]:
+    """Interior joint speeds limited by ``v²/r <= a_max`` on the circle through each three consecutive
+    points (``r = chord / (2 sin turn)``), and the joint tangents (bisector of the two legs)."""
+    u = pts[1:-1] - pts[:-2]
+    w = pts[2:] - pts[1:-1]
+    l1 = np.maximum(np.sqrt(np.einsum("ij,ij->i", u, u)), 1e-9)[:, None]
+    l2 = np.maximum(np.sqrt(np.einsum("ij,ij->i", w, w)), 1e-9)[:, None]
+    t = u / l1 + w / l2
+    tangents = t / np.maximum(np.sqrt(np.einsum("ij,ij->i", t, t)), 1e-9)[:, None]
+    c = np.cross(u, w)
+    sin_turn = np.sqrt(np.einsum("ij,ij->i", c, c)) / (l1 * l2)[:, 0]
+    chord = np.sqrt(np.einsum("ij,ij->i", u + w, u + w))
+    limit = np.sqrt(a_max * chord / (2.0 * np.maximum(sin_turn, 1e-12)))
+    return np.where(sin_turn < 1e-6, v, np.minimum(v, limit)), tangents
+
+
+#: Duration multipliers tried for the first segment (its start speed is fixed, so speeds alone cannot time it).
+_FIRST_SEGMENT_STRETCH = np.geomspace(0.5, 6.0, 24)
+
+
+def _segment_excess(
+    d3: np.ndarray, m0: np.ndarray, m1: np.ndarray, s_max: np.ndarray, inv_t: np.ndarray, v_max: float, a_max: float
+) -> np.ndarray:
+    """Worst of ``v_bound/v_max`` and ``sqrt(a_bound/a_max)`` per cubic Hermite segment (hodograph hulls).
+
+    ``d3`` is ``3·(p1 − p0)``, ``m0``/``m1`` the end velocities (n, 3), ``s_max`` the larger end speed
+    and ``inv_t`` ``1/T`` (n, 1). Velocity hull: m0, ``3(P2 − P1)/T = d3/T − m0 − m1``, m1; acceleration
+    hull: ``2(hull[i+1] − hull[i])/T``.
+    """
+    mid = d3 * inv_t - m0 - m1
+    acc0 = mid - m0
+    acc1 = m1 - mid
+    v2 = np.maximum((mid * mid).sum(axis=1), s_max * s_max)
+    a = 2.0 * inv_t[:, 0] * np.sqrt(np.maximum((acc0 * acc0).sum(axis=1), (acc1 * acc1).sum(axis=1)))
+    return np.maximum(np.sqrt(v2) / v_max, np.sqrt(a / a_max))
 
 
 def fit_detour(
@@ -134,50 +152,70 @@ def fit_detour(
     vel_end_ned: np.ndarray,
     v_max_m_s: float,
     a_max_m_s2: float,
-    max_iterations: int = 25,
+    max_iterations: int = 8,
 ) -> BezierPath:
     """Fit a C1 cubic chain through ``points_ned`` (k+1, 3) meeting the velocity/acceleration limits.
 
     The start velocity is kept (continuity with the vehicle) and the end velocity keeps its direction
-    (the route's); joint speeds start at the centripetal limit and are lowered, and durations re-derived, until every
-    segment's hodograph bounds are within ``v_max_m_s`` and ``a_max_m_s2`` (or iterations run out,
-    then ``limits_ok`` is False).
+    (the route's). Joint speeds start at the centripetal limit ``v²/r <= a_max`` and a segment lasts
+    ``chord / mean(end speeds)``. Timing is closed-form: scaling both end speeds of a segment by ``f``
+    scales its duration by ``1/f``, its hodograph velocity hull by ``f`` and its acceleration hull by
+    ``f²``, so ``f = min(v_max/v_bound, sqrt(a_max/a_bound))`` meets both limits exactly; each joint
+    takes the smaller factor of its two segments. The first segment, whose start speed is fixed,
+    is timed apart: the shortest duration of ``_FIRST_SEGMENT_STRETCH`` (times nominal) that meets the
+    limits, its end speed lowered when none does. ``limits_ok`` is False when the start velocity makes
+    the limits unreachable within ``max_iterations``.
     """
     pts = np.asarray(points_ned, float)
     k = len(pts) - 1
     v_end = float(np.linalg.norm(vel_end_ned))
-    cruise = min(v_max_m_s, max(v_end, float(np.linalg.norm(vel_start_ned)), 0.5))
+    v_start = float(np.linalg.norm(vel_start_ned))
+    cruise = min(v_max_m_s, max(v_end, v_start, 0.5))
     speeds = np.empty(k + 1)
     tangents = np.empty((k + 1, 3))
-    speeds[0], speeds[k] = float(np.linalg.norm(vel_start_ned)), v_end
-    tangents[0], tangents[k] = vel_start_ned, np.asarray(vel_end_ned, float) / max(v_end, 1e-9)
-    for i in range(1, k):
-        speeds[i], tangents[i] = _turn_speed(pts[i - 1], pts[i], pts[i + 1], cruise, a_max_m_s2)
+    speeds[0], speeds[k] = v_start, min(v_end, v_max_m_s)
+    tangents[0] = np.asarray(vel_start_ned, float) / max(v_start, 1e-9)
+    tangents[k] = np.asarray(vel_end_ned, float) / max(v_end, 1e-9)
+    if k > 1:
+        speeds[1:k], tangents[1:k] = _turn_speeds(pts, cruise, a_max_m_s2)
     chords = np.linalg.norm(np.diff(pts, axis=0), axis=1)
-    v_bound = a_bound = best_excess = math.inf
-    stalled = 0
+    d3 = 3.0 * np.diff(pts, axis=0)
+    m_start = tangents[:1] * v_start
+    stretch = _FIRST_SEGMENT_STRETCH[:, None]
+    durations = np.empty(k)
     for _ in range(max_iterations):
-        vel = tangents.copy()
-        vel[1:] *= speeds[1:, None]
-        durations = np.maximum(chords / np.maximum(0.5 * (speeds[:-1] + speeds[1:]), 0.2), 1e-3)
-        third = (durations / 3.0)[:, None]
-        ctrl = np.stack((pts[:-1], pts[:-1] + vel[:-1] * third, pts[1:] - vel[1:] * third, pts[1:]), axis=1)
-        hv = 3.0 * np.diff(ctrl, axis=1) / durations[:, None, None]
-        ha = 2.0 * np.diff(hv, axis=1) / durations[:, None, None]
-        vb = np.linalg.norm(hv, axis=2).max(axis=1)
-        ab = np.linalg.norm(ha, axis=2).max(axis=1)
-        v_bound, a_bound = float(vb.max()), float(ab.max())
-        if v_bound <= v_max_m_s * (1 + LIMIT_RTOL) and a_bound <= a_max_m_s2 * (1 + LIMIT_RTOL):
+        vel = tangents * speeds[:, None]
+        durations[:] = np.maximum(chords / np.maximum(0.5 * (speeds[:-1] + speeds[1:]), 0.2), 1e-3)
+        s_max = np.maximum(speeds[:-1], speeds[1:])
+        excess = _segment_excess(d3, vel[:-1], vel[1:], s_max, (1.0 / durations)[:, None], v_max_m_s, a_max_m_s2)
+        # the first segment: stretch its duration (its start speed cannot scale)
+        first = _segment_excess(
+            d3[:1], m_start, vel[1:2], s_max[:1], 1.0 / (durations[0] * stretch), v_max_m_s, a_max_m_s2
+        )
+        fits = np.flatnonzero(first <= 1.0)
+        if len(fits):
+            durations[0] *= float(_FIRST_SEGMENT_STRETCH[fits[0]])
+            excess[0] = first[fits[0]]
+        if float(excess.max()) <= 1.0 + LIMIT_RTOL:
             break
-        excess = np.maximum(vb / v_max_m_s, np.sqrt(ab / a_max_m_s2))
-        worst_now = float(excess.max())
-        stalled = stalled + 1 if worst_now > 0.995 * best_excess else 0
-        if stalled >= 3:
-            break  # no progress: the fixed start velocity makes the limits unreachable
-        best_excess = min(best_excess, worst_now)
-        worst = np.maximum(np.concatenate((excess, [0.0])), np.concatenate(([0.0], excess)))
-        # slow the joints next to offending segments (the start velocity stays: continuity with the vehicle)
-        speeds[1:] *= np.where(worst[1:] > 1.0, np.maximum(0.6, 0.97 / np.maximum(worst[1:], 1e-9)), 1.0)
+        factor = np.minimum(1.0, 0.995 / np.maximum(excess, 1e-9))
+        if not len(fits):
+            factor[0] = 0.7  # the first segment cannot be timed: slow its end
+        joint = np.minimum(np.concatenate((factor, [1.0])), np.concatenate(([1.0], factor)))
+        speeds[1:] *= joint[1:]
+    return _hermite_chain(pts, tangents * speeds[:, None], durations, v_max_m_s, a_max_m_s2)
+
+
+def _hermite_chain(
+    pts: np.ndarray, vel: np.ndarray, durations: np.ndarray, v_max_m_s: float, a_max_m_s2: float
+) -> BezierPath:
+    """The cubic chain through ``pts`` with joint velocities ``vel`` and its exact hodograph-hull bounds."""
+    third = (durations / 3.0)[:, None]
+    ctrl = np.stack((pts[:-1], pts[:-1] + vel[:-1] * third, pts[1:] - vel[1:] * third, pts[1:]), axis=1)
+    hv = 3.0 * np.diff(ctrl, axis=1) / durations[:, None, None]
+    ha = 2.0 * np.diff(hv, axis=1) / durations[:, None, None]
+    v_bound = float(np.linalg.norm(hv, axis=2).max())
+    a_bound = float(np.linalg.norm(ha, axis=2).max())
     ok = v_bound <= v_max_m_s * (1 + LIMIT_RTOL) and a_bound <= a_max_m_s2 * (1 + LIMIT_RTOL)
     ctrl.setflags(write=False)
     durations.setflags(write=False)

@@ -13,6 +13,12 @@ volume in local NED:
 Detections with the same sensor id update one track (range-weighted mean: near, precise
 readings count more); a detection whose volume overlaps a track by more than ``merge_m`` is
 merged into it (enclosing volume); tracks not detected for ``forget_s`` are dropped.
+
+The published snapshot (``obstacles``) is what the planner plans against. A track is reported
+*changed* (and the snapshot rebuilt) when its centre has moved more than ``CHANGE_CENTER_M`` or
+its radius grown more than ``CHANGE_RADIUS_M`` since the snapshot, so slow drift accumulates into
+a change instead of leaving the planner with a stale volume: the snapshot is always within those
+bounds of the track.
 """
 
 from __future__ import annotations
@@ -28,6 +34,11 @@ from mavlink_bridge.frames import rotate_frd_to_ned
 from mavlink_bridge.wire import ObstacleDetection, ObstacleShape
 
 from .geometry import cylinder_signed_distance, sphere_signed_distance
+
+#: A track whose centre moved this far (m) from its published snapshot is reported changed.
+CHANGE_CENTER_M = 0.3
+#: A track whose radius grew this much (m) beyond its published snapshot is reported changed.
+CHANGE_RADIUS_M = 0.2
 
 
 class ObstacleKind(Enum):
@@ -67,6 +78,8 @@ class _Track:
     first_seen_us: int
     last_seen_us: int
     detections: int
+    published_center: np.ndarray  # centre and radius in the snapshot the planner sees
+    published_radius: float
 
     @property
     def center(self) -> np.ndarray:
@@ -76,8 +89,15 @@ class _Track:
     def radius(self) -> float:
         return self.radius_sum / self.weight
 
+    def drifted(self) -> bool:
+        """Whether the track moved or grew beyond the change thresholds since it was published."""
+        moved = float(np.linalg.norm(self.center - self.published_center)) > CHANGE_CENTER_M
+        return moved or self.radius > self.published_radius + CHANGE_RADIUS_M
+
     def frozen(self) -> TrackedObstacle:
+        """The published (frozen) volume; records it as the reference for ``drifted``."""
         c = self.center
+        self.published_center, self.published_radius = c, self.radius
         return TrackedObstacle(
             self.obstacle_id,
             self.kind,
@@ -146,12 +166,11 @@ class ObstacleMap:
             track = self._find(det.obstacle_id, kind, center, radius)
             if track is None:
                 self._tracks[det.obstacle_id] = _Track(
-                    det.obstacle_id, kind, center * weight, radius * weight, weight, time_us, time_us, 1
+                    det.obstacle_id, kind, center * weight, radius * weight, weight, time_us, time_us, 1, center, radius
                 )
                 self._alias[det.obstacle_id] = det.obstacle_id
                 changed.add(det.obstacle_id)
                 continue
-            old_c, old_r = track.center, track.radius
             self._alias[det.obstacle_id] = track.obstacle_id
             if self._alias_is_native(det.obstacle_id, track):
                 track.center_sum += center * weight
@@ -161,7 +180,7 @@ class ObstacleMap:
                 self._enclose(track, center, radius)
             track.last_seen_us = max(track.last_seen_us, time_us)
             track.detections += 1
-            if float(np.linalg.norm(track.center - old_c)) > 0.3 or track.radius > old_r + 0.2:
+            if track.drifted():
                 changed.add(track.obstacle_id)
         forget_us = self.forget_s * 1e6
         stale = [k for k, t in self._tracks.items() if time_us - t.last_seen_us > forget_us]

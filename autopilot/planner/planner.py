@@ -154,6 +154,7 @@ class AvoidancePlanner:
         self._plan: DetourPlan | None = None
         self._t0_us = 0
         self._last_try_us = -(10**18)
+        self._unchecked: set[int] = set()  # obstacles changed since the active detour was last checked
 
     @property
     def state(self) -> PlannerState:
@@ -200,6 +201,7 @@ class AvoidancePlanner:
         self._state = state
         self._path = None
         self._plan = None
+        self._unchecked.clear()
 
     def update(
         self,
@@ -265,17 +267,12 @@ class AvoidancePlanner:
             t_s = (time_us - self._t0_us) * 1e-6
             if t_s >= self._path.duration_s:
                 self._clear(PlannerState.CLEAR)
-            elif changed and time_us - self._last_try_us >= p.replan_s * 1e6:
-                sp_pos, sp_vel, _ = self._path.state_at(t_s)
-                remaining = self._remaining_samples(t_s)
-                why = check_path(remaining, sp_pos, obstacles, self.limits())
-                if why:
-                    threat = self._threat(sp_pos, sp_vel, route, obstacles) or self._blocking(why, sp_pos, obstacles)
-                    if threat is not None:
-                        self._plan_from(time_us, sp_pos, sp_vel, route, threat, DecisionReason.REPLAN, decisions)
-                        return threat
-                return None
             else:
+                # every change is checked against the rest of the detour (a change seen while replans are
+                # rate-limited stays pending until it is checked: it is never dropped)
+                self._unchecked |= changed
+                if self._unchecked:
+                    return self._check_detour(time_us, t_s, route, obstacles, decisions)
                 return None
         if self._state is PlannerState.HOLD and self._path is not None:
             if time_us - self._last_try_us < p.replan_s * 1e6:
@@ -290,6 +287,30 @@ class AvoidancePlanner:
         threat = self._threat(pos, vel, route, obstacles)
         if threat is not None:
             self._plan_from(time_us, pos, vel, route, threat, DecisionReason.THREAT, decisions)
+        return threat
+
+    def _check_detour(
+        self,
+        time_us: int,
+        t_s: float,
+        route: np.ndarray,
+        obstacles: tuple[TrackedObstacle, ...],
+        decisions: list[AvoidanceDecision],
+    ) -> Threat | None:
+        """Re-check the rest of the active detour after map changes; replan from the reference if unsafe."""
+        sp_pos, sp_vel, _ = self._path.state_at(t_s)
+        why = check_path(self._remaining_samples(t_s), sp_pos, obstacles, self.limits())
+        if not why:
+            self._unchecked.clear()
+            return None
+        if time_us - self._last_try_us < self.params.replan_s * 1e6:
+            return None  # replans are rate-limited: the change stays pending
+        threat = self._threat(sp_pos, sp_vel, route, obstacles) or self._blocking(why, sp_pos, obstacles)
+        if threat is None:  # not an obstacle (fences or altitude limits changed in flight): keep flying it
+            self._unchecked.clear()
+            return None
+        self._plan_from(time_us, sp_pos, sp_vel, route, threat, DecisionReason.REPLAN, decisions)
+        self._unchecked.clear()
         return threat
 
     def _threat(
