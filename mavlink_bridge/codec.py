@@ -3,9 +3,11 @@
 The only place that converts the sim<->autopilot dataclasses to and from MAVLink. Message
 layouts (ids, CRC extras, field order, struct formats) come from pymavlink's
 ``ardupilotmega`` dialect (a superset of ``common`` that also defines OBSTACLE_DISTANCE_3D);
-framing is done here with precompiled ``struct`` objects and a C-speed CRC because
-pymavlink's pure-Python CRC and parser cost ~25 µs / ~50 µs per frame, which would dominate
-the lockstep loop. ``tests/test_bridge_codec.py`` checks the bytes against pymavlink's.
+framing is done here with precompiled ``struct`` objects and a C-speed CRC (``fastcrc``, a
+dependency of pymavlink) because pymavlink's pure-Python CRC and parser cost ~25 µs / ~50 µs
+per frame, which would dominate the lockstep loop. Payloads are unpacked in place from the
+datagram (no copy unless MAVLink 2 truncated trailing zeros). ``tests/test_bridge_codec.py``
+checks the bytes against pymavlink's.
 
 Units on the wire (what PX4's simulator_mavlink expects):
 
@@ -31,12 +33,12 @@ or random bytes are counted in ``DecoderStats`` and dropped.
 
 from __future__ import annotations
 
-import binascii
 import math
 import struct
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from fastcrc import crc16 as _crc16
 from pymavlink.dialects.v20 import ardupilotmega as _dialect
 
 from mavlink_bridge.frames import DEG_E7, GRAVITY_M_S2
@@ -82,28 +84,23 @@ class Heartbeat:
 WireMessage = SensorSample | GpsSample | GroundTruth | ObstacleDetection | ActuatorCommand | Heartbeat
 
 
-# --- CRC-16/MCRF4XX at C speed ------------------------------------------------------------------
-# MCRF4XX is the bit-reflected form of CRC-CCITT (binascii.crc_hqx); a reflected CRC equals the
-# bit-reversed plain CRC of the bit-reversed bytes, and bytes.translate reverses bytes in C.
-_REV8 = bytes(int(f"{i:08b}"[::-1], 2) for i in range(256))
-
-
-def _crc_mcrf4xx(frame_without_stx: bytes, crc_extra_reversed: bytes) -> int:
-    """MAVLink checksum of header (without magic) + payload + crc_extra."""
-    c = binascii.crc_hqx(crc_extra_reversed, binascii.crc_hqx(frame_without_stx.translate(_REV8), 0xFFFF))
-    return (_REV8[c & 0xFF] << 8) | _REV8[c >> 8]
+# --- CRC-16/MCRF4XX (X.25, the MAVLink checksum) at C speed -----------------------------------
+# checksum = crc(crc_extra byte, crc(header without magic + payload)): two C calls per frame
+_crc_mcrf4xx = _crc16.mcrf4xx  # (data, initial=0xFFFF) -> int
 
 
 # --- message layouts from pymavlink ------------------------------------------------------------
 @dataclass(frozen=True, slots=True)
 class _Layout:
     msg_id: int
-    crc_extra_reversed: bytes
+    crc_extra: bytes  # one byte
     payload: struct.Struct  # full MAVLink 2 payload, wire order
+    id_lo16: int
+    id_hi8: int
 
 
 def _layout(cls: type) -> _Layout:
-    return _Layout(cls.id, _REV8[cls.crc_extra : cls.crc_extra + 1], cls.unpacker)
+    return _Layout(cls.id, bytes((cls.crc_extra,)), cls.unpacker, cls.id & 0xFFFF, cls.id >> 16)
 
 
 _HEARTBEAT = _layout(_dialect.MAVLink_heartbeat_message)
@@ -112,11 +109,12 @@ _HIL_GPS = _layout(_dialect.MAVLink_hil_gps_message)
 _HIL_STATE_Q = _layout(_dialect.MAVLink_hil_state_quaternion_message)
 _OBSTACLE_3D = _layout(_dialect.MAVLink_obstacle_distance_3d_message)
 _HIL_ACTUATORS = _layout(_dialect.MAVLink_hil_actuator_controls_message)
-#: crc_extra (reversed) and full payload length of every message the dialect knows (CRC checks).
+#: crc_extra and full payload length of every message the dialect knows (CRC checks).
 _KNOWN: dict[int, tuple[bytes, int]] = {
-    msg_id: (_REV8[cls.crc_extra : cls.crc_extra + 1], cls.unpacker.size)
-    for msg_id, cls in _dialect.mavlink_map.items()
+    msg_id: (bytes((cls.crc_extra,)), cls.unpacker.size) for msg_id, cls in _dialect.mavlink_map.items()
 }
+#: zero padding that restores a payload MAVLink 2 truncated by k trailing zero bytes: ``_PAD[k]``.
+_PAD = tuple(bytes(k) for k in range(256))
 
 _V2_HEADER = struct.Struct("<BBBBBBBHB")  # magic, len, incompat, compat, seq, sys, comp, id lo16, id hi8
 _V2_HEADER_LEN = _V2_HEADER.size  # 10
@@ -199,13 +197,15 @@ class Encoder:
     def _frame(self, layout: _Layout, payload: bytes) -> bytes:
         # MAVLink 2 drops trailing zero bytes of the payload (at least one byte stays).
         payload = payload.rstrip(b"\x00") or b"\x00"
-        msg_id = layout.msg_id
-        header = _V2_HEADER.pack(
-            _V2_MAGIC, len(payload), 0, 0, self._seq, self.system_id, self.component_id, msg_id & 0xFFFF, msg_id >> 16
+        seq = self._seq
+        self._seq = (seq + 1) & 0xFF
+        body = (
+            _V2_HEADER.pack(
+                _V2_MAGIC, len(payload), 0, 0, seq, self.system_id, self.component_id, layout.id_lo16, layout.id_hi8
+            )
+            + payload
         )
-        self._seq = (self._seq + 1) & 0xFF
-        body = header + payload
-        return body + _CRC.pack(_crc_mcrf4xx(body[1:], layout.crc_extra_reversed))
+        return body + _CRC.pack(_crc_mcrf4xx(layout.crc_extra, _crc_mcrf4xx(body[1:])))
 
     def heartbeat(self, hb: Heartbeat) -> bytes:
         """HEARTBEAT (MAVLink version 3)."""
@@ -314,18 +314,20 @@ _ENCODERS: dict[type, Callable[[Encoder, WireMessage], bytes]] = {
 
 
 # --- decoding -----------------------------------------------------------------------------------
-def _decode_heartbeat(p: bytes) -> Heartbeat:
-    custom_mode, mav_type, autopilot, base_mode, status, _version = _HEARTBEAT.payload.unpack(p)
+def _decode_heartbeat(buf: bytes, at: int) -> Heartbeat:
+    custom_mode, mav_type, autopilot, base_mode, status, _version = _HEARTBEAT.payload.unpack_from(buf, at)
     return Heartbeat(mav_type, autopilot, base_mode, custom_mode, status)
 
 
-def _decode_sensor(p: bytes) -> SensorSample:
-    t, ax, ay, az, gx, gy, gz, mx, my, mz, press, _diff, palt, temp, _fields, _id = _HIL_SENSOR.payload.unpack(p)
+def _decode_sensor(buf: bytes, at: int) -> SensorSample:
+    t, ax, ay, az, gx, gy, gz, mx, my, mz, press, _diff, palt, temp, _fields, _id = _HIL_SENSOR.payload.unpack_from(
+        buf, at
+    )
     return SensorSample(t, (ax, ay, az), (gx, gy, gz), (mx, my, mz), press, palt, temp)
 
 
-def _decode_gps(p: bytes) -> GpsSample:
-    t, lat, lon, alt, eph, epv, _vel, vn, ve, vd, _cog, fix, sats, _id, _yaw = _HIL_GPS.payload.unpack(p)
+def _decode_gps(buf: bytes, at: int) -> GpsSample:
+    t, lat, lon, alt, eph, epv, _vel, vn, ve, vd, _cog, fix, sats, _id, _yaw = _HIL_GPS.payload.unpack_from(buf, at)
     return GpsSample(
         t,
         lat / DEG_E7,
@@ -339,8 +341,10 @@ def _decode_gps(p: bytes) -> GpsSample:
     )
 
 
-def _decode_truth(p: bytes) -> GroundTruth:
-    t, qw, qx, qy, qz, p_, q_, r_, lat, lon, alt, vx, vy, vz, _ias, _tas, ax, ay, az = _HIL_STATE_Q.payload.unpack(p)
+def _decode_truth(buf: bytes, at: int) -> GroundTruth:
+    t, qw, qx, qy, qz, p_, q_, r_, lat, lon, alt, vx, vy, vz, _ias, _tas, ax, ay, az = _HIL_STATE_Q.payload.unpack_from(
+        buf, at
+    )
     g = GRAVITY_M_S2 / 1000.0
     return GroundTruth(
         t,
@@ -357,8 +361,8 @@ def _decode_truth(p: bytes) -> GroundTruth:
 _SHAPES = {int(s): s for s in ObstacleShape}
 
 
-def _decode_detection(p: bytes) -> ObstacleDetection | None:
-    t_ms, x, y, z, dmin, dmax, obstacle_id, sensor_type, frame = _OBSTACLE_3D.payload.unpack(p)
+def _decode_detection(buf: bytes, at: int) -> ObstacleDetection | None:
+    t_ms, x, y, z, dmin, dmax, obstacle_id, sensor_type, frame = _OBSTACLE_3D.payload.unpack_from(buf, at)
     if frame != MAV_FRAME_BODY_FRD:
         return None
     return ObstacleDetection(
@@ -366,14 +370,14 @@ def _decode_detection(p: bytes) -> ObstacleDetection | None:
     )
 
 
-def _decode_actuators(p: bytes) -> ActuatorCommand:
-    v = _HIL_ACTUATORS.payload.unpack(p)
+def _decode_actuators(buf: bytes, at: int) -> ActuatorCommand:
+    v = _HIL_ACTUATORS.payload.unpack_from(buf, at)
     t, flags, c0, c1, c2, c3 = v[0], v[1], v[2], v[3], v[4], v[5]
     gripper = v[2 + GRIPPER_CHANNEL]
     return ActuatorCommand(t, (c0, c1, c2, c3), bool(v[-1] & ACTUATOR_MODE_ARMED), gripper >= 0.5, bool(flags & 1))
 
 
-_DECODERS: dict[int, Callable[[bytes], WireMessage | None]] = {
+_DECODERS: dict[int, Callable[[bytes, int], WireMessage | None]] = {
     _HEARTBEAT.msg_id: _decode_heartbeat,
     _HIL_SENSOR.msg_id: _decode_sensor,
     _HIL_GPS.msg_id: _decode_gps,
@@ -381,8 +385,8 @@ _DECODERS: dict[int, Callable[[bytes], WireMessage | None]] = {
     _OBSTACLE_3D.msg_id: _decode_detection,
     _HIL_ACTUATORS.msg_id: _decode_actuators,
 }
-#: msg id -> (reversed crc_extra, full payload length, decoder or None) for every message of the dialect.
-_TABLE: dict[int, tuple[bytes, int, Callable[[bytes], WireMessage | None] | None]] = {
+#: msg id -> (crc_extra, full payload length, decoder ``(buffer, offset)`` or None) for every message of the dialect.
+_TABLE: dict[int, tuple[bytes, int, Callable[[bytes, int], WireMessage | None] | None]] = {
     msg_id: (crc_rev, size, _DECODERS.get(msg_id)) for msg_id, (crc_rev, size) in _KNOWN.items()
 }
 
@@ -418,6 +422,7 @@ class Decoder:
         """All wire messages in one datagram, in order."""
         out: list[WireMessage] = []
         stats = self.stats
+        view = memoryview(data)
         n = len(data)
         i = 0
         while i < n:
@@ -442,7 +447,7 @@ class Decoder:
                 entry is None
                 or incompat & ~_IFLAG_SIGNED
                 or frame_end > n
-                or _CRC.unpack_from(data, end)[0] != _crc_mcrf4xx(data[i + 1 : end], entry[0])
+                or _CRC.unpack_from(data, end)[0] != _crc_mcrf4xx(entry[0], _crc_mcrf4xx(view[i + 1 : end]))
             ):
                 i = self._resync(data, i + 1)
                 continue
@@ -455,8 +460,8 @@ class Decoder:
             if fn is None:
                 stats.ignored += 1
                 continue
-            payload = data[start:end] if plen == size else (data[start:end] + bytes(size))[:size]
-            msg = fn(payload)
+            # in place when nothing was truncated (longer: extensions we do not read), else zero-padded
+            msg = fn(data, start) if plen >= size else fn(data[start:end] + _PAD[size - plen], 0)
             if msg is None:
                 stats.ignored += 1
             else:
