@@ -8,7 +8,8 @@ GcsClient watches on the API link and downloads what the autopilot holds. One MA
 1. ``wp load missions/delivery.waypoints``: the repository's QGC WPL 110 file, whose line 0 is home.
    MAVProxy uploads every line, home included, as items 0..N (ArduPilot convention).
 2. ``wp load`` of a WPL file without a home line (items numbered from 0, PX4 convention).
-3. ``wp save``: MAVProxy downloads the mission back and writes it as QGC WPL.
+3. ``wp save``: MAVProxy downloads the mission back and writes it as QGC WPL; its parameter
+   download (MAVLink FTP first, then PARAM_REQUEST_LIST) completes and ``param set`` changes one.
 4. ``arm throttle`` and ``long DO_SET_MODE 1 4 4`` (PX4 AUTO.MISSION): the mission is flown. MAVProxy
    1.8.75's own ``mode MISSION`` cannot be used on any PX4 vehicle: it passes pymavlink's px4_map
    tuple where a number is expected ("required argument is not a float"), a client bug.
@@ -34,6 +35,7 @@ from interop_clients.missions import short_delivery
 from sitl_procs import Ports, logs, read_json, start_autopilot, start_sim, stop
 
 from autopilot.mission.files import load_mission_file
+from autopilot.param_schema import make_param_store
 from mavlink_bridge.gcs_client import GcsClient, VehicleStatus
 from mavlink_bridge.gcs_types import LandedState, MissionItem
 
@@ -42,6 +44,7 @@ pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 WORLD = REPO_ROOT / "missions" / "delivery.yaml"  # home, wind and payload of the sim
 QGC_FILE = REPO_ROOT / "missions" / "delivery.waypoints"  # the same home in its line 0
 ACK = "Got MISSION_ACK: TYPE_MISSION: "  # MAVProxy's console line for every MISSION_ACK it receives
+SET_PARAM = ("MIS_RTL_ALT", 12.0)  # set from MAVProxy before the flight: a lower RTL climb
 WAIT_S = 30.0  # failure deadline of each step (never a speed assertion)
 FLIGHT_WAIT_S = 60.0
 
@@ -142,6 +145,8 @@ class Session:
     px4_ack: str
     px4_held: list[Row]
     saved: list[Row]
+    param_count: int
+    param_value: float
     final_status: VehicleStatus
     autopilot: dict[str, Any]
     sim: dict[str, Any]
@@ -183,6 +188,12 @@ def session(tmp_path_factory: pytest.TempPathFactory) -> Session:
             saved_file = tmp_path / "saved.waypoints"
             console.send(f"wp save {saved_file}")
             console.wait_for("Saved ", 1, idle, "wp save")
+            console.wait_for(" parameters", 1, idle, "parameter download")  # "Received N parameters"
+            param_count = int(console.text().split(" parameters", 1)[0].rsplit("Received ", 1)[1])
+            console.send(f"param set {SET_PARAM[0]} {SET_PARAM[1]}")
+            deadline = time.monotonic() + WAIT_S
+            while (param_value := gcs.get_param(SET_PARAM[0])) != SET_PARAM[1] and time.monotonic() < deadline:
+                gcs.pump(0.2)
             console.send("arm throttle")
             gcs.wait_until(lambda s: s.armed, WAIT_S)
             console.send("long DO_SET_MODE 1 4 4")  # base mode CUSTOM_MODE_ENABLED, AUTO, MISSION
@@ -202,6 +213,8 @@ def session(tmp_path_factory: pytest.TempPathFactory) -> Session:
         px4_ack=px4_ack,
         px4_held=px4_held,
         saved=_wpl_rows(saved_file.read_text()),
+        param_count=param_count,
+        param_value=param_value,
         final_status=final,
         autopilot=read_json(tmp_path / "autopilot_summary.json"),
         sim=read_json(tmp_path / "sim_summary.json"),
@@ -226,6 +239,11 @@ def test_mavproxy_wp_load_without_home_line_installs_exactly_that_mission(sessio
 def test_mavproxy_wp_save_writes_back_the_mission_it_loaded(session: Session) -> None:
     # MAVProxy writes WPL numbers with 6 decimals ("%f"): 1e-6 deg is its file's resolution, not the link's
     _assert_rows_match(session.saved, _wpl_rows(session.px4_file.read_text()), latlon_abs_deg=1e-6)
+
+
+def test_mavproxy_downloads_every_parameter_and_sets_one(session: Session) -> None:
+    assert session.param_count == len(make_param_store().names())
+    assert session.param_value == SET_PARAM[1]  # read back by the project's client on the other link
 
 
 def test_mavproxy_arm_and_set_mode_mission_fly_the_loaded_mission(session: Session) -> None:

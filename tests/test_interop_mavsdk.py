@@ -2,10 +2,11 @@
 
 Sim and autopilot run as two processes on free loopback ports; MAVSDK talks to the API link
 (SPEC §3) from ``interop_clients/mavsdk_fly_mission.py`` in a separate interpreter with a hard
-timeout, so a hang in the native library cannot hang pytest. MAVSDK's ``MissionRaw`` uploads the
-items, downloads them back, ``Action.arm`` arms and ``MissionRaw.start_mission`` switches to
-AUTO.MISSION; the flight must reach the last item, land and disarm. Skipped when no interpreter
-imports ``mavsdk`` >= 4 (see ``interop_clients`` for ``QUADSITL_INTEROP_PYTHON``).
+timeout, so a hang in the native library cannot hang pytest. MAVSDK's ``Param`` downloads every
+parameter and sets MIS_RTL_ALT; ``MissionRaw`` uploads the items and downloads them back;
+``Action.arm`` arms and ``MissionRaw.start_mission`` switches to AUTO.MISSION; the flight must
+reach the last item, land and disarm. Skipped when no interpreter imports ``mavsdk`` >= 4 (see
+``interop_clients`` for ``QUADSITL_INTEROP_PYTHON``).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from interop_clients.missions import short_delivery
 from sitl_procs import logs, read_json, start_autopilot, start_sim, stop
 
 from autopilot.mission.files import load_mission_file
+from autopilot.param_schema import make_param_store
 from mavlink_bridge.frames import GeoPoint, LocalNedFrame
 from mavlink_bridge.gcs_types import MissionItem
 
@@ -31,6 +33,7 @@ pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 
 WORLD = REPO_ROOT / "missions" / "delivery.yaml"  # home, wind and the 1 kg payload the sim carries
 DRIVER_TIMEOUT_S = 75.0  # the driver's own limit; the process is killed 15 s later
+SET_PARAM = ("MIS_RTL_ALT", 12.0)  # set through MAVSDK before the flight: a lower RTL climb
 
 
 def _mission_item_int(item: MissionItem) -> dict[str, Any]:
@@ -80,7 +83,7 @@ def flight(tmp_path_factory: pytest.TempPathFactory) -> Flight:
     driver = [
         python, str(MAVSDK_DRIVER), "--connect", f"udpin://127.0.0.1:{api_target}",
         "--items", str(tmp_path / "items.json"), "--result", str(tmp_path / "mavsdk.json"),
-        "--timeout-s", str(DRIVER_TIMEOUT_S),
+        "--set-param", SET_PARAM[0], repr(SET_PARAM[1]), "--timeout-s", str(DRIVER_TIMEOUT_S),
     ]  # fmt: skip
     try:
         run = subprocess.run(driver, cwd=tmp_path, capture_output=True, text=True, timeout=DRIVER_TIMEOUT_S + 15.0)
@@ -107,6 +110,7 @@ def test_mavsdk_mission_raw_upload_arm_start_complete(flight: Flight) -> None:
         fields = ("param1", "param2", "param3", "param4", "z")
         assert [got[f] for f in fields] == pytest.approx([want[f] for f in fields], nan_ok=True, abs=1e-5)
     assert "MISSION" in result["flight_modes"]
+    assert "HOLD" in result["flight_modes"]  # AUTO.LOITER on the ground, PX4's "Hold"
     progress = result["progress"]
     assert progress[-1] == [total, total]
     assert {current for current, _ in progress} == set(range(total + 1))  # every item became current
@@ -117,6 +121,15 @@ def test_mavsdk_mission_raw_upload_arm_start_complete(flight: Flight) -> None:
     landed = steps["landed"]
     north_m, east_m, _ = LocalNedFrame(flight.home).ned_from_geodetic(landed["lat_deg"], landed["lon_deg"], 0.0)
     assert math.hypot(north_m, east_m) < 1.5  # RTL brought it home, in MAVSDK's own position telemetry
+
+
+def test_mavsdk_param_download_and_set(flight: Flight) -> None:
+    params = next(s for s in flight.result["steps"] if s["step"] == "params")
+    assert params["float_count"] == len(make_param_store().names())  # float-only parameters (SPEC §3)
+    assert params["int_count"] == 0 and params["custom_count"] == 0
+    name, value = SET_PARAM
+    assert params["name"] == name and params["before"] == make_param_store().get(name)
+    assert params["after"] == pytest.approx(value)
 
 
 @pytest.mark.xfail(

@@ -2,13 +2,14 @@
 
 Runs in an interpreter where ``mavsdk>=4`` is importable; imports nothing from quadsitl, so it
 exercises the vehicle exactly as a third-party application would. Steps: connect, wait for the
-home and global position health flags, ``MissionRaw.upload_mission`` of the items, download them
-back, ``Action.arm``, ``MissionRaw.start_mission``, then wait until mission progress reaches the
-last item and the vehicle is on the ground and disarmed.
+home and global position health flags, download every parameter and set one float (``Param``),
+``MissionRaw.upload_mission`` of the items, download them back, ``Action.arm``,
+``MissionRaw.start_mission``, then wait until mission progress reaches the last item and the
+vehicle is on the ground and disarmed.
 
 Usage: ``python mavsdk_fly_mission.py --connect udpin://127.0.0.1:PORT --items items.json
---result result.json [--timeout-s S]``. ``items.json`` is a list of MISSION_ITEM_INT field
-dicts (``seq frame command current autocontinue param1..4 x y z mission_type``, x/y in degE7).
+--result result.json --set-param NAME VALUE [--timeout-s S]``. ``items.json`` is a list of MISSION_ITEM_INT
+field dicts (``seq frame command current autocontinue param1..4 x y z mission_type``, x/y in degE7).
 ``result.json`` records every observation (see ``Recorder``); exit code 0 only when the
 mission completed with the vehicle landed and disarmed, 1 on a failed step, 2 on bad usage.
 """
@@ -26,6 +27,7 @@ from typing import Any
 from mavsdk import ComponentType, Configuration, Mavsdk
 from mavsdk.plugins.action import Action, ActionError
 from mavsdk.plugins.mission_raw import MissionItem, MissionRaw, MissionRawError
+from mavsdk.plugins.param import Param, ParamError
 from mavsdk.plugins.telemetry import LandedState, Telemetry
 
 _ITEM_FIELDS = (
@@ -65,10 +67,10 @@ class Recorder:
             "error": "",
         }
 
-    def step(self, name: str, **fields: Any) -> None:
+    def step(self, step_name: str, /, **fields: Any) -> None:
         with self._lock:
-            self.data["steps"].append({"step": name, "wall_s": round(time.monotonic(), 3), **fields})
-        print(json.dumps({"step": name, **fields}), flush=True)
+            self.data["steps"].append({"step": step_name, "wall_s": round(time.monotonic(), 3), **fields})
+        print(json.dumps({"step": step_name, **fields}), flush=True)
 
     def append_if_new(self, key: str, value: Any) -> None:
         with self._lock:
@@ -97,7 +99,29 @@ def _wait_for(what: str, predicate: Any, deadline: float) -> None:
         time.sleep(_POLL_S)
 
 
-def fly(connect_url: str, items: list[MissionItem], rec: Recorder, deadline: float) -> None:
+def check_params(param: Param, set_name: str, set_value: float, rec: Recorder) -> None:
+    """Download every parameter, then set one float and read it back (PARAM_SET -> PARAM_VALUE)."""
+    try:
+        everything = param.get_all_params()
+        before = param.get_param_float(set_name)
+        param.set_param_float(set_name, set_value)
+        after = param.get_param_float(set_name)
+    except ParamError as exc:
+        raise StepFailedError(f"param {exc.origin} -> {exc.result.name}") from None
+    rec.step(
+        "params",
+        float_count=len(everything.float_params),
+        int_count=len(everything.int_params),
+        custom_count=len(everything.custom_params),
+        name=set_name,
+        before=before,
+        after=after,
+    )
+
+
+def fly(
+    connect_url: str, items: list[MissionItem], set_param: tuple[str, float], rec: Recorder, deadline: float
+) -> None:
     """The whole client session (see module docstring); raises StepFailedError on the first failed step."""
     config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
     mavsdk = Mavsdk(config)
@@ -128,6 +152,7 @@ def fly(connect_url: str, items: list[MissionItem], rec: Recorder, deadline: flo
         _wait_for("home and global position health", position_ok, deadline)
         health = telemetry.health()
         rec.step("health", armable=bool(health.is_armable), local_position_ok=bool(health.is_local_position_ok))
+        check_params(Param(system), *set_param, rec)
 
         try:
             mission.upload_mission(items)
@@ -176,6 +201,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--connect", required=True, help="MAVSDK connection URL, e.g. udpin://127.0.0.1:14540")
     parser.add_argument("--items", required=True, type=Path, help="JSON list of MISSION_ITEM_INT field dicts")
     parser.add_argument("--result", required=True, type=Path, help="where the JSON observations go")
+    parser.add_argument("--set-param", required=True, nargs=2, metavar=("NAME", "VALUE"), help="a float to set")
     parser.add_argument("--timeout-s", type=float, default=80.0, help="wall-clock limit of the whole session")
     args = parser.parse_args(argv)
     try:
@@ -186,7 +212,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     rec = Recorder()
     try:
-        fly(args.connect, items, rec, time.monotonic() + args.timeout_s)
+        set_param = (args.set_param[0], float(args.set_param[1]))
+        fly(args.connect, items, set_param, rec, time.monotonic() + args.timeout_s)
         rec.data["ok"] = True
     except StepFailedError as exc:
         rec.data["error"] = str(exc)
