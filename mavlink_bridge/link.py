@@ -77,11 +77,23 @@ class UdpLink:
     ``follow_sender=False`` and calls ``set_peer``.
     """
 
-    __slots__ = ("_buf", "_poll", "_sock", "_view", "follow_sender", "last_sender", "peer", "send_errors", "url")
+    __slots__ = (
+        "_buf",
+        "_listening",
+        "_poll",
+        "_sock",
+        "_view",
+        "follow_sender",
+        "last_sender",
+        "peer",
+        "send_errors",
+        "url",
+    )
 
     def __init__(self, url: LinkUrl, *, follow_sender: bool = True) -> None:
         self.url = url
         self.follow_sender = follow_sender
+        self._listening = url.mode is LinkMode.LISTEN
         self.send_errors = 0
         self.last_sender: Address | None = None
         self.peer: Address | None = None
@@ -127,23 +139,20 @@ class UdpLink:
         """The next whole datagram, waiting at most ``timeout_s`` (0 = poll); None on timeout.
 
         ``last_sender`` is set to its source; in LISTEN mode with ``follow_sender`` the
-        peer follows it.
+        peer follows it. With a timeout the socket is polled first (a lockstep peer is
+        usually still computing when its partner starts to wait, so a non-blocking attempt
+        first would mostly fail with an exception).
         """
+        if timeout_s > 0.0 and not self._poll.poll(timeout_s * 1000.0):
+            return None
         try:
             n, address = self._sock.recvfrom_into(self._buf)
         except OSError as exc:
             if exc.errno not in _TRANSIENT_ERRNOS:
                 raise
-            if timeout_s <= 0.0 or not self._poll.poll(timeout_s * 1000.0):
-                return None
-            try:
-                n, address = self._sock.recvfrom_into(self._buf)
-            except OSError as exc2:
-                if exc2.errno not in _TRANSIENT_ERRNOS:
-                    raise
-                return None
+            return None
         self.last_sender = address
-        if self.follow_sender and self.url.mode is LinkMode.LISTEN:
+        if self.follow_sender and self._listening:
             self.peer = address
         return bytes(self._view[:n])
 

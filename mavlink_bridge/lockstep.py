@@ -114,6 +114,9 @@ class LockstepServer:
         self._resends = 0
         self._stale = 0
         self._interrupted = False
+        self._frame_time_us = -1  # the frame of the last send (what wait_answer waits for)
+        self._datagram = b""
+        self._sent_at_s = 0.0
 
     def interrupt(self) -> None:
         """Make a waiting ``exchange`` raise ``LockstepInterrupted`` (and ``wait_for_autopilot`` return
@@ -157,20 +160,37 @@ class LockstepServer:
         after ``peer_lost_timeout_s`` (wall) without any valid message from the autopilot
         during this call, and ``LockstepInterrupted`` after ``interrupt``.
         """
-        frame_time_us = frame.sensor.time_us
-        datagram = encode_frame(self._encoder, frame)
+        self.send(frame)
+        return self.wait_answer()
+
+    def send(self, frame: LockstepFrame) -> None:
+        """First half of ``exchange``: encode and send ``frame``.
+
+        The caller may do work that does not change the frame's state (logging, hashing) while
+        the autopilot computes, then call ``wait_answer``.
+        """
+        self._frame_time_us = frame.sensor.time_us
+        self._datagram = encode_frame(self._encoder, frame)
+        self._link.send(self._datagram)
+        self._sent_at_s = time.monotonic()
+
+    def wait_answer(self) -> ActuatorCommand:
+        """Second half of ``exchange``: the answer to the frame of the last ``send`` (re-sending as needed).
+
+        Silence is counted from that ``send`` (the sim may have been busy before it).
+        """
+        frame_time_us, datagram = self._frame_time_us, self._datagram
         link, decoder = self._link, self._decoder
-        link.send(datagram)
+        silent_since = self._sent_at_s
+        resend_at = silent_since + self.resend_timeout_s
         now = time.monotonic()
-        silent_since = now  # the sim may have been busy before this call: count silence from here
-        resend_at = now + self.resend_timeout_s
         while True:
             data = link.recv(resend_at - now)
             now = time.monotonic()
             if data is not None:
                 for msg in decoder.decode(data):
                     silent_since = now
-                    self._heard()
+                    link.peer = link.last_sender  # a valid message: reply to its sender (see _heard)
                     if type(msg) is ActuatorCommand:
                         if msg.time_us == frame_time_us:
                             self._frames += 1

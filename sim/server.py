@@ -2,7 +2,8 @@
 
 Loop per control step (``control_hz``, default 250 Hz)::
 
-    sensors(state, t) → LockstepFrame → exchange (HIL_* out, HIL_ACTUATOR_CONTROLS back)
+    sensors(state, t) → LockstepFrame → send (HIL_* out) → record the previous step (truth hash,
+    tilt, truth log: overlaps the autopilot's step) → wait (HIL_ACTUATOR_CONTROLS back)
     → apply (armed → motors, else 0; gripper release → payload dropped) → physics (substeps RK4)
     → end checks (vehicle end reason, duration, stop request) → pacing (``--speed``)
 
@@ -126,7 +127,12 @@ def _mission_vehicle(world_path: Path | None) -> str | None:
 def tilt_deg(q_ned_frd: np.ndarray) -> float:
     """Angle between body down and NED down (°): ``acos(R_zz)``, ``R_zz = 1 − 2(x² + y²)``."""
     x, y = float(q_ned_frd[1]), float(q_ned_frd[2])
-    return math.degrees(math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (x * x + y * y)))))
+    return _tilt_deg_from_xy2(x * x + y * y)
+
+
+def _tilt_deg_from_xy2(xy2: float) -> float:
+    """:func:`tilt_deg` from ``x² + y²`` of the quaternion (monotonic in it: the max tilt is that of the max)."""
+    return math.degrees(math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * xy2))))
 
 
 class SimServer:
@@ -186,7 +192,11 @@ class SimServer:
     def _apply(self, cmd: ActuatorCommand) -> None:
         """Motors when armed (else stopped; non-finite commands stop that motor), gripper release."""
         if cmd.armed:
-            self._motor_cmd[:] = [u if math.isfinite(u) else 0.0 for u in cmd.motor_cmd]
+            u = cmd.motor_cmd
+            if math.isfinite(u[0] + u[1] + u[2] + u[3]):  # one check for the usual case
+                self._motor_cmd[:] = u
+            else:
+                self._motor_cmd[:] = [x if math.isfinite(x) else 0.0 for x in u]
         else:
             self._motor_cmd[:] = 0.0
         if cmd.gripper_release and self.vehicle.payload_kg > 0.0:
@@ -195,10 +205,21 @@ class SimServer:
 
     def run(self) -> SimSummary:
         """Wait for the autopilot, then step in lockstep until an end condition; always returns a summary."""
-        cfg, v = self.config, self.vehicle
+        cfg, v, lockstep = self.config, self.vehicle, self.lockstep
         truth_hash = hashlib.sha256()
         truth_rows: list[np.ndarray] = []
-        max_tilt = 0.0
+        max_xy2 = 0.0  # max of x² + y² of q_ned_frd: the max tilt (tilt is monotonic in it)
+        unrecorded = False  # a step is integrated but not yet in the hash / tilt / truth log
+        state = v.batch.state[0]
+
+        def record() -> None:
+            nonlocal max_xy2
+            truth_hash.update(state)
+            if cfg.truth_log is not None:
+                truth_rows.append(np.concatenate(([v.t_s], state)))
+            qx, qy = state[7:9].tolist()
+            max_xy2 = max(max_xy2, qx * qx + qy * qy)
+
         connected = False
         wall0 = time.perf_counter()
         try:
@@ -206,7 +227,6 @@ class SimServer:
             wall0 = time.perf_counter()
             if not connected:
                 v.end(EndReason.STOPPED)
-            state = v.batch.state[0]
             while v.end_reason is EndReason.RUNNING:
                 if self._stop_requested:
                     v.end(EndReason.STOPPED)
@@ -215,7 +235,11 @@ class SimServer:
                     v.end(EndReason.COMPLETED)
                     break
                 try:
-                    cmd = self.lockstep.exchange(self._frame())
+                    lockstep.send(self._frame())
+                    if unrecorded:  # the state is unchanged until the answer: record while the autopilot works
+                        record()
+                        unrecorded = False
+                    cmd = lockstep.wait_answer()
                 except AutopilotLost as exc:
                     log.warning("autopilot lost: %s", exc)
                     v.end(EndReason.AUTOPILOT_LOST)
@@ -225,20 +249,19 @@ class SimServer:
                     break
                 self._apply(cmd)
                 v.step(self._motor_cmd)
-                truth_hash.update(state)
-                if cfg.truth_log is not None:
-                    truth_rows.append(np.concatenate(([v.t_s], state)))
-                max_tilt = max(max_tilt, tilt_deg(state[6:10]))
+                unrecorded = True
                 if cfg.speed is not None:
                     ahead_s = wall0 + v.t_s / cfg.speed - time.perf_counter()
                     if ahead_s > 0.0:
                         time.sleep(ahead_s)
+            if unrecorded:
+                record()
         finally:
             wall_s = time.perf_counter() - wall0
-            self.lockstep.close()
+            lockstep.close()
         if cfg.truth_log is not None:
             self._write_truth_log(cfg.truth_log, truth_rows)
-        return self._summary(connected, wall_s, max_tilt, truth_hash.hexdigest())
+        return self._summary(connected, wall_s, _tilt_deg_from_xy2(max_xy2), truth_hash.hexdigest())
 
     def _wait_for_autopilot(self) -> bool:
         cfg = self.config

@@ -38,6 +38,8 @@ last_rx = time.monotonic()
 last_hb = 0.0
 started = False
 t_start = time.monotonic()
+last_answered_us = -1
+m = (0.0, 0.0, 0.0, 0.0)
 
 
 def vz_loop(vz_sp, dt):
@@ -72,6 +74,10 @@ while True:
         zacc_mg = msg.zacc
         continue
     started = True
+    if msg.time_usec <= last_answered_us:  # a re-sent frame (the sim's answer was late or lost): same answer,
+        if msg.time_usec == last_answered_us:  # no second controller step (that would break determinism)
+            mav.hil_actuator_controls_send(msg.time_usec, list(m) + [0.0] * 12, 128, 1)
+        continue
     t = msg.time_usec / 1e6
     if t >= stop_answering_at_s:
         break  # the autopilot vanishes
@@ -98,6 +104,7 @@ while True:
         print(json.dumps(samples), flush=True)
         break
     mav.hil_actuator_controls_send(msg.time_usec, list(m) + [0.0] * 12, 128, 1)
+    last_answered_us = msg.time_usec
 '''
 
 
