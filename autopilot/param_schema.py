@@ -12,29 +12,56 @@ import sys
 from collections.abc import Iterable
 from pathlib import Path
 
+from autopilot.control.param_decls import controller_param_specs
 from autopilot.mission.param_decls import mission_param_specs
 from autopilot.nav_params import nav_param_specs
 from autopilot.params import ParamError, ParamSpec, ParamStore
 from autopilot.planner.param_decls import planner_param_specs
+
+#: Upper bound of ``PLD_MASS_KG`` (kg).
+PAYLOAD_MASS_MAX_KG = 20.0
+
+
+def payload_param_specs(payload_nominal_kg: float = 0.0) -> list[ParamSpec]:
+    """``PLD_MASS_KG``: the payload mass the controller stops counting at a gripper release.
+
+    Its default is the airframe's ``payload_nominal_kg`` (``autopilot/airframes/<name>.yaml``): the
+    nominal ``mass_kg`` there includes that payload, so after a release the cascade flies
+    ``mass_kg - PLD_MASS_KG`` (``CascadeController.set_mass_kg``).
+    """
+    return [
+        ParamSpec(
+            "PLD_MASS_KG",
+            float(payload_nominal_kg),
+            0.0,
+            PAYLOAD_MASS_MAX_KG,
+            "kg",
+            "Payload mass dropped at a gripper release (default: the airframe's payload_nominal_kg)",
+        )
+    ]
+
 
 #: (group title, spec factory) in display order.
 _GROUPS = (
     ("Navigation, commander and failsafes", nav_param_specs),
     ("Mission", mission_param_specs),
     ("Obstacle avoidance", planner_param_specs),
+    ("Controller (NLVG-PID cascade)", controller_param_specs),
 )
 
 
-def param_groups() -> list[tuple[str, list[ParamSpec]]]:
-    """The parameters grouped by the component that declares them."""
-    return [(title, list(factory())) for title, factory in _GROUPS]
+def param_groups(payload_nominal_kg: float = 0.0) -> list[tuple[str, list[ParamSpec]]]:
+    """The parameters grouped by the component that declares them (payload default from the airframe)."""
+    groups = [(title, list(factory())) for title, factory in _GROUPS]
+    groups.append(("Payload", payload_param_specs(payload_nominal_kg)))
+    return groups
 
 
-def all_param_specs() -> list[ParamSpec]:
+def all_param_specs(payload_nominal_kg: float = 0.0) -> list[ParamSpec]:
     """Every parameter of the autopilot. Raises ParamError when two components declare the same name."""
     specs: list[ParamSpec] = []
     owner: dict[str, str] = {}
-    for title, group in param_groups():
+    for title, group in param_groups(payload_nominal_kg):
         for spec in group:
             if spec.name in owner:
                 raise ParamError(f"parameter {spec.name} declared by both '{owner[spec.name]}' and '{title}'")
@@ -43,9 +70,12 @@ def all_param_specs() -> list[ParamSpec]:
     return specs
 
 
-def make_param_store(params_file: str | Path | None = None) -> ParamStore:
-    """A ParamStore with every parameter at its default, then ``params_file`` (YAML NAME: value) applied."""
-    store = ParamStore(all_param_specs())
+def make_param_store(params_file: str | Path | None = None, *, payload_nominal_kg: float = 0.0) -> ParamStore:
+    """A ParamStore with every parameter at its default, then ``params_file`` (YAML NAME: value) applied.
+
+    ``payload_nominal_kg`` (the airframe's) is the default of ``PLD_MASS_KG``.
+    """
+    store = ParamStore(all_param_specs(payload_nominal_kg))
     if params_file is not None:
         store.load_file(params_file)
     return store

@@ -35,6 +35,7 @@ from autopilot.control.cascade import GRAVITY_M_S2, CascadeController
 from autopilot.control.param_decls import gains_from_params, limits_from_params
 from autopilot.estimator import Estimator, FrameLike, VehicleState, make_estimator
 from autopilot.failsafe import BatteryModel, FailsafeInputs, FailsafeMonitor
+from autopilot.fence_zones import planner_fence_zones
 from autopilot.mission.commands import MissionState
 from autopilot.mission.executor import (
     ActionKind,
@@ -45,7 +46,7 @@ from autopilot.mission.executor import (
     VehicleSample,
 )
 from autopilot.mission.executor import NavTarget as MissionTarget
-from autopilot.mission.fence import FenceError, geofence_from_items
+from autopilot.mission.fence import FenceError, Geofence, geofence_from_items
 from autopilot.mission.validation import MissionLimits, validate_mission
 from autopilot.param_schema import make_param_store
 from autopilot.params import ParamError, ParamStore
@@ -205,13 +206,16 @@ class Autopilot:
         script: CommandScript | None = None,
     ) -> None:
         self.config = config or AutopilotConfig()
-        self.params = params or make_param_store(self.config.params_file)
         self.airframe = airframe or load_airframe(self.config.vehicle)
+        self.params = params or make_param_store(
+            self.config.params_file, payload_nominal_kg=self.airframe.payload_nominal_kg
+        )
         self.estimator = estimator or make_estimator(self.config.estimator)
         self.listener = listener
         if planner is None and self.config.avoidance:
             planner = AvoidancePlanner(PlannerParams.from_store(self.params))
         self.planner = planner
+        self.geofence = Geofence()
         self.script = script
         self.commander = Commander(self.params)
         self.setpoints = SetpointGenerator(self._setpoint_limits())
@@ -232,6 +236,7 @@ class Autopilot:
         self.end_reason: AutopilotEndReason | None = None
         self.thrust_ratio = 0.0
         self._hover_thrust_n = self.airframe.mass_kg * GRAVITY_M_S2
+        self._payload_released = False  # what the cascade's mass currently assumes
         self._prev_time_us: int | None = None
         self._dt_s = 0.004
         self._last_kind = TargetKind.IDLE
@@ -258,6 +263,7 @@ class Autopilot:
         self.params.subscribe(self._on_param)
         self.frame_detections: tuple[ObstacleDetection, ...] = ()
         self._warm_up()
+        self._apply_altitude_limits()
 
     def _warm_up(self) -> None:
         """Build the cascade and run it once now: its first call JIT-loads the numba kernels (seconds),
@@ -287,23 +293,75 @@ class Autopilot:
             self.setpoints.limits = self._setpoint_limits()
         if name.startswith("NV_") or name in _CONTROL_LIMIT_PARAMS:
             self._update_controller_params()
+        elif name == "PLD_MASS_KG":
+            self._apply_payload_mass()
         elif name == "BAT_HOVER_ENDUR":
             self.battery.hover_endurance_s = value
         elif name.startswith("MIS_") and self.executor is not None:
             self.executor.configure(ExecutorConfig.from_params(self.params))
         elif name.startswith("CA_") and isinstance(self.planner, AvoidancePlanner):
             self.planner.set_params(PlannerParams.from_store(self.params))
+        elif name.startswith("GF_MAX_VER"):
+            self._apply_altitude_limits()
+        if name == "CA_RSAFE_M" and hasattr(self.listener, "safety_radius_m"):
+            self.listener.safety_radius_m = value  # type: ignore[union-attr]  # drawn safety spheres follow R_safe
 
     def _update_controller_params(self) -> None:
-        """Gains change live (integrators kept); a limit change rebuilds the cascade (its integrators restart)."""
+        """Gains change live (integrators kept); a limit change rebuilds the cascade with its state carried over.
+
+        A ValueError from inconsistent values (e.g. δ2 <= δ1) leaves the gains in force and is reported.
+        """
         values = self.params.values()
-        self.gains = gains_from_params(values)
-        limits = limits_from_params(values)
+        try:
+            gains = gains_from_params(values)
+            limits = limits_from_params(values)
+        except ValueError as exc:
+            self._say(f"Controller parameters not applied: {exc}", Severity.WARNING)
+            return
+        self.gains = gains
         if limits != self.limits:
             self.limits = limits
-            self.controller = None  # rebuilt with the new limits at the next step
+            if self.controller is not None:
+                self.controller = self._rebuild_controller(self.controller)
         elif self.controller is not None:
-            self.controller.set_gains(self.gains)
+            self.controller.set_gains(gains)
+
+    def _rebuild_controller(self, old: CascadeController | None) -> CascadeController:
+        """A cascade with the gains and limits in force; integrators, held outputs and mass carried over
+        from ``old`` so a limit change is bumpless (the state layout does not depend on the limits)."""
+        controller = CascadeController(self.airframe, self.gains, 1, self._dt_s, self.limits)
+        if old is not None:
+            controller._work[:] = old._work  # the cascade has no public state transfer
+        controller.set_mass_kg(self._controller_mass_kg())
+        return controller
+
+    def _controller_mass_kg(self) -> float:
+        """Nominal mass, minus ``PLD_MASS_KG`` once the payload is released (at least 10 % of nominal)."""
+        mass = self.airframe.mass_kg
+        if self._payload_released:
+            return max(mass - self.params.get("PLD_MASS_KG"), 0.1 * mass)
+        return mass
+
+    def _apply_payload_mass(self) -> None:
+        """Tell the cascade the mass it now carries (gripper release / grab, PLD_MASS_KG changes)."""
+        self._payload_released = self.commander.gripper_release
+        mass = self._controller_mass_kg()
+        self._hover_thrust_n = mass * GRAVITY_M_S2
+        if self.controller is not None:
+            self.controller.set_mass_kg(mass)
+
+    def _apply_altitude_limits(self) -> None:
+        """GF_MAX_VER_DIST (when set) is a ceiling for detours too."""
+        if isinstance(self.planner, AvoidancePlanner):
+            ceiling = self.params.get("GF_MAX_VER_DIST")
+            self.planner.set_altitude_limits(0.0, ceiling if ceiling > 0.0 else math.inf)
+
+    def _set_geofence(self, fence: Geofence) -> None:
+        """The uploaded FENCE (zones about home) for the breach failsafe and the avoidance planner."""
+        self.geofence = fence
+        self.failsafe.geofence = fence
+        if isinstance(self.planner, AvoidancePlanner):
+            self.planner.set_fences(planner_fence_zones(fence))
 
     # ------------------------------------------------------------------ geography
     @property
@@ -333,7 +391,7 @@ class Autopilot:
             except FenceError as exc:
                 return MissionResult.INVALID, str(exc)
             self.fence = list(items)
-            self.failsafe.geofence = fence
+            self._set_geofence(fence)
             self._say(f"Geofence: {len(items)} items")
             return MissionResult.ACCEPTED, ""
         result, reason = validate_mission(items, home, MissionLimits.from_params(self.params))
@@ -399,6 +457,8 @@ class Autopilot:
         self._run_failsafes(state)
         self._run_mission(state)
         target = commander.update(state, self.thrust_ratio)
+        if commander.gripper_release is not self._payload_released:
+            self._apply_payload_mass()
         self._follow_mode_changes(state)
         self._target = target
         motor = self._control(state, target)
@@ -429,7 +489,7 @@ class Autopilot:
                 if executor is not None:
                     executor.set_home(home.geo)
                 if self.fence:
-                    self.failsafe.geofence = geofence_from_items(self.fence, home.geo)
+                    self._set_geofence(geofence_from_items(self.fence, home.geo))
 
     def _run_failsafes(self, state: VehicleState) -> None:
         """Failsafe checks at FAILSAFE_PERIOD_US of sim time (PX4's commander runs them at 10 Hz too)."""
@@ -492,7 +552,7 @@ class Autopilot:
             return (idle, idle, idle, idle)
         controller = self.controller
         if controller is None or abs(controller.dt_s - self._dt_s) > 1e-9:
-            controller = self.controller = CascadeController(self.airframe, self.gains, 1, self._dt_s, self.limits)
+            controller = self.controller = self._rebuild_controller(controller)
         if self._last_kind is TargetKind.IDLE:
             gen.reset(state.pos_ned_m, state.vel_ned_m_s, state.yaw_rad)
             controller.reset()

@@ -27,7 +27,8 @@ class Airframe:
     """Nominal quad-x model: mass (incl. nominal payload), principal inertia, rotor geometry and constants.
 
     ``k_f`` [N/(rad/s)²]: rotor thrust = k_f·ω²; ``k_m`` [N·m/(rad/s)²]: rotor drag torque = k_m·ω²;
-    motor command u ∈ [0, 1] commands ω = u·omega_max_rad_s.
+    motor command u ∈ [0, 1] commands ω = u·omega_max_rad_s. ``payload_nominal_kg`` is the part of
+    ``mass_kg`` that is a droppable payload (the default of the ``PLD_MASS_KG`` parameter).
     """
 
     name: str
@@ -38,12 +39,17 @@ class Airframe:
     k_f: float
     k_m: float
     omega_max_rad_s: float
+    payload_nominal_kg: float = 0.0
 
     def __post_init__(self) -> None:
         positive = {"mass_kg": self.mass_kg, "k_f": self.k_f, "k_m": self.k_m, "omega_max_rad_s": self.omega_max_rad_s}
         for key, value in positive.items():
             if not (math.isfinite(value) and value > 0.0):
                 raise AirframeError(f"airframe {self.name}: {key} must be a finite positive number, got {value!r}")
+        if not (math.isfinite(self.payload_nominal_kg) and 0.0 <= self.payload_nominal_kg < self.mass_kg):
+            raise AirframeError(
+                f"airframe {self.name}: payload_nominal_kg must be in [0, mass_kg), got {self.payload_nominal_kg!r}"
+            )
         if len(self.inertia_kg_m2) != 3 or not all(math.isfinite(v) and v > 0.0 for v in self.inertia_kg_m2):
             raise AirframeError(f"airframe {self.name}: inertia_kg_m2 must be 3 finite positive numbers")
         if len(self.rotor_pos_frd_m) != 4 or any(len(p) != 3 for p in self.rotor_pos_frd_m):
@@ -111,6 +117,7 @@ def load_airframe(name_or_path: str | Path) -> Airframe:
             k_f=float(data["k_f"]),
             k_m=float(data["k_m"]),
             omega_max_rad_s=float(data["omega_max_rad_s"]),
+            payload_nominal_kg=float(data.get("payload_nominal_kg", 0.0)),
         )
     except (TypeError, ValueError) as exc:
         if isinstance(exc, AirframeError):
