@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import subprocess
 import time
 from collections.abc import Callable
@@ -188,8 +189,9 @@ def session(tmp_path_factory: pytest.TempPathFactory) -> Session:
             saved_file = tmp_path / "saved.waypoints"
             console.send(f"wp save {saved_file}")
             console.wait_for("Saved ", 1, idle, "wp save")
-            console.wait_for(" parameters", 1, idle, "parameter download")  # "Received N parameters"
-            param_count = int(console.text().split(" parameters", 1)[0].rsplit("Received ", 1)[1])
+            console.wait_for(" parameters", 1, idle, "parameter download")
+            received = re.search(r"Received (\d+) parameters", console.text())
+            param_count = int(received.group(1)) if received else -1
             console.send(f"param set {SET_PARAM[0]} {SET_PARAM[1]}")
             deadline = time.monotonic() + WAIT_S
             while (param_value := gcs.get_param(SET_PARAM[0])) != SET_PARAM[1] and time.monotonic() < deadline:
