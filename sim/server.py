@@ -89,6 +89,8 @@ class SimSummary:
     malformed: int
     final_pos_ned_m: tuple[float, float, float]
     truth_sha256: str  # hash of the truth state after every control step (determinism checks)
+    sim_step_us: float  # mean wall time per step in the sim itself (all but the answer wait and pacing sleeps)
+    answer_wait_us: float  # mean wall time per step waiting for the answer (autopilot step + transport)
 
     def to_json(self) -> str:
         """Pretty JSON, one key per line."""
@@ -221,6 +223,7 @@ class SimServer:
             max_xy2 = max(max_xy2, qx * qx + qy * qy)
 
         connected = False
+        wait_s = sleep_s = 0.0  # wall time waiting for answers, pacing sleeps
         wall0 = time.perf_counter()
         try:
             connected = self._wait_for_autopilot()
@@ -239,7 +242,9 @@ class SimServer:
                     if unrecorded:  # the state is unchanged until the answer: record while the autopilot works
                         record()
                         unrecorded = False
+                    wait_start_s = time.perf_counter()
                     cmd = lockstep.wait_answer()
+                    wait_s += time.perf_counter() - wait_start_s
                 except AutopilotLost as exc:
                     log.warning("autopilot lost: %s", exc)
                     v.end(EndReason.AUTOPILOT_LOST)
@@ -254,6 +259,7 @@ class SimServer:
                     ahead_s = wall0 + v.t_s / cfg.speed - time.perf_counter()
                     if ahead_s > 0.0:
                         time.sleep(ahead_s)
+                        sleep_s += ahead_s
             if unrecorded:
                 record()
         finally:
@@ -261,7 +267,9 @@ class SimServer:
             lockstep.close()
         if cfg.truth_log is not None:
             self._write_truth_log(cfg.truth_log, truth_rows)
-        return self._summary(connected, wall_s, _tilt_deg_from_xy2(max_xy2), truth_hash.hexdigest())
+        steps = max(self.lockstep.stats.frames, 1)
+        timing_us = ((wall_s - wait_s - sleep_s) / steps * 1e6, wait_s / steps * 1e6)
+        return self._summary(connected, wall_s, _tilt_deg_from_xy2(max_xy2), truth_hash.hexdigest(), timing_us)
 
     def _wait_for_autopilot(self) -> bool:
         cfg = self.config
@@ -283,7 +291,9 @@ class SimServer:
         path.parent.mkdir(parents=True, exist_ok=True)
         np.savez(path, t_s=data[:, 0], state=data[:, 1:])
 
-    def _summary(self, connected: bool, wall_s: float, max_tilt: float, truth_sha256: str) -> SimSummary:
+    def _summary(
+        self, connected: bool, wall_s: float, max_tilt: float, truth_sha256: str, timing_us: tuple[float, float]
+    ) -> SimSummary:
         v, stats = self.vehicle, self.lockstep.stats
         sim_s = v.t_s
         clearance = v.min_clearance_m
@@ -307,4 +317,6 @@ class SimServer:
             malformed=stats.malformed,
             final_pos_ned_m=(float(v.pos_ned[0]), float(v.pos_ned[1]), float(v.pos_ned[2])),
             truth_sha256=truth_sha256,
+            sim_step_us=timing_us[0],
+            answer_wait_us=timing_us[1],
         )
