@@ -11,6 +11,7 @@ convex-hull property the largest control-point norm bounds |v| and |a| over the 
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -109,41 +110,44 @@ class BezierPath:
         return np.concatenate((self.ctrl_ned[0, :1], body))
 
 
-def _turn_speeds(pts: np.ndarray, v: float, a_max: float) -> tuple[np.ndarray, np.ndarray]:
-    """Interior joint speeds limited by ``v²/r <= a_max`` on the circle through each three consecutive
-    points (``r = chord / (2 sin turn)``), and the joint tangents (bisector of the two legs)."""
-    u = pts[1:-1] - pts[:-2]
-    w = pts[2:] - pts[1:-1]
-    l1 = np.maximum(np.sqrt(np.einsum("ij,ij->i", u, u)), 1e-9)[:, None]
-    l2 = np.maximum(np.sqrt(np.einsum("ij,ij->i", w, w)), 1e-9)[:, None]
-    t = u / l1 + w / l2
-    tangents = t / np.maximum(np.sqrt(np.einsum("ij,ij->i", t, t)), 1e-9)[:, None]
-    c = np.cross(u, w)
-    sin_turn = np.sqrt(np.einsum("ij,ij->i", c, c)) / (l1 * l2)[:, 0]
-    chord = np.sqrt(np.einsum("ij,ij->i", u + w, u + w))
-    limit = np.sqrt(a_max * chord / (2.0 * np.maximum(sin_turn, 1e-12)))
-    return np.where(sin_turn < 1e-6, v, np.minimum(v, limit)), tangents
+Vec = tuple[float, float, float]
+
+
+def _norm(x: float, y: float, z: float) -> float:
+    return math.sqrt(x * x + y * y + z * z)
+
+
+def _turn_speed(prev: Vec, here: Vec, nxt: Vec, v: float, a_max: float) -> tuple[float, Vec]:
+    """Joint speed limited by ``v²/r <= a_max`` on the circle through three points
+    (``r = chord / (2 sin turn)``), and the joint tangent (bisector of the two legs)."""
+    ux, uy, uz = here[0] - prev[0], here[1] - prev[1], here[2] - prev[2]
+    wx, wy, wz = nxt[0] - here[0], nxt[1] - here[1], nxt[2] - here[2]
+    l1 = max(_norm(ux, uy, uz), 1e-9)
+    l2 = max(_norm(wx, wy, wz), 1e-9)
+    tx, ty, tz = ux / l1 + wx / l2, uy / l1 + wy / l2, uz / l1 + wz / l2
+    tn = max(_norm(tx, ty, tz), 1e-9)
+    tangent = (tx / tn, ty / tn, tz / tn)
+    sin_turn = _norm(uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx) / (l1 * l2)
+    if sin_turn < 1e-6:
+        return v, tangent
+    return min(v, math.sqrt(a_max * _norm(ux + wx, uy + wy, uz + wz) / (2.0 * sin_turn))), tangent
+
+
+def _segment_excess(d3: Vec, m0: Vec, m1: Vec, s_max: float, inv_t: float, v_max: float, a_max: float) -> float:
+    """Worst of ``v_bound/v_max`` and ``sqrt(a_bound/a_max)`` of one cubic Hermite segment (hodograph hulls).
+
+    ``d3`` is ``3·(p1 − p0)``, ``m0``/``m1`` the end velocities, ``s_max`` the larger end speed and ``inv_t``
+    ``1/T``. Velocity hull: m0, ``3(P2 − P1)/T = d3/T − m0 − m1``, m1; acceleration hull ``2(h[i+1] − h[i])/T``.
+    """
+    mx, my, mz = d3[0] * inv_t - m0[0] - m1[0], d3[1] * inv_t - m0[1] - m1[1], d3[2] * inv_t - m0[2] - m1[2]
+    v = max(_norm(mx, my, mz), s_max)
+    a0 = _norm(mx - m0[0], my - m0[1], mz - m0[2])
+    a1 = _norm(m1[0] - mx, m1[1] - my, m1[2] - mz)
+    return max(v / v_max, math.sqrt(2.0 * inv_t * max(a0, a1) / a_max))
 
 
 #: Duration multipliers tried for the first segment (its start speed is fixed, so speeds alone cannot time it).
-_FIRST_SEGMENT_STRETCH = np.geomspace(0.5, 6.0, 24)
-
-
-def _segment_excess(
-    d3: np.ndarray, m0: np.ndarray, m1: np.ndarray, s_max: np.ndarray, inv_t: np.ndarray, v_max: float, a_max: float
-) -> np.ndarray:
-    """Worst of ``v_bound/v_max`` and ``sqrt(a_bound/a_max)`` per cubic Hermite segment (hodograph hulls).
-
-    ``d3`` is ``3·(p1 − p0)``, ``m0``/``m1`` the end velocities (n, 3), ``s_max`` the larger end speed
-    and ``inv_t`` ``1/T`` (n, 1). Velocity hull: m0, ``3(P2 − P1)/T = d3/T − m0 − m1``, m1; acceleration
-    hull: ``2(hull[i+1] − hull[i])/T``.
-    """
-    mid = d3 * inv_t - m0 - m1
-    acc0 = mid - m0
-    acc1 = m1 - mid
-    v2 = np.maximum((mid * mid).sum(axis=1), s_max * s_max)
-    a = 2.0 * inv_t[:, 0] * np.sqrt(np.maximum((acc0 * acc0).sum(axis=1), (acc1 * acc1).sum(axis=1)))
-    return np.maximum(np.sqrt(v2) / v_max, np.sqrt(a / a_max))
+_FIRST_SEGMENT_STRETCH = tuple(float(x) for x in np.geomspace(0.5, 1.5, 12))
 
 
 def fit_detour(
@@ -164,58 +168,76 @@ def fit_detour(
     takes the smaller factor of its two segments. The first segment, whose start speed is fixed,
     is timed apart: the shortest duration of ``_FIRST_SEGMENT_STRETCH`` (times nominal) that meets the
     limits, its end speed lowered when none does. ``limits_ok`` is False when the start velocity makes
-    the limits unreachable within ``max_iterations``.
+    the limits unreachable within ``max_iterations``. Scalar Python: chains are short (a few joints)
+    and numpy's per-call overhead would dominate.
     """
-    pts = np.asarray(points_ned, float)
+    pts: list[Vec] = [(float(p[0]), float(p[1]), float(p[2])) for p in points_ned]
     k = len(pts) - 1
-    v_end = float(np.linalg.norm(vel_end_ned))
-    v_start = float(np.linalg.norm(vel_start_ned))
+    v0 = (float(vel_start_ned[0]), float(vel_start_ned[1]), float(vel_start_ned[2]))
+    v1 = (float(vel_end_ned[0]), float(vel_end_ned[1]), float(vel_end_ned[2]))
+    v_start, v_end = _norm(*v0), _norm(*v1)
     cruise = min(v_max_m_s, max(v_end, v_start, 0.5))
-    speeds = np.empty(k + 1)
-    tangents = np.empty((k + 1, 3))
-    speeds[0], speeds[k] = v_start, min(v_end, v_max_m_s)
-    tangents[0] = np.asarray(vel_start_ned, float) / max(v_start, 1e-9)
-    tangents[k] = np.asarray(vel_end_ned, float) / max(v_end, 1e-9)
-    if k > 1:
-        speeds[1:k], tangents[1:k] = _turn_speeds(pts, cruise, a_max_m_s2)
-    chords = np.linalg.norm(np.diff(pts, axis=0), axis=1)
-    d3 = 3.0 * np.diff(pts, axis=0)
-    m_start = tangents[:1] * v_start
-    stretch = _FIRST_SEGMENT_STRETCH[:, None]
-    durations = np.empty(k)
+    speeds = [v_start] + [0.0] * k
+    tangents: list[Vec] = [(v0[0] / max(v_start, 1e-9), v0[1] / max(v_start, 1e-9), v0[2] / max(v_start, 1e-9))]
+    for i in range(1, k):
+        speeds[i], t = _turn_speed(pts[i - 1], pts[i], pts[i + 1], cruise, a_max_m_s2)
+        tangents.append(t)
+    speeds[k] = min(v_end, v_max_m_s)
+    tangents.append((v1[0] / max(v_end, 1e-9), v1[1] / max(v_end, 1e-9), v1[2] / max(v_end, 1e-9)))
+    d3: list[Vec] = [
+        (3.0 * (b[0] - a[0]), 3.0 * (b[1] - a[1]), 3.0 * (b[2] - a[2])) for a, b in itertools.pairwise(pts)
+    ]
+    chords = [_norm(*d) / 3.0 for d in d3]
+    durations = [0.0] * k
     for _ in range(max_iterations):
-        vel = tangents * speeds[:, None]
-        durations[:] = np.maximum(chords / np.maximum(0.5 * (speeds[:-1] + speeds[1:]), 0.2), 1e-3)
-        s_max = np.maximum(speeds[:-1], speeds[1:])
-        excess = _segment_excess(d3, vel[:-1], vel[1:], s_max, (1.0 / durations)[:, None], v_max_m_s, a_max_m_s2)
-        # the first segment: stretch its duration (its start speed cannot scale)
-        first = _segment_excess(
-            d3[:1], m_start, vel[1:2], s_max[:1], 1.0 / (durations[0] * stretch), v_max_m_s, a_max_m_s2
-        )
-        fits = np.flatnonzero(first <= 1.0)
-        if len(fits):
-            durations[0] *= float(_FIRST_SEGMENT_STRETCH[fits[0]])
-            excess[0] = first[fits[0]]
-        if float(excess.max()) <= 1.0 + LIMIT_RTOL:
+        vel = [(t[0] * s, t[1] * s, t[2] * s) for t, s in zip(tangents, speeds, strict=True)]
+        excess = [0.0] * k
+        for i in range(k):
+            durations[i] = max(chords[i] / max(0.5 * (speeds[i] + speeds[i + 1]), 0.2), 1e-3)
+            s_max = max(speeds[i], speeds[i + 1])
+            excess[i] = _segment_excess(d3[i], vel[i], vel[i + 1], s_max, 1.0 / durations[i], v_max_m_s, a_max_m_s2)
+        first_fits = excess[0] <= 1.0
+        if not first_fits:  # the first segment: stretch its duration (its start speed cannot scale)
+            s_max = max(speeds[0], speeds[1])
+            for stretch in _FIRST_SEGMENT_STRETCH:
+                e = _segment_excess(d3[0], vel[0], vel[1], s_max, 1.0 / (durations[0] * stretch), v_max_m_s, a_max_m_s2)
+                if e <= 1.0:
+                    durations[0] *= stretch
+                    excess[0], first_fits = e, True
+                    break
+        if max(excess) <= 1.0 + LIMIT_RTOL:
             break
-        factor = np.minimum(1.0, 0.995 / np.maximum(excess, 1e-9))
-        if not len(fits):
+        factor = [min(1.0, 0.995 / max(e, 1e-9)) for e in excess]
+        if not first_fits:
             factor[0] = 0.7  # the first segment cannot be timed: slow its end
-        joint = np.minimum(np.concatenate((factor, [1.0])), np.concatenate(([1.0], factor)))
-        speeds[1:] *= joint[1:]
-    return _hermite_chain(pts, tangents * speeds[:, None], durations, v_max_m_s, a_max_m_s2)
+        for j in range(1, k):
+            speeds[j] *= min(factor[j - 1], factor[j])
+        speeds[k] *= factor[k - 1]
+    vel = [(t[0] * s, t[1] * s, t[2] * s) for t, s in zip(tangents, speeds, strict=True)]
+    return _hermite_chain(np.asarray(points_ned, float), np.array(vel), np.array(durations), v_max_m_s, a_max_m_s2)
+
+
+def _row_norms(x: np.ndarray) -> np.ndarray:
+    """Euclidean norms of the rows of ``x`` (n, 3) with ufuncs only."""
+    return np.sqrt(x[:, 0] * x[:, 0] + x[:, 1] * x[:, 1] + x[:, 2] * x[:, 2])
 
 
 def _hermite_chain(
     pts: np.ndarray, vel: np.ndarray, durations: np.ndarray, v_max_m_s: float, a_max_m_s2: float
 ) -> BezierPath:
     """The cubic chain through ``pts`` with joint velocities ``vel`` and its exact hodograph-hull bounds."""
+    k = len(durations)
     third = (durations / 3.0)[:, None]
-    ctrl = np.stack((pts[:-1], pts[:-1] + vel[:-1] * third, pts[1:] - vel[1:] * third, pts[1:]), axis=1)
-    hv = 3.0 * np.diff(ctrl, axis=1) / durations[:, None, None]
-    ha = 2.0 * np.diff(hv, axis=1) / durations[:, None, None]
-    v_bound = float(np.linalg.norm(hv, axis=2).max())
-    a_bound = float(np.linalg.norm(ha, axis=2).max())
+    ctrl = np.empty((k, 4, 3))
+    ctrl[:, 0] = pts[:-1]
+    ctrl[:, 1] = pts[:-1] + vel[:-1] * third
+    ctrl[:, 2] = pts[1:] - vel[1:] * third
+    ctrl[:, 3] = pts[1:]
+    inv_t = (1.0 / durations)[:, None]
+    mid = 3.0 * (ctrl[:, 2] - ctrl[:, 1]) * inv_t
+    v_bound = float(np.maximum(np.maximum(_row_norms(vel[:-1]), _row_norms(vel[1:])), _row_norms(mid)).max())
+    acc0, acc1 = 2.0 * (mid - vel[:-1]) * inv_t, 2.0 * (vel[1:] - mid) * inv_t
+    a_bound = float(np.maximum(_row_norms(acc0), _row_norms(acc1)).max())
     ok = v_bound <= v_max_m_s * (1 + LIMIT_RTOL) and a_bound <= a_max_m_s2 * (1 + LIMIT_RTOL)
     ctrl.setflags(write=False)
     durations.setflags(write=False)

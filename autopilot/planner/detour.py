@@ -23,7 +23,7 @@ import numpy as np
 
 from .bezier import BezierPath, bernstein_matrix, fit_detour
 from .geometry import FenceZone, path_clear_of_fences, polyline_length
-from .obstacle_map import ObstacleKind, TrackedObstacle
+from .obstacle_map import ObstacleArrays, ObstacleKind, TrackedObstacle
 
 _UP_NED = np.array((0.0, 0.0, -1.0))
 _ARC_STEP_RAD = math.radians(30.0)
@@ -216,20 +216,28 @@ def _build_candidate(
     return _Candidate(side, polyline, cost, "")
 
 
-def path_clearance(samples_ned: np.ndarray, obstacles: Sequence[TrackedObstacle]) -> tuple[float, int]:
+Obstacles = Sequence[TrackedObstacle] | ObstacleArrays
+
+
+def as_arrays(obstacles: Obstacles) -> ObstacleArrays:
+    """The obstacles as :class:`ObstacleArrays` (passed through when they already are)."""
+    return obstacles if isinstance(obstacles, ObstacleArrays) else ObstacleArrays(tuple(obstacles))
+
+
+def path_clearance(samples_ned: np.ndarray, obstacles: Obstacles) -> tuple[float, int]:
     """Smallest surface distance of the samples to any obstacle, and that obstacle's id (-1 if none)."""
-    best, best_id = math.inf, -1
-    for obs in obstacles:
-        d = float(obs.signed_distance(samples_ned).min())
-        if d < best:
-            best, best_id = d, obs.obstacle_id
-    return best, best_id
+    arrays = as_arrays(obstacles)
+    if not len(arrays):
+        return math.inf, -1
+    per_obstacle = arrays.signed_distance(samples_ned).min(axis=0)
+    i = int(per_obstacle.argmin())
+    return float(per_obstacle[i]), int(arrays.ids[i])
 
 
 def check_path(
     samples_ned: np.ndarray,
     start_ned: np.ndarray,
-    obstacles: Sequence[TrackedObstacle],
+    obstacles: Obstacles,
     limits: DetourLimits,
     tol_m: float = 0.5 * _SAMPLE_STEP_M,
 ) -> str:
@@ -239,12 +247,13 @@ def check_path(
     points between two samples are within that of one); an obstacle already nearer than that at the start must not
     get nearer. Altitudes stay in [max(min AGL, floor), ceiling]; fences are checked per segment.
     """
-    tol = tol_m
-    for obs in obstacles:
-        d = obs.signed_distance(samples_ned)
-        need = min(limits.r_safe_m + tol, float(obs.signed_distance(start_ned[None, :])[0]) - 0.05)
-        if float(d.min()) < need:
-            return f"obstacle {obs.obstacle_id}"
+    arrays = as_arrays(obstacles)
+    if len(arrays):
+        need = np.minimum(limits.r_safe_m + tol_m, arrays.signed_distance(start_ned[None, :])[0] - 0.05)
+        short = arrays.signed_distance(samples_ned).min(axis=0) - need
+        worst = int(short.argmin())
+        if short[worst] < 0.0:
+            return f"obstacle {int(arrays.ids[worst])}"
     alts = -samples_ned[:, 2]
     if alts.min() < max(limits.min_agl_m, limits.alt_floor_m) - 1e-6:
         return "ground" if limits.min_agl_m >= limits.alt_floor_m else "altitude floor"
@@ -260,7 +269,7 @@ def plan_detour(
     vel_ned: np.ndarray,
     route_ned: np.ndarray,
     threat: TrackedObstacle,
-    obstacles: Sequence[TrackedObstacle],
+    obstacles: Obstacles,
     limits: DetourLimits,
 ) -> DetourResult:
     """Choose and fit the least-cost safe detour around ``threat`` that rejoins ``route_ned``.
@@ -276,7 +285,8 @@ def plan_detour(
     route = np.vstack((pos, np.asarray(route_ned, float).reshape(-1, 3)))
     reports: dict[DetourSide, CandidateReport] = {}
     sides = (DetourSide.LEFT, DetourSide.RIGHT, DetourSide.OVER, DetourSide.UNDER)
-    by_id = {o.obstacle_id: o for o in obstacles}
+    obstacles = as_arrays(obstacles)
+    by_id = {o.obstacle_id: o for o in obstacles.obstacles}
     volume = threat
     for attempt in range(MAX_CLUSTER_MERGES + 1):
         chosen = _try_sides(pos, vel, route, volume, threat.obstacle_id, obstacles, limits, sides, reports)
@@ -317,7 +327,7 @@ def _try_sides(
     route: np.ndarray,
     volume: TrackedObstacle,
     threat_id: int,
-    obstacles: Sequence[TrackedObstacle],
+    obstacles: ObstacleArrays,
     limits: DetourLimits,
     sides: tuple[DetourSide, ...],
     reports: dict[DetourSide, CandidateReport],

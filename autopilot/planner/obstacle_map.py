@@ -141,16 +141,23 @@ class ObstacleMap:
         self._tracks: dict[int, _Track] = {}
         self._alias: dict[int, int] = {}  # sensor obstacle id -> track id
         self._snapshot: tuple[TrackedObstacle, ...] = ()
+        self._arrays = ObstacleArrays(())
 
     @property
     def obstacles(self) -> tuple[TrackedObstacle, ...]:
         """The tracked obstacles (frozen snapshot, rebuilt on change)."""
         return self._snapshot
 
+    @property
+    def arrays(self) -> ObstacleArrays:
+        """The snapshot as arrays (rebuilt with it)."""
+        return self._arrays
+
     def clear(self) -> None:
         self._tracks.clear()
         self._alias.clear()
         self._snapshot = ()
+        self._arrays = ObstacleArrays(())
 
     def update(
         self, time_us: int, pos_ned: np.ndarray, q_ned_frd: np.ndarray, detections: Iterable[ObstacleDetection]
@@ -190,6 +197,7 @@ class ObstacleMap:
             self._alias = {s: t for s, t in self._alias.items() if t in self._tracks}
         if changed or stale:
             self._snapshot = tuple(t.frozen() for t in self._tracks.values())
+            self._arrays = ObstacleArrays(self._snapshot)
         return changed
 
     @staticmethod
@@ -224,3 +232,45 @@ class ObstacleMap:
             c1 = c0 + (center - c0) * (r1 - r0) / d
         track.center_sum = c1 * track.weight
         track.radius_sum = r1 * track.weight
+
+
+class ObstacleArrays:
+    """Tracked obstacles as arrays, for signed distances of many points to all of them in one pass.
+
+    Same volumes as :meth:`TrackedObstacle.signed_distance`: spheres ``|p − c| − r``; columns the
+    exact capped-cylinder distance with ``top_down`` (``-inf``: unknown top) and no bottom (the ground).
+    """
+
+    def __init__(self, obstacles: tuple[TrackedObstacle, ...]) -> None:
+        self.obstacles = obstacles
+        n = len(obstacles)
+        self.ids = np.array([o.obstacle_id for o in obstacles], dtype=np.int64)
+        self.center = np.array([o.center_ned for o in obstacles], float).reshape(n, 3)
+        self.radius = np.array([o.radius_m for o in obstacles], float)
+        self.is_sphere = np.array([o.kind is ObstacleKind.SPHERE for o in obstacles], bool)
+        self.top_down = np.array([o.top_down for o in obstacles], float)
+        self.any_sphere = bool(self.is_sphere.any())
+        self.any_column = not bool(self.is_sphere.all())
+
+    def __len__(self) -> int:
+        return len(self.obstacles)
+
+    def signed_distance(self, points_ned: np.ndarray) -> np.ndarray:
+        """Signed surface distances (m) of points ``(m, 3)`` to every obstacle, shape ``(m, n)``."""
+        p = np.asarray(points_ned, float)
+        dx = p[:, 0:1] - self.center[:, 0]
+        dy = p[:, 1:2] - self.center[:, 1]
+        horiz = np.sqrt(dx * dx + dy * dy)
+        if not self.any_column:
+            dz = p[:, 2:3] - self.center[:, 2]
+            return np.sqrt(horiz * horiz + dz * dz) - self.radius
+        dr = horiz - self.radius
+        with np.errstate(invalid="ignore"):
+            cap = self.top_down - p[:, 2:3]  # > 0 above the top
+            column = np.where(
+                cap > 0.0, np.sqrt(np.maximum(dr, 0.0) ** 2 + cap * cap) + np.minimum(np.maximum(dr, cap), 0.0), dr
+            )
+        if not self.any_sphere:
+            return column
+        dz = p[:, 2:3] - self.center[:, 2]
+        return np.where(self.is_sphere, np.sqrt(horiz * horiz + dz * dz) - self.radius, column)

@@ -121,6 +121,7 @@ class PlannerOutput:
     threat: Threat | None
     clearance_m: float  # vehicle to the nearest tracked obstacle surface (inf if none)
     look_ahead_ned: Vec3 | None = None  # where the forward camera should look (reference LOOK_AHEAD_S ahead)
+    replanned: bool = False  # a detour search ran in this update (for planning-time statistics)
 
     @property
     def planned_path_ned(self) -> np.ndarray | None:
@@ -155,6 +156,7 @@ class AvoidancePlanner:
         self._t0_us = 0
         self._last_try_us = -(10**18)
         self._unchecked: set[int] = set()  # obstacles changed since the active detour was last checked
+        self._searches = 0  # detour searches run (plan_detour calls)
 
     @property
     def state(self) -> PlannerState:
@@ -229,9 +231,11 @@ class AvoidancePlanner:
             route = np.vstack((route, np.asarray(route_next_ned, float).reshape(-1, 3)))
         decisions: list[AvoidanceDecision] = []
         threat: Threat | None = None
+        searches = self._searches
         if self._state is not PlannerState.DISABLED:
             threat = self._step(time_us, pos, vel, route, obstacles, changed, decisions)
-        clearance = min((float(o.signed_distance(pos[None, :])[0]) for o in obstacles), default=math.inf)
+        arrays = self.map.arrays
+        clearance = float(arrays.signed_distance(pos[None, :]).min()) if len(arrays) else math.inf
         setpoint = None
         look = None
         if self._path is not None:
@@ -250,6 +254,7 @@ class AvoidancePlanner:
             threat,
             clearance,
             look,
+            self._searches != searches,
         )
 
     def _step(
@@ -275,9 +280,10 @@ class AvoidancePlanner:
                     return self._check_detour(time_us, t_s, route, obstacles, decisions)
                 return None
         if self._state is PlannerState.HOLD and self._path is not None:
+            t_s = (time_us - self._t0_us) * 1e-6
             if time_us - self._last_try_us < p.replan_s * 1e6:
                 return None
-            sp_pos, sp_vel, _ = self._path.state_at((time_us - self._t0_us) * 1e-6)
+            sp_pos, sp_vel, _ = self._path.state_at(t_s)
             threat = self._threat(sp_pos, sp_vel, route, obstacles)
             if threat is None:
                 self._clear(PlannerState.CLEAR)
@@ -299,7 +305,7 @@ class AvoidancePlanner:
     ) -> Threat | None:
         """Re-check the rest of the active detour after map changes; replan from the reference if unsafe."""
         sp_pos, sp_vel, _ = self._path.state_at(t_s)
-        why = check_path(self._remaining_samples(t_s), sp_pos, obstacles, self.limits())
+        why = check_path(self._remaining_samples(t_s), sp_pos, self.map.arrays, self.limits())
         if not why:
             self._unchecked.clear()
             return None
@@ -350,7 +356,8 @@ class AvoidancePlanner:
         decisions: list[AvoidanceDecision],
     ) -> None:
         self._last_try_us = time_us
-        result = plan_detour(pos, vel, route, threat.obstacle, self.map.obstacles, self.limits())
+        self._searches += 1
+        result = plan_detour(pos, vel, route, threat.obstacle, self.map.arrays, self.limits())
         distance = float(threat.obstacle.signed_distance(pos[None, :])[0])
         if result.plan is not None:
             self._state, self._plan, self._path = PlannerState.DETOUR, result.plan, result.plan.path
