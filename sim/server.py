@@ -41,6 +41,7 @@ from sim.world import World, empty_world, load_world
 log = logging.getLogger(__name__)
 
 DEFAULT_VEHICLE = "x500"
+_MOTORS_OFF = (0.0, 0.0, 0.0, 0.0)
 SUMMARY_FILE = "sim_summary.json"
 
 
@@ -170,7 +171,7 @@ class SimServer:
             peer_lost_timeout_s=config.autopilot_timeout_s,
         )
         self._stop_requested = False
-        self._motor_cmd = np.zeros(4)
+        self._motor_cmd: tuple[float, ...] = _MOTORS_OFF
 
     @property
     def local_address(self) -> tuple[str, int]:
@@ -196,11 +197,11 @@ class SimServer:
         if cmd.armed:
             u = cmd.motor_cmd
             if math.isfinite(u[0] + u[1] + u[2] + u[3]):  # one check for the usual case
-                self._motor_cmd[:] = u
+                self._motor_cmd = u
             else:
-                self._motor_cmd[:] = [x if math.isfinite(x) else 0.0 for x in u]
+                self._motor_cmd = tuple(x if math.isfinite(x) else 0.0 for x in u)
         else:
-            self._motor_cmd[:] = 0.0
+            self._motor_cmd = _MOTORS_OFF
         if cmd.gripper_release and self.vehicle.payload_kg > 0.0:
             self.vehicle.release_payload()
             log.info("payload released at t=%.3f s", self.vehicle.t_s)

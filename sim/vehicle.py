@@ -6,6 +6,8 @@ vehicle here and vehicle i of a batch with the same seed produce identical traje
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from mavlink_bridge.frames import GeoPoint, LocalNedFrame
@@ -127,8 +129,8 @@ class VehicleSim:
         """Restart at rest (default: on the ground at home, level)."""
         self.batch.reset(pos_ned, yaw_rad)
 
-    def step(self, motor_cmd: np.ndarray) -> None:
-        """One control step with motor commands (4,) in [0, 1]."""
+    def step(self, motor_cmd: np.ndarray | Sequence[float]) -> None:
+        """One control step with motor commands (4,) in [0, 1] (an array or a sequence of 4 floats)."""
         self._cmd[0] = motor_cmd
         self.batch.step(self._cmd)
 

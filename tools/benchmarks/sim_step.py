@@ -1,0 +1,84 @@
+"""The simulator's own cost per lockstep step, by part (issue 4: what the sim adds to the messaging floor).
+
+In-process, no sockets: a hovering x500 in gusty wind, the sim side of one control step as
+``sim.server`` does it — IMU/baro/mag, GPS (10 Hz), ground truth, the frame's datagram, the
+answer's decoding, physics (4 RK4 substeps). Times are CPU time of this thread (``time.thread_time``),
+the minimum over several rounds, so that other processes on a shared machine inflate them less
+than wall time; the lockstep's wall time per step is in ``lockstep_flight`` / ``sim_summary.json``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+from mavlink_bridge.codec import SIM_COMPONENT_ID, SIM_SYSTEM_ID, Decoder, Encoder
+from mavlink_bridge.lockstep import LockstepFrame, encode_frame
+from mavlink_bridge.wire import ActuatorCommand
+from sim.sensors import SensorModel
+from sim.vehicle import VehicleSim
+from sim.vehicle_config import load_vehicle
+from sim.world import WindConfig, World, empty_world
+from tools.benchmarks import BenchResult
+
+STEPS_PER_ROUND = 250
+
+
+def _setup() -> tuple[VehicleSim, SensorModel, float]:
+    vehicle = load_vehicle("x500")
+    world = World(empty_world().home, (), WindConfig(mean_ned_m_s=(2.0, -1.0, 0.0), gust_m_s=1.0, seed=7), 0.0)
+    sim = VehicleSim(vehicle, world=world, seed=0)
+    sim.reset(pos_ned=[0.0, 0.0, -30.0])
+    sim.omega_rad_s[:] = sim.hover_omega_rad_s()
+    return sim, SensorModel(vehicle, world.home, 0), sim.hover_omega_rad_s() / vehicle.omega_max_rad_s
+
+
+def _cpu_us(fn: Callable[[int], object], rounds: int) -> float:
+    """Minimum over ``rounds`` of the mean CPU µs of ``fn(k)`` over ``STEPS_PER_ROUND`` calls."""
+    best = float("inf")
+    for _ in range(rounds):
+        t0 = time.thread_time()
+        for k in range(STEPS_PER_ROUND):
+            fn(k)
+        best = min(best, (time.thread_time() - t0) / STEPS_PER_ROUND * 1e6)
+    return best
+
+
+def measure(rounds: int) -> dict[str, float]:
+    """CPU µs per step of each part and of the whole sim-side step (keys as in ``run``)."""
+    sim, sensors, hover = _setup()
+    enc, dec = Encoder(SIM_SYSTEM_ID, SIM_COMPONENT_ID), Decoder()
+    answer_enc = Encoder()
+    answers = [answer_enc.actuators(ActuatorCommand(k, (hover,) * 4, True)) for k in range(STEPS_PER_ROUND)]
+    frame = LockstepFrame(sensors.imu_baro_mag(sim), None, sim.ground_truth())
+    cmd = (hover, hover, hover, hover)
+
+    def whole_step(k: int) -> None:
+        f = LockstepFrame(sensors.imu_baro_mag(sim), sensors.gps(sim), sim.ground_truth())
+        encode_frame(enc, f)
+        (answer,) = dec.decode(answers[k])
+        sim.step(answer.motor_cmd)  # type: ignore[union-attr]
+
+    parts: dict[str, Callable[[int], object]] = {
+        "sim_sensors_us": lambda k: sensors.imu_baro_mag(sim),
+        "sim_ground_truth_us": lambda k: sim.ground_truth(),
+        "lockstep_frame_encode_us": lambda k: encode_frame(enc, frame),
+        "lockstep_answer_decode_us": lambda k: dec.decode(answers[k]),
+        "sim_physics_us": lambda k: sim.step(cmd),
+        "sim_step_cpu_us": whole_step,
+    }
+    _cpu_us(whole_step, 2)  # warm-up (JIT, caches)
+    return {key: _cpu_us(fn, rounds) for key, fn in parts.items()}
+
+
+def run(quick: bool) -> list[BenchResult]:
+    us = measure(rounds=5 if quick else 20)
+    notes = {
+        "sim_sensors_us": "IMU + baro + mag sample (SensorModel.imu_baro_mag)",
+        "sim_ground_truth_us": "VehicleSim.ground_truth (geodetic)",
+        "lockstep_frame_encode_us": "HIL_STATE_QUATERNION + HIL_SENSOR datagram",
+        "lockstep_answer_decode_us": "HIL_ACTUATOR_CONTROLS datagram -> ActuatorCommand",
+        "sim_physics_us": "one 250 Hz control step: 4 RK4 substeps at 1 kHz",
+        "sim_step_cpu_us": "the sim side of a lockstep step (all of the above + GPS at 10 Hz), CPU time",
+    }
+    return [BenchResult(key, value, note=notes[key]) for key, value in us.items()]
