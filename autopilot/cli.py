@@ -7,7 +7,15 @@ Links (``--instance N`` adds N to every port):
   talks to it, then replying to whoever talks (PX4's "local 18570 → 14550");
 - ``--api``  API/offboard link (MAVSDK, scripts), default ``udpin:127.0.0.1:14580`` → ``127.0.0.1:14540``.
 
-``--gcs off`` / ``--api off`` disable a link. SIGINT/SIGTERM stop the loop cleanly; the
+``--gcs off`` / ``--api off`` disable a link. ``--signing-key TEXT`` signs everything both links send
+(64 hex digits, or any text hashed with SHA-256 as MAVProxy's ``signing setup`` does);
+``--require-signing`` also drops every unsigned or wrongly signed message they receive (SPEC §10).
+
+``--rerun-world MISSION.yaml`` is for the *recording only*: the file's route and fence, and its
+``world:`` obstacles drawn as the "true" obstacles beside the sensed ones. The autopilot itself
+never reads the world: the planner only ever sees the simulator's detections (SPEC §7).
+
+SIGINT/SIGTERM stop the loop cleanly; the
 summary is written to ``--log-dir/autopilot_summary.json`` in every case after start-up.
 Exit status: 0 stopped by a signal, 3 the simulator was lost or never came, 2 bad options, 1 error.
 """
@@ -29,6 +37,7 @@ from autopilot.scripted_commands import CommandScript, ScriptError, load_script
 from mavlink_bridge.gcs_server import GcsServer
 from mavlink_bridge.link import LinkUrl, LinkUrlError
 from mavlink_bridge.lockstep import LockstepClient
+from mavlink_bridge.signing import SigningKeyError, signing_key_from_text
 
 EXIT_OK = 0
 EXIT_ERROR = 1
@@ -62,6 +71,16 @@ def add_autopilot_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--api-target", default=DEFAULT_API_TARGET, metavar="URL", help="where the API link sends first")
     p.add_argument("--params", default=None, metavar="FILE", help="YAML of NAME: value applied at start")
     p.add_argument("--rerun", default="off", metavar="off|save:PATH|connect:URL", help="Rerun telemetry")
+    p.add_argument(
+        "--rerun-world",
+        default=None,
+        metavar="MISSION.yaml",
+        help="draw this mission's route, fence and true obstacles in the recording (never given to the planner)",
+    )
+    p.add_argument("--signing-key", default=None, metavar="TEXT", help="MAVLink 2 signing key of the GCS and API links")
+    p.add_argument(
+        "--require-signing", action="store_true", help="reject unsigned or wrongly signed messages on GCS and API links"
+    )
     p.add_argument("--estimator", default="truth", choices=["truth"], help="state estimator")
     p.add_argument("--script", default=None, metavar="FILE", help="commands at fixed sim times (YAML)")
     p.add_argument("--sim-timeout-s", type=float, default=3.0, help="wall s of sim silence that ends the run")
@@ -83,16 +102,22 @@ def _offset(url: str, instance: int) -> str:
     return str(LinkUrl.parse(url).with_port_offset(instance))
 
 
-def _make_listener(spec: str, vehicle: str) -> object | None:
-    """The Rerun telemetry listener for ``--rerun`` (None for ``off``)."""
+def _make_listener(spec: str, vehicle: str, world: str | None, safety_radius_m: float) -> object | None:
+    """The Rerun telemetry listener for ``--rerun`` (None for ``off``); ``world`` is drawn only."""
     if spec == "off":
         return None
-    try:
-        from autopilot.telemetry import make_listener  # the Rerun listener seam (autopilot/telemetry)
-    except ImportError as exc:
-        _log.warning("--rerun %s ignored: telemetry listener unavailable (%s)", spec, exc)
+    from autopilot.telemetry import make_listener  # imports rerun: only when a recording is asked for
+
+    return make_listener(spec, vehicle=vehicle, mission_file=world, safety_radius_m=safety_radius_m)
+
+
+def _signing_key(args: argparse.Namespace) -> bytes | None:
+    """The links' signing key (SigningKeyError for an empty one); ``--require-signing`` needs a key."""
+    if args.signing_key is None:
+        if args.require_signing:
+            raise SigningKeyError("--require-signing needs --signing-key")
         return None
-    return make_listener(spec, vehicle=vehicle)
+    return signing_key_from_text(args.signing_key)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -110,10 +135,14 @@ def main(argv: list[str] | None = None) -> int:
     )
     servers: list[GcsServer] = []
     client: LockstepClient | None = None
+    autopilot: Autopilot | None = None
     try:
         script = CommandScript(load_script(args.script)) if args.script else None
-        listener = _make_listener(args.rerun, args.vehicle)
-        autopilot = Autopilot(config, listener=listener, script=script)  # type: ignore[arg-type]
+        key = _signing_key(args)
+        autopilot = Autopilot(config, script=script)
+        autopilot.listener = _make_listener(  # type: ignore[assignment]
+            args.rerun, args.vehicle, args.rerun_world, autopilot.params.get("CA_RSAFE_M")
+        )
         client = LockstepClient(_offset(args.sim, args.instance), sim_lost_timeout_s=args.sim_timeout_s)
         vehicle = VehicleAdapter(autopilot)
         for url, target in ((args.gcs, args.gcs_target), (args.api, args.api_target)):
@@ -124,10 +153,16 @@ def main(argv: list[str] | None = None) -> int:
                         vehicle,
                         speed_factor=args.speed if args.speed > 0.0 else 1.0,
                         default_target_url=_offset(target, args.instance),
+                        signing_key=key,
+                        require_signing=args.require_signing,
                     )
                 )
     except (AirframeError, ParamError, ScriptError, LinkUrlError, OSError, ValueError) as exc:
+        # (ValueError covers RerunSpecError, MissionFileError of --rerun-world and SigningKeyError)
         print(f"quadsitl autopilot: {exc}", file=sys.stderr)
+        close_listener = getattr(autopilot.listener, "close", None) if autopilot is not None else None
+        if close_listener is not None:
+            close_listener()
         for server in servers:
             server.close()
         if client is not None:

@@ -81,6 +81,13 @@ def commands(args: argparse.Namespace) -> tuple[list[str], list[str]]:
     ap = [*py, "autopilot", "--sim", sim_url, "--instance", str(args.instance), "--vehicle", vehicle]
     ap += ["--gcs", args.gcs, "--gcs-target", args.gcs_target, "--api", args.api, "--api-target", args.api_target]
     ap += ["--rerun", args.rerun, "--estimator", args.estimator, "--speed", args.speed]
+    rerun_world = args.rerun_world or (args.world if args.world and args.world.endswith((".yaml", ".yml")) else None)
+    if rerun_world and args.rerun != "off":  # drawn in the recording only (the autopilot never plans with it)
+        ap += ["--rerun-world", rerun_world]
+    if args.signing_key is not None:
+        ap += ["--signing-key", args.signing_key]
+    if args.require_signing:
+        ap.append("--require-signing")
     ap += ["--sim-timeout-s", str(args.sim_timeout_s), "--connect-timeout-s", str(args.connect_timeout_s)]
     if args.params:
         ap += ["--params", args.params]

@@ -86,9 +86,20 @@ _LINK_POLL_PERIOD_S = 0.004
 
 
 class StepListener(Protocol):
-    """A passive per-step observer (the Rerun telemetry); must not change anything it is given."""
+    """A passive observer (the Rerun telemetry, ``autopilot.telemetry.RerunTelemetry``); changes nothing it is given.
+
+    ``on_step`` after every answered lockstep frame; ``on_event`` for status texts that no step
+    carried (e.g. answers to GCS commands while the sim is paused); ``on_mission`` / ``on_fence``
+    when an upload is accepted (items and zones about ``home``).
+    """
 
     def on_step(self, record: StepRecord) -> None: ...
+
+    def on_event(self, text: str, severity: Severity = Severity.INFO, time_us: int | None = None) -> None: ...
+
+    def on_mission(self, items: Sequence[MissionItem], home: GeoPoint) -> None: ...
+
+    def on_fence(self, zones: Sequence[object]) -> None: ...
 
 
 class RoutePlanner(Protocol):
@@ -127,8 +138,10 @@ class StepRecord:
     reached: tuple[int, ...]
     texts: tuple[StatusText, ...]
     detections: tuple[ObstacleDetection, ...]
-    planner_output: object | None
+    planner_output: object | None  # autopilot.planner.planner.PlannerOutput while avoiding (detour, obstacles)
     controller: CascadeController | None  # live diagnostics (overwritten next step)
+    battery_remaining_pct: float = math.nan
+    battery_voltage_v: float = math.nan
 
 
 class AutopilotEndReason(Enum):
@@ -393,6 +406,8 @@ class Autopilot:
             self.fence = list(items)
             self._set_geofence(fence)
             self._say(f"Geofence: {len(items)} items")
+            if self.listener is not None:
+                self.listener.on_fence(fence.zones)
             return MissionResult.ACCEPTED, ""
         result, reason = validate_mission(items, home, MissionLimits.from_params(self.params))
         if result is not MissionResult.ACCEPTED:
@@ -404,6 +419,8 @@ class Autopilot:
         self.mission = list(items)
         self.commander.mission_ready = bool(items)
         self._say(f"Mission: {len(items)} items")
+        if self.listener is not None:
+            self.listener.on_mission(items, home)
         return MissionResult.ACCEPTED, ""
 
     def mission_items(self, mission_type: MissionType) -> list[MissionItem]:
@@ -490,6 +507,11 @@ class Autopilot:
                     executor.set_home(home.geo)
                 if self.fence:
                     self._set_geofence(geofence_from_items(self.fence, home.geo))
+                if self.listener is not None:  # redraw what is drawn about home
+                    if self.mission:
+                        self.listener.on_mission(self.mission, home.geo)
+                    if self.fence:
+                        self.listener.on_fence(self.geofence.zones)
 
     def _run_failsafes(self, state: VehicleState) -> None:
         """Failsafe checks at FAILSAFE_PERIOD_US of sim time (PX4's commander runs them at 10 Hz too)."""
@@ -693,6 +715,8 @@ class Autopilot:
             detections=self.frame_detections,
             planner_output=self._planner_output,
             controller=self.controller,
+            battery_remaining_pct=100.0 * self.battery.remaining,
+            battery_voltage_v=self.battery.voltage_v,
         )
 
     # ------------------------------------------------------------------ summary
@@ -824,10 +848,14 @@ def run_loop(
                 next_poll = now + _LINK_POLL_PERIOD_S
                 for server in servers:
                     server.poll(sim_us, now)  # type: ignore[attr-defined]
-        if autopilot.listener is not None and frame is not None:
-            record = autopilot.record(texts)
+        listener = autopilot.listener
+        if listener is not None:
+            record = autopilot.record(texts) if frame is not None else None
             if record is not None:
-                autopilot.listener.on_step(record)
+                listener.on_step(record)
+            else:  # no step carries them: the texts still reach the recording, at the latest sim time
+                for text in texts:
+                    listener.on_event(text.text, text.severity, autopilot._now_us())
     autopilot.end_reason = reason
     return reason
 

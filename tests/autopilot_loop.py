@@ -10,10 +10,11 @@ from autopilot.runner import Autopilot, AutopilotConfig, VehicleAdapter
 from mavlink_bridge.gcs_types import CommandResult, FlightMode
 from mavlink_bridge.lockstep import LockstepFrame
 from mavlink_bridge.wire import ActuatorCommand
+from sim.obstacle_sensor import ObstacleSensor, ObstacleSensorConfig
 from sim.sensors import SensorModel
 from sim.vehicle import VehicleSim
 from sim.vehicle_config import load_vehicle
-from sim.world import empty_world
+from sim.world import World, empty_world
 
 CONTROL_HZ = 250
 
@@ -21,11 +22,22 @@ CONTROL_HZ = 250
 class SimLoop:
     """One simulated vehicle flown by an in-process :class:`Autopilot`; payload released when commanded."""
 
-    def __init__(self, vehicle: str = "x500", *, payload_kg: float | None = None, seed: int = 3, **ap_kw) -> None:  # type: ignore[no-untyped-def]
+    def __init__(  # type: ignore[no-untyped-def]
+        self,
+        vehicle: str = "x500",
+        *,
+        payload_kg: float | None = None,
+        seed: int = 3,
+        world: World | None = None,
+        **ap_kw,
+    ) -> None:
         config = load_vehicle(vehicle)
-        world = empty_world()
+        world = world or empty_world()
         self.sim = VehicleSim(config, world=world, seed=seed, payload_kg=payload_kg)
         self.sensors = SensorModel(config, world.home, seed)
+        self.obstacle_sensor = ObstacleSensor(world, seed) if world.obstacles else None
+        self._detect_every = round(CONTROL_HZ / ObstacleSensorConfig().rate_hz)
+        self._k = 0
         self.ap = Autopilot(AutopilotConfig(vehicle=vehicle), **ap_kw)
         self.vehicle = VehicleAdapter(self.ap)
         self.texts: list[str] = []
@@ -33,12 +45,23 @@ class SimLoop:
 
     def step(self) -> ActuatorCommand:
         sim = self.sim
-        frame = LockstepFrame(self.sensors.imu_baro_mag(sim), self.sensors.gps(sim), sim.ground_truth())
+        detections = ()
+        if self.obstacle_sensor is not None and self._k % self._detect_every == 0:
+            detections = self.obstacle_sensor.detect(sim.pos_ned, sim.q_ned_frd, sim.t_us)
+        self._k += 1
+        truth = sim.ground_truth()
+        frame = LockstepFrame(self.sensors.imu_baro_mag(sim), self.sensors.gps(sim), truth, tuple(detections))
         cmd = self.ap.step(frame)
         if cmd.gripper_release and sim.payload_kg > 0.0:
             sim.release_payload()
         sim.step(cmd.motor_cmd)
-        self.texts += [t.text for t in self.ap.drain_texts()]
+        texts = self.ap.drain_texts()
+        listener = self.ap.listener
+        if listener is not None:  # as run_loop does after the answer
+            record = self.ap.record(texts)
+            assert record is not None
+            listener.on_step(record)
+        self.texts += [t.text for t in texts]
         self.last = cmd
         return cmd
 
