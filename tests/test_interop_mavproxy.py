@@ -42,10 +42,15 @@ from mavlink_bridge.gcs_types import LandedState, MissionItem
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 
+#: Lockstep silence tolerated (wall s): a cold numba cache makes the first control step compile for
+#: several seconds, which the 3 s defaults take for a dead peer. These tests are about the protocol.
+SIM_PATIENCE = ("--autopilot-timeout-s", "30")
+AUTOPILOT_PATIENCE = ("--sim-timeout-s", "30")
 WORLD = REPO_ROOT / "missions" / "delivery.yaml"  # home, wind and payload of the sim
 QGC_FILE = REPO_ROOT / "missions" / "delivery.waypoints"  # the same home in its line 0
 ACK = "Got MISSION_ACK: TYPE_MISSION: "  # MAVProxy's console line for every MISSION_ACK it receives
 SET_PARAM = ("MIS_RTL_ALT", 12.0)  # set from MAVProxy before the flight: a lower RTL climb
+READY_WAIT_S = 240.0  # failure deadline for the autopilot's first home position (a cold numba cache compiles)
 WAIT_S = 30.0  # failure deadline of each step (never a speed assertion)
 FLIGHT_WAIT_S = 60.0
 
@@ -167,13 +172,13 @@ def session(tmp_path_factory: pytest.TempPathFactory) -> Session:
     px4_file = tmp_path / "short_delivery.waypoints"
     _write_wpl(px4_file, short_delivery(plan.home))
     ports, api_port, api_target = Ports.free(), free_udp_port(), free_udp_port()
-    sim = start_sim(tmp_path, ports.sim, "--world", str(WORLD), "--seed", "3")
+    sim = start_sim(tmp_path, ports.sim, "--world", str(WORLD), "--seed", "3", *SIM_PATIENCE)
     api = ["--api", f"udpin:127.0.0.1:{api_port}", "--api-target", f"udpout:127.0.0.1:{api_target}"]
-    ap = start_autopilot(tmp_path, ports.sim, ports, "--vehicle", plan.vehicle, *api)
+    ap = start_autopilot(tmp_path, ports.sim, ports, "--vehicle", plan.vehicle, *api, *AUTOPILOT_PATIENCE)
     console: MavproxyConsole | None = None
     try:
         with GcsClient(f"udpin:127.0.0.1:{api_target}", timeout_s=20.0) as gcs:
-            gcs.wait_until(lambda s: s.home is not None, 120.0)
+            gcs.wait_until(lambda s: s.home is not None, READY_WAIT_S)
             console = MavproxyConsole(script, f"udpin:127.0.0.1:{ports.gcs_target}", tmp_path)
 
             def idle() -> None:

@@ -1,6 +1,7 @@
 """Interoperability with MAVSDK-Python 4.x (issue 5): a raw mission uploaded, flown and completed.
 
-Sim and autopilot run as two processes on free loopback ports; MAVSDK talks to the API link
+Sim and autopilot run as two processes on free loopback ports; the project's GcsClient waits on the
+GCS link until the vehicle is ready and downloads the mission at the end; MAVSDK talks to the API link
 (SPEC §3) from ``interop_clients/mavsdk_fly_mission.py`` in a separate interpreter with a hard
 timeout, so a hang in the native library cannot hang pytest. MAVSDK's ``Param`` downloads every
 parameter and sets MIS_RTL_ALT; ``MissionRaw`` uploads the items and downloads them back;
@@ -14,6 +15,7 @@ from __future__ import annotations
 import json
 import math
 import subprocess
+import time
 from dataclasses import dataclass
 from itertools import pairwise
 from typing import Any
@@ -22,17 +24,23 @@ import pytest
 from conftest import REPO_ROOT, free_udp_port
 from interop_clients import MAVSDK_DRIVER, mavsdk4_python
 from interop_clients.missions import short_delivery
-from sitl_procs import logs, read_json, start_autopilot, start_sim, stop
+from sitl_procs import Ports, logs, read_json, start_autopilot, start_sim, stop
 
 from autopilot.mission.files import load_mission_file
 from autopilot.param_schema import make_param_store
 from mavlink_bridge.frames import GeoPoint, LocalNedFrame
+from mavlink_bridge.gcs_client import GcsClient
 from mavlink_bridge.gcs_types import MissionItem
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 
+#: Lockstep silence tolerated (wall s): a cold numba cache makes the first control step compile for
+#: several seconds, which the 3 s defaults take for a dead peer. These tests are about the protocol.
+SIM_PATIENCE = ("--autopilot-timeout-s", "30")
+AUTOPILOT_PATIENCE = ("--sim-timeout-s", "30")
 WORLD = REPO_ROOT / "missions" / "delivery.yaml"  # home, wind and the 1 kg payload the sim carries
-DRIVER_TIMEOUT_S = 75.0  # the driver's own limit; the process is killed 15 s later
+READY_WAIT_S = 240.0  # failure deadline for the autopilot's first home position (a cold numba cache compiles)
+DRIVER_TIMEOUT_S = 75.0  # the MAVSDK session's own limit; the process is killed 15 s later
 SET_PARAM = ("MIS_RTL_ALT", 12.0)  # set through MAVSDK before the flight: a lower RTL climb
 
 
@@ -61,6 +69,7 @@ class Flight:
 
     sent: list[dict[str, Any]]
     result: dict[str, Any]
+    held: list[dict[str, Any]]  # downloaded after the flight by the project's GcsClient
     home: GeoPoint
     autopilot: dict[str, Any]
     sim: dict[str, Any]
@@ -76,27 +85,38 @@ def flight(tmp_path_factory: pytest.TempPathFactory) -> Flight:
     plan = load_mission_file(WORLD)
     sent = [_mission_item_int(item) for item in short_delivery(plan.home)]
     (tmp_path / "items.json").write_text(json.dumps(sent))
-    sim_port, api_port, api_target = free_udp_port(), free_udp_port(), free_udp_port()
-    sim = start_sim(tmp_path, sim_port, "--world", str(WORLD), "--seed", "5")
+    ports, api_port, api_target = Ports.free(), free_udp_port(), free_udp_port()
+    sim = start_sim(tmp_path, ports.sim, "--world", str(WORLD), "--seed", "5", *SIM_PATIENCE)
     api = ["--api", f"udpin:127.0.0.1:{api_port}", "--api-target", f"udpout:127.0.0.1:{api_target}"]
-    ap = start_autopilot(tmp_path, sim_port, None, "--vehicle", plan.vehicle, *api)
+    ap = start_autopilot(tmp_path, ports.sim, ports, "--vehicle", plan.vehicle, *api, *AUTOPILOT_PATIENCE)
     driver = [
         python, str(MAVSDK_DRIVER), "--connect", f"udpin://127.0.0.1:{api_target}",
         "--items", str(tmp_path / "items.json"), "--result", str(tmp_path / "mavsdk.json"),
         "--set-param", SET_PARAM[0], repr(SET_PARAM[1]), "--timeout-s", str(DRIVER_TIMEOUT_S),
     ]  # fmt: skip
+    driver_log = tmp_path / "mavsdk_driver.log"
     try:
-        run = subprocess.run(driver, cwd=tmp_path, capture_output=True, text=True, timeout=DRIVER_TIMEOUT_S + 15.0)
-    except subprocess.TimeoutExpired:
-        pytest.fail(f"MAVSDK driver hung past its own timeout\n{logs(tmp_path)}")
+        # The project's client on the GCS link: readiness before MAVSDK's clock starts, and a second witness.
+        with GcsClient(f"udpin:127.0.0.1:{ports.gcs_target}", timeout_s=20.0) as gcs:
+            gcs.wait_until(lambda s: s.home is not None, READY_WAIT_S)
+            with open(driver_log, "wb") as out:
+                proc = subprocess.Popen(driver, cwd=tmp_path, stdout=out, stderr=subprocess.STDOUT)
+            deadline = time.monotonic() + DRIVER_TIMEOUT_S + 15.0
+            while proc.poll() is None:
+                if time.monotonic() > deadline:
+                    proc.kill()
+                    proc.wait()
+                    pytest.fail(f"MAVSDK driver hung past its own timeout\n{logs(tmp_path)}")
+                gcs.pump(0.2)
+            held = gcs.download_mission()
     finally:
         ap_rc, sim_rc = stop(ap), stop(sim)
     result = read_json(tmp_path / "mavsdk.json")
-    context = f"{result.get('error')}\n{run.stdout[-3000:]}\n{run.stderr[-2000:]}\n{logs(tmp_path)}"
-    assert run.returncode == 0 and result["ok"], context
+    context = f"{result.get('error')}\n{driver_log.read_text(errors='replace')[-3000:]}\n{logs(tmp_path)}"
+    assert proc.returncode == 0 and result["ok"], context
     assert (ap_rc, sim_rc) == (0, 0), logs(tmp_path)
     summaries = read_json(tmp_path / "autopilot_summary.json"), read_json(tmp_path / "sim_summary.json")
-    return Flight(sent, result, plan.home, *summaries)
+    return Flight(sent, result, [_mission_item_int(item) for item in held], plan.home, *summaries)
 
 
 def test_mavsdk_mission_raw_upload_arm_start_complete(flight: Flight) -> None:
@@ -106,6 +126,8 @@ def test_mavsdk_mission_raw_upload_arm_start_complete(flight: Flight) -> None:
     downloaded = result["downloaded"]
     key = ("seq", "command", "frame", "current", "autocontinue", "x", "y", "mission_type")
     assert [[d[k] for k in key] for d in downloaded] == [[s[k] for k in key] for s in sent]
+    held_key = ("seq", "command", "frame", "autocontinue", "x", "y", "mission_type")
+    assert [[h[k] for k in held_key] for h in flight.held] == [[s[k] for k in held_key] for s in sent]
     for got, want in zip(downloaded, sent, strict=True):
         fields = ("param1", "param2", "param3", "param4", "z")
         assert [got[f] for f in fields] == pytest.approx([want[f] for f in fields], nan_ok=True, abs=1e-5)
