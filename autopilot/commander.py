@@ -15,7 +15,9 @@ does); ``gripper_release``. Modes:
   until the land detector sees touchdown, then auto-disarm after ``COM_DISARM_LAND``.
 - AUTO_RTL: climb to ``MIS_RTL_ALT`` (if lower), fly home, wait ``RTL_LAND_DELAY``, land.
 - AUTO_MISSION: the target comes from the mission executor (:meth:`set_mission_target`).
-- OFFBOARD: the target is the latest external position setpoint (:meth:`set_offboard_target`).
+- OFFBOARD: the target is the latest external position setpoint (:meth:`set_offboard_target`); entered
+  only while setpoints stream (PX4's rule: the runner sets ``offboard_streaming``); leaving it on a
+  setpoint loss is the failsafe's job (``COM_OBL_ACT``).
 
 Land detector (PX4 ``MulticopterLandDetector`` in spirit): vertical speed below
 ``LNDMC_Z_VEL_MAX``, horizontal speed below ``LNDMC_XY_VEL_MAX`` and collective thrust
@@ -99,6 +101,7 @@ class Commander:
         self.local_frame: LocalNedFrame | None = None
         self.failsafe_reasons: set[str] = set()
         self.mission_ready = False  # set by the runner: a valid mission is loaded
+        self.offboard_streaming = False  # set by the runner: setpoints arrived within COM_OF_LOSS_T
         self.last_reason = ""
         self.mode_history: list[tuple[int, FlightMode]] = []
         self._texts: list[StatusText] = []
@@ -247,7 +250,7 @@ class Commander:
             self._mission_target = None
             self._set_mode(mode)
         elif mode is FlightMode.OFFBOARD:
-            if self._offboard_target is None:
+            if self._offboard_target is None or not self.offboard_streaming:
                 return self._refuse(CommandResult.DENIED, "OFFBOARD: stream position setpoints first")
             self._set_mode(mode)
         else:

@@ -56,13 +56,16 @@ from autopilot.scripted_commands import CommandScript
 from autopilot.setpoints import NavTarget, SetpointGenerator, SetpointLimits, TargetKind
 from mavlink_bridge.frames import GeoPoint
 from mavlink_bridge.gcs_types import (
+    AltitudeFrame,
     CommandRequest,
     CommandResult,
     FlightMode,
     LandedState,
+    LocalPositionTarget,
     MissionItem,
     MissionResult,
     MissionType,
+    PositionTarget,
     Severity,
     StatusText,
     TelemetrySnapshot,
@@ -217,6 +220,7 @@ class Autopilot:
         listener: StepListener | None = None,
         planner: RoutePlanner | None = None,
         script: CommandScript | None = None,
+        wall_clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.config = config or AutopilotConfig()
         self.airframe = airframe or load_airframe(self.config.vehicle)
@@ -230,6 +234,8 @@ class Autopilot:
         self.planner = planner
         self.geofence = Geofence()
         self.script = script
+        self.wall_clock = wall_clock  # offboard setpoint ages only (a real-time peer, SPEC §3)
+        self._offboard_wall_s: float | None = None  # when the last offboard setpoint arrived
         self.commander = Commander(self.params)
         self.setpoints = SetpointGenerator(self._setpoint_limits())
         self.failsafe = FailsafeMonitor(self.params)
@@ -432,7 +438,43 @@ class Autopilot:
         executor = self.executor
         return executor is not None and executor.set_current(seq)
 
+    # ------------------------------------------------------------------ offboard (VehicleAdapter calls these)
+    def set_position_target(self, target: PositionTarget) -> bool:
+        """An offboard position setpoint (local NED about the origin, or global); False without a local frame."""
+        frame = self.estimator.local_frame
+        if isinstance(target, LocalPositionTarget):
+            pos = target.pos_ned_m
+        elif frame is None:
+            return False
+        else:
+            alt_amsl = target.alt_m
+            if target.alt_frame is AltitudeFrame.ABOVE_HOME:
+                home = self.home_geo
+                if home is None:
+                    return False
+                alt_amsl += home.alt_amsl_m
+            pos = frame.ned_from_geodetic(target.lat_deg, target.lon_deg, alt_amsl)
+        self.commander.set_offboard_target((float(pos[0]), float(pos[1]), float(pos[2])), target.yaw_rad)
+        self._offboard_wall_s = self.wall_clock()
+        self.commander.offboard_streaming = True
+        return True
+
+    def offboard_setpoint_age_s(self) -> float | None:
+        """Wall seconds since the last offboard setpoint, stretched by 1/speed when the sim runs slower than
+        real time (like the GCS link timeouts); None if none ever came."""
+        if self._offboard_wall_s is None:
+            return None
+        age = self.wall_clock() - self._offboard_wall_s
+        speed = self.config.speed_factor
+        return age * speed if 0.0 < speed < 1.0 else age
+
+    def _update_offboard_streaming(self) -> float | None:
+        age = self.offboard_setpoint_age_s()
+        self.commander.offboard_streaming = age is not None and age <= self.params.get("COM_OF_LOSS_T")
+        return age
+
     def handle_command(self, request: CommandRequest) -> CommandResult:
+        self._update_offboard_streaming()
         result = self.commander.handle_command(request)
         if request.command == CMD_MISSION_START and result is CommandResult.ACCEPTED and self.executor is not None:
             first = request.params[0]
@@ -519,12 +561,13 @@ class Autopilot:
             return
         self._next_failsafe_us = state.time_us + FAILSAFE_PERIOD_US
         commander = self.commander
+        offboard_age = self._update_offboard_streaming()
         events = self.failsafe.update(
             FailsafeInputs(
                 armed=commander.armed,
                 in_air=commander.in_air,
                 gcs_heartbeat_age_s=self._gcs_heartbeat_age(),
-                offboard_setpoint_age_s=None,
+                offboard_setpoint_age_s=offboard_age if commander.mode is FlightMode.OFFBOARD else None,
                 battery_remaining=self.battery.remaining,
                 pos_ned_m=state.pos_ned_m,
                 home_ned_m=self.home_ned,
@@ -779,6 +822,9 @@ class VehicleAdapter:
 
     def set_current_mission_item(self, seq: int) -> bool:
         return self._ap.set_current_mission_item(seq)
+
+    def set_position_target(self, target: PositionTarget) -> bool:
+        return self._ap.set_position_target(target)
 
     def param_names(self) -> list[str]:
         return self._ap.params.names()

@@ -3,7 +3,7 @@
 PX4-compatible so QGroundControl, MAVSDK, MAVProxy and pymavlink work unmodified: a
 quadrotor with the PX4 autopilot id and ``custom_mode`` encoding, telemetry streams at
 their rates in sim time, commands acked honestly, the mission protocol (MISSION and
-FENCE) and float parameters. The autopilot runner owns the clock: it calls ``poll``
+FENCE), float parameters and offboard position setpoints. The autopilot runner owns the clock: it calls ``poll``
 between lockstep frames (never blocks) and ``publish`` once per control step.
 
 Streams run at their rates in sim time, capped at ``max_stream_speedup`` (default 5) times
@@ -34,6 +34,7 @@ from mavlink_bridge.gcs_link import MavlinkEndpoint
 from mavlink_bridge.gcs_types import CommandRequest, CommandResult, Severity, TelemetrySnapshot, VehicleInterface
 from mavlink_bridge.mission_protocol import MissionProtocol, TransferTimeouts
 from mavlink_bridge.param_protocol import ParamProtocol
+from mavlink_bridge.setpoint_protocol import SetpointProtocol
 from mavlink_bridge.telemetry_streams import TelemetryStreams
 
 _log = logging.getLogger(__name__)
@@ -59,6 +60,8 @@ class GcsServerStats:
     mission_uploads_refused: int
     mission_uploads_failed: int
     param_sets_refused: int
+    setpoints_used: int
+    setpoints_dropped: int
 
 
 class GcsServer:
@@ -100,6 +103,7 @@ class GcsServer:
             max_items=max_mission_items,
         )
         self.params = ParamProtocol(self.mav, vehicle, self.statustext)
+        self.setpoints = SetpointProtocol(vehicle)
         local: dict[int, LocalHandler] = {
             MAV_CMD_SET_MESSAGE_INTERVAL: self._cmd_set_message_interval,
             MAV_CMD_REQUEST_MESSAGE: self._cmd_request_message,
@@ -184,6 +188,8 @@ class GcsServer:
             mission_uploads_refused=m.uploads_refused,
             mission_uploads_failed=m.uploads_failed,
             param_sets_refused=self.params.stats.sets_refused,
+            setpoints_used=self.setpoints.stats.used,
+            setpoints_dropped=self.setpoints.stats.dropped,
         )
 
     def close(self) -> None:
@@ -211,6 +217,8 @@ class GcsServer:
                 self.missions.handle(msg, wall_time_s)
             elif kind in ParamProtocol.HANDLED:
                 self.params.handle(msg)
+            elif kind in SetpointProtocol.HANDLED:
+                self.setpoints.handle(msg)
         except Exception as exc:  # a vehicle bug or a message we mis-decode must not stop the autopilot
             self._handler_errors += 1
             _log.exception("GCS %s handling failed", kind)

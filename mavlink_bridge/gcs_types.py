@@ -7,6 +7,7 @@ of enums are the MAVLink ones so the codec is a plain cast.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import Protocol
@@ -144,6 +145,36 @@ class CommandRequest:
     frame: int = 0
 
 
+class AltitudeFrame(IntEnum):
+    """What a global setpoint's altitude is measured from."""
+
+    AMSL = 0
+    ABOVE_HOME = 1
+
+
+@dataclass(frozen=True, slots=True)
+class LocalPositionTarget:
+    """SET_POSITION_TARGET_LOCAL_NED (MAV_FRAME_LOCAL_NED): NED about the local origin, the frame of
+    LOCAL_POSITION_NED. ``yaw_rad`` NaN = yaw not controlled (type_mask YAW_IGNORE)."""
+
+    pos_ned_m: Vec3
+    yaw_rad: float = math.nan
+
+
+@dataclass(frozen=True, slots=True)
+class GlobalPositionTarget:
+    """SET_POSITION_TARGET_GLOBAL_INT: latitude/longitude and an altitude in ``alt_frame``."""
+
+    lat_deg: float
+    lon_deg: float
+    alt_m: float
+    alt_frame: AltitudeFrame
+    yaw_rad: float = math.nan
+
+
+PositionTarget = LocalPositionTarget | GlobalPositionTarget
+
+
 @dataclass(frozen=True, slots=True)
 class StatusText:
     """A STATUSTEXT event."""
@@ -201,6 +232,10 @@ class VehicleInterface(Protocol):
         ...
 
     def set_current_mission_item(self, seq: int) -> bool: ...
+
+    def set_position_target(self, target: PositionTarget) -> bool:
+        """An offboard position setpoint (OFFBOARD mode flies the latest); False if it cannot be used now."""
+        ...
 
     def param_names(self) -> list[str]: ...
 

@@ -43,18 +43,26 @@ class SimLoop:
         self.texts: list[str] = []
         self.last: ActuatorCommand | None = None
 
-    def step(self) -> ActuatorCommand:
+    def frame(self) -> LockstepFrame:
+        """The lockstep frame of the current sim state (detections at the sensor's rate)."""
         sim = self.sim
         detections = ()
         if self.obstacle_sensor is not None and self._k % self._detect_every == 0:
             detections = self.obstacle_sensor.detect(sim.pos_ned, sim.q_ned_frd, sim.t_us)
         self._k += 1
         truth = sim.ground_truth()
-        frame = LockstepFrame(self.sensors.imu_baro_mag(sim), self.sensors.gps(sim), truth, tuple(detections))
-        cmd = self.ap.step(frame)
-        if cmd.gripper_release and sim.payload_kg > 0.0:
-            sim.release_payload()
-        sim.step(cmd.motor_cmd)
+        return LockstepFrame(self.sensors.imu_baro_mag(sim), self.sensors.gps(sim), truth, tuple(detections))
+
+    def apply(self, cmd: ActuatorCommand) -> None:
+        """Integrate one control step with the autopilot's answer (payload released when commanded)."""
+        if cmd.gripper_release and self.sim.payload_kg > 0.0:
+            self.sim.release_payload()
+        self.sim.step(cmd.motor_cmd)
+        self.last = cmd
+
+    def step(self) -> ActuatorCommand:
+        cmd = self.ap.step(self.frame())
+        self.apply(cmd)
         texts = self.ap.drain_texts()
         listener = self.ap.listener
         if listener is not None:  # as run_loop does after the answer
@@ -62,7 +70,6 @@ class SimLoop:
             assert record is not None
             listener.on_step(record)
         self.texts += [t.text for t in texts]
-        self.last = cmd
         return cmd
 
     def run_s(self, seconds: float, each: Callable[[], None] | None = None) -> None:
@@ -90,3 +97,20 @@ class SimLoop:
     @property
     def alt_m(self) -> float:
         return -float(self.sim.pos_ned[2])
+
+
+class InProcessLockstep:
+    """The ``LockstepClient`` surface ``run_loop`` needs, over a :class:`SimLoop`'s simulator (no sockets)."""
+
+    connected = True
+    sim_lost = False
+
+    def __init__(self, loop: SimLoop) -> None:
+        self.loop = loop
+
+    def next_frame(self, timeout_s: float) -> LockstepFrame:
+        del timeout_s
+        return self.loop.frame()
+
+    def answer(self, cmd: ActuatorCommand) -> None:
+        self.loop.apply(cmd)

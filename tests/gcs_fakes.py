@@ -18,6 +18,7 @@ from mavlink_bridge.gcs_types import (
     MissionItem,
     MissionResult,
     MissionType,
+    PositionTarget,
     TelemetrySnapshot,
 )
 from mavlink_bridge.mission_items import GLOBAL_FRAMES
@@ -66,6 +67,7 @@ class FakeVehicle:
         self.replace_calls = 0
         self.command_calls: Counter[int] = Counter()
         self.requests: list[CommandRequest] = []
+        self.position_targets: list[PositionTarget] = []
         self.armed = False
         self.mode = FlightMode.AUTO_LOITER
         self.arming_refused = False
@@ -121,6 +123,10 @@ class FakeVehicle:
                 return MissionResult.INVALID_PARAM7, f"item {item.seq}: altitude is not a number"
         self.missions[mission_type] = list(items)
         return MissionResult.ACCEPTED, ""
+
+    def set_position_target(self, target: PositionTarget) -> bool:
+        self.position_targets.append(target)
+        return True
 
     def set_current_mission_item(self, seq: int) -> bool:
         if 0 <= seq < len(self.missions[MissionType.MISSION]):

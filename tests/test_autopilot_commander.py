@@ -223,6 +223,8 @@ def test_offboard_needs_a_setpoint_and_mission_target_drives_auto_mission() -> N
     _takeoff(loop)
     assert commander.handle_command(command(CMD_DO_SET_MODE, 1, 6, 0)) is CommandResult.DENIED
     commander.set_offboard_target((5.0, 0.0, -12.0))
+    assert commander.handle_command(command(CMD_DO_SET_MODE, 1, 6, 0)) is CommandResult.DENIED  # not streaming
+    commander.offboard_streaming = True  # the runner: setpoints arrive within COM_OF_LOSS_T
     assert commander.handle_command(command(CMD_DO_SET_MODE, 1, 6, 0)) is CommandResult.ACCEPTED
     assert loop.run_until(lambda: math.dist(loop.pos, (5.0, 0.0, -12.0)) < 0.1, 20.0)
     commander.mission_ready = True
