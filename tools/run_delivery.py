@@ -1,18 +1,24 @@
 """``make run``: fly the default delivery mission end to end through sim + autopilot + ground station.
 
 Starts ``quadsitl up`` (simulator and autopilot as two processes, ``--speed max``) on a free
-``--instance``, then runs the ground-station script's ``fly`` on the mission, stops both
-processes, and prints one summary. Everything lands in ``runs/<timestamp>/``:
+``--instance``, runs the ground-station script's ``fly`` on the mission, stops both processes,
+and prints one summary. Everything lands in ``runs/<timestamp>/`` (or ``--out-dir``):
 ``flight.rrd`` (Rerun recording), ``sim_summary.json``, ``autopilot_summary.json``,
-``gcs_summary.json``, ``summary.json`` and the processes' logs.
+``gcs_summary.json``, ``summary.json`` and the processes' log ``up.log``.
+
+Never hangs: when ``quadsitl up`` exits before the ground station is done (a process died, the
+lockstep was lost) the ground station is stopped too, and a wall-clock limit ends everything.
+Exit status: 0 the mission flew and landed with no collision, 1 the flight failed, 2 bad
+arguments, 3 the SITL processes died or the wall-clock limit was hit.
 
 Usage: ``python -m tools.run_delivery [--mission missions/delivery.yaml] [--speed max|N]
-[--vehicle NAME] [--seed N] [--out-dir DIR] [--timeout-s S]``.
+[--vehicle NAME] [--seed N] [--out-dir DIR] [--timeout-s S] [--rerun off|save:PATH|connect:URL]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import signal
@@ -20,11 +26,21 @@ import socket
 import subprocess
 import sys
 import time
+from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
+EXIT_OK = 0
+EXIT_FLIGHT_FAILED = 1
+EXIT_USAGE = 2
+EXIT_SITL_DIED = 3
 # Default ports of SPEC §3; --instance N offsets every one of them by N.
 _BASE_PORTS = (14560, 18570, 14550, 14580, 14540)
+#: Wall seconds the ground station gets to notice a finished flight after ``quadsitl up`` exits.
+_GCS_GRACE_S = 5.0
+#: Wall seconds on top of the flight limit for start-up (JIT warm-up) and shutdown.
+_STARTUP_MARGIN_S = 120.0
+_POLL_S = 0.2
 
 
 def _ports_free(instance: int) -> bool:
@@ -45,7 +61,8 @@ def free_instance(start: int = 0, limit: int = 200) -> int:
     raise RuntimeError(f"no free quadsitl instance in {start}..{start + limit - 1}")
 
 
-def _stop(proc: subprocess.Popen[bytes], timeout_s: float = 15.0) -> int:
+def _stop(proc: subprocess.Popen[bytes], timeout_s: float = 30.0) -> int:
+    """SIGTERM, wait up to ``timeout_s``, then SIGKILL; the exit status."""
     if proc.poll() is None:
         proc.send_signal(signal.SIGTERM)
         try:
@@ -58,9 +75,117 @@ def _stop(proc: subprocess.Popen[bytes], timeout_s: float = 15.0) -> int:
 
 def _read_json(path: Path) -> dict[str, object]:
     try:
-        return json.loads(path.read_text())
+        data = json.loads(path.read_text())
     except (OSError, ValueError):
         return {}
+    return data if isinstance(data, dict) else {}
+
+
+def _tail(path: Path, lines: int = 6) -> list[str]:
+    try:
+        return path.read_text(errors="replace").splitlines()[-lines:]
+    except OSError:
+        return []
+
+
+@dataclass(frozen=True)
+class FlightOutcome:
+    """How the two child processes ended: the ground station's status (None: it was stopped), ``up``'s, and why."""
+
+    gcs_rc: int | None
+    up_rc: int | None
+    up_died_first: bool
+    timed_out: bool
+    interrupted: bool
+
+
+def fly(up_cmd: list[str], gcs_cmd: list[str], out_dir: Path, wall_limit_s: float) -> FlightOutcome:
+    """Run ``quadsitl up`` and the ground station side by side until the ground station is done.
+
+    The ground station ending stops ``up`` (SIGTERM: both summaries are written); ``up`` ending
+    first gives the ground station ``_GCS_GRACE_S`` and then stops it; ``wall_limit_s`` or
+    Ctrl-C stops both. No child outlives this call.
+    """
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    deadline = time.monotonic() + wall_limit_s
+    up_died_first = timed_out = interrupted = False
+    with open(out_dir / "up.log", "wb") as up_log:
+        up = subprocess.Popen(up_cmd, stdout=up_log, stderr=subprocess.STDOUT, env=env)
+        gcs = subprocess.Popen(gcs_cmd, env=env)  # its progress bar and result line go to the terminal
+        try:
+            while gcs.poll() is None:
+                if time.monotonic() > deadline:
+                    timed_out = True
+                    break
+                if up.poll() is not None:
+                    up_died_first = True
+                    with contextlib.suppress(subprocess.TimeoutExpired):
+                        gcs.wait(timeout=_GCS_GRACE_S)
+                    break
+                time.sleep(_POLL_S)
+        except KeyboardInterrupt:
+            interrupted = True
+        finally:
+            gcs_rc = gcs.returncode if gcs.poll() is not None else None
+            _stop(gcs, 10.0)
+            up_rc = _stop(up)
+    return FlightOutcome(gcs_rc, up_rc, up_died_first, timed_out, interrupted)
+
+
+def _problems(outcome: FlightOutcome, gcs: dict[str, object], sim: dict[str, object], out_dir: Path) -> list[str]:
+    """One line per thing that went wrong (empty: a good flight)."""
+    lines: list[str] = []
+    if outcome.interrupted:
+        lines.append("interrupted (Ctrl-C): both processes stopped")
+    if outcome.timed_out:
+        lines.append("wall-clock limit reached before the ground station finished: both processes stopped")
+    if outcome.up_died_first:
+        lines.append(
+            f"quadsitl up exited with status {outcome.up_rc} before the mission was done"
+            f" (sim end reason: {sim.get('end_reason', 'unknown')}); last lines of {out_dir / 'up.log'}:"
+        )
+        lines += [f"    {line}" for line in _tail(out_dir / "up.log")]
+    elif outcome.up_rc not in (0, None):
+        lines.append(f"quadsitl up exited with status {outcome.up_rc} when stopped (see {out_dir / 'up.log'})")
+    if outcome.gcs_rc not in (0, None) or (outcome.gcs_rc == 0 and not gcs.get("ok")):
+        reason = gcs.get("reason") or "no summary written (see its output above)"
+        lines.append(f"ground station: mission failed: {reason}")
+    collisions = sim.get("collisions")
+    if not isinstance(collisions, int) or collisions != 0:
+        lines.append(f"simulator: collisions = {collisions if collisions is not None else 'unknown (no summary)'}")
+    return lines
+
+
+def _print_summary(summary: dict[str, object], problems: list[str], recording: Path | None, out_dir: Path) -> None:
+    gcs, sim = summary["gcs"], summary["sim"]
+    assert isinstance(gcs, dict) and isinstance(sim, dict)
+    rows = [
+        ("result", "OK" if summary["ok"] else "FAILED"),
+        ("items reached", f"{gcs.get('items_reached', '?')}/{gcs.get('items_total', '?')}"),
+        ("landed / disarmed", f"{gcs.get('landed', '?')} / {gcs.get('disarmed', '?')}"),
+        ("sim time", _num(sim.get("sim_time_s"), 1, " s")),
+        ("wall time (flight / total)", f"{_num(sim.get('wall_time_s'), 1, ' s')} / {summary['wall_time_s']} s"),
+        ("real-time factor", _num(sim.get("real_time_factor"), 2, "x")),
+        ("payload released at", _num(sim.get("payload_released_at_s"), 3, " s sim time")),
+        ("collisions", str(sim.get("collisions", "?"))),
+        ("min clearance to obstacles", _num(sim.get("min_clearance_m"), 2, " m", "no obstacles" if sim else "n/a")),
+        ("max tilt", _num(sim.get("max_tilt_deg"), 1, " deg")),
+        ("sim end reason", str(sim.get("end_reason", "?"))),
+    ]
+    print()
+    for name, value in rows:
+        print(f"{name:<28} {value}")
+    for line in problems:
+        print(f"run_delivery: error: {line}" if not line.startswith("    ") else line, file=sys.stderr)
+    print(f"\nsummary:   {out_dir / 'summary.json'}")
+    if recording is not None:
+        print(f"recording: {recording}\n           open it with: .venv/bin/rerun {recording}")
+
+
+def _num(value: object, digits: int, unit: str, missing: str = "n/a") -> str:
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        return f"{value:.{digits}f}{unit}"
+    return missing
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -76,41 +201,43 @@ def main(argv: list[str] | None = None) -> int:
 
     mission = Path(args.mission)
     if not mission.is_file():
-        print(f"run_delivery: mission file {mission} not found", file=sys.stderr)
-        return 2
+        print(f"run_delivery: error: mission file {mission} not found", file=sys.stderr)
+        return EXIT_USAGE
     out_dir = Path(args.out_dir or Path("runs") / datetime.now().strftime("%Y%m%d-%H%M%S"))
     out_dir.mkdir(parents=True, exist_ok=True)
-    recording = out_dir / "flight.rrd"
-    instance = free_instance()
+    rerun = args.rerun or f"save:{out_dir / 'flight.rrd'}"
+    recording = Path(rerun[len("save:") :]) if rerun.startswith("save:") else None
+    try:
+        instance = free_instance()
+    except RuntimeError as exc:
+        print(f"run_delivery: error: {exc}", file=sys.stderr)
+        return EXIT_SITL_DIED
 
     up_cmd = [
         sys.executable, "-m", "quadsitl_cli", "up",
         "--world", str(mission), "--seed", str(args.seed), "--speed", args.speed,
-        "--instance", str(instance), "--log-dir", str(out_dir),
-        "--rerun", args.rerun or f"save:{recording}",
+        "--instance", str(instance), "--log-dir", str(out_dir), "--rerun", rerun,
     ]  # fmt: skip
     if args.vehicle:
         up_cmd += ["--vehicle", args.vehicle]
     gcs_cmd = [
-        sys.executable, "-m", "tools.gcs", "--instance", str(instance),
-        "fly", str(mission), "--summary", str(out_dir / "gcs_summary.json"), "--timeout-s", str(args.timeout_s),
+        sys.executable, "-m", "tools.gcs", "--instance", str(instance), "fly", str(mission),
+        "--summary", str(out_dir / "gcs_summary.json"), "--timeout-s", str(args.timeout_s),
     ]  # fmt: skip
 
     print(f"[run] mission {mission} -> {out_dir} (instance {instance}, speed {args.speed})", flush=True)
     t0 = time.monotonic()
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
-    with open(out_dir / "up.log", "wb") as up_log:
-        up = subprocess.Popen(up_cmd, stdout=up_log, stderr=subprocess.STDOUT, env=env)
-        try:
-            gcs_rc = subprocess.call(gcs_cmd, env=env)
-        finally:
-            up_rc = _stop(up)
+    outcome = fly(up_cmd, gcs_cmd, out_dir, args.timeout_s + _STARTUP_MARGIN_S)
     wall_s = time.monotonic() - t0
 
     sim = _read_json(out_dir / "sim_summary.json")
     ap = _read_json(out_dir / "autopilot_summary.json")
     gcs = _read_json(out_dir / "gcs_summary.json")
-    ok = gcs_rc == 0 and bool(gcs.get("ok")) and sim.get("collisions", 1) == 0
+    problems = _problems(outcome, gcs, sim, out_dir)
+    if recording is not None and not (recording.is_file() and recording.stat().st_size > 0):
+        problems.append(f"no recording written at {recording} (see {out_dir / 'up.log'})")
+        recording = None
+    ok = not problems
     summary = {
         "ok": ok,
         "mission": str(mission),
@@ -119,28 +246,16 @@ def main(argv: list[str] | None = None) -> int:
         "gcs": gcs,
         "sim": sim,
         "autopilot": ap,
-        "recording": str(recording) if recording.exists() else None,
-        "exit_codes": {"gcs": gcs_rc, "up": up_rc},
+        "recording": str(recording) if recording is not None else None,
+        "exit_codes": {"gcs": outcome.gcs_rc, "up": outcome.up_rc},
+        "errors": problems,
     }
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-
-    print()
-    print(f"{'result':<26} {'OK' if ok else 'FAILED'}")
-    print(f"{'items reached':<26} {gcs.get('items_reached', '?')}/{gcs.get('items_total', '?')}")
-    print(f"{'landed / disarmed':<26} {gcs.get('landed', '?')} / {gcs.get('disarmed', '?')}")
-    print(f"{'sim time / wall time':<26} {sim.get('sim_time_s', '?')} s / {sim.get('wall_time_s', '?')} s")
-    print(f"{'real-time factor':<26} {sim.get('real_time_factor', '?')}")
-    print(f"{'payload released at':<26} {sim.get('payload_released_at_s', '?')} s (sim time)")
-    print(f"{'collisions':<26} {sim.get('collisions', '?')}")
-    print(f"{'min clearance':<26} {sim.get('min_clearance_m', '?')} m")
-    print(f"{'max tilt':<26} {sim.get('max_tilt_deg', '?')} deg")
-    print(f"{'sim end reason':<26} {sim.get('end_reason', '?')}")
-    print(f"\nsummary:   {out_dir / 'summary.json'}")
-    if recording.exists():
-        print(f"recording: {recording}  (open it with: .venv/bin/rerun {recording})")
-    else:
-        print("recording: none written (see up.log)")
-    return 0 if ok else 1
+    _print_summary(summary, problems, recording, out_dir)
+    if ok:
+        return EXIT_OK
+    sitl_failed = outcome.up_died_first or outcome.timed_out or outcome.interrupted
+    return EXIT_SITL_DIED if sitl_failed else EXIT_FLIGHT_FAILED
 
 
 if __name__ == "__main__":

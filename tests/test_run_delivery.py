@@ -1,0 +1,65 @@
+"""``make run`` (``python -m tools.run_delivery``): the default delivery flight end to end, and no hang when the
+SITL processes die."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from conftest import REPO_ROOT
+
+from autopilot.telemetry import entities as ent
+from autopilot.telemetry.recording_reader import read_recording
+
+pytestmark = [pytest.mark.sitl, pytest.mark.slow]
+
+
+def _run_delivery(*args: str, timeout_s: float) -> subprocess.CompletedProcess[str]:
+    cmd = [sys.executable, "-m", "tools.run_delivery", *args]
+    return subprocess.run(cmd, cwd=REPO_ROOT, capture_output=True, text=True, timeout=timeout_s)
+
+
+def test_run_delivery_flies_the_default_mission_and_writes_everything(tmp_path: Path) -> None:
+    out_dir = tmp_path / "run"
+    proc = _run_delivery("--out-dir", str(out_dir), timeout_s=900.0)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    summary = json.loads((out_dir / "summary.json").read_text())
+    assert summary["ok"] is True and summary["errors"] == []
+    assert summary["exit_codes"] == {"gcs": 0, "up": 0}
+    for name in ("sim_summary.json", "autopilot_summary.json", "gcs_summary.json"):
+        assert (out_dir / name).is_file(), name
+    gcs, sim, ap = summary["gcs"], summary["sim"], summary["autopilot"]
+    assert gcs["ok"] is True and gcs["items_reached"] == gcs["items_total"] > 0
+    assert gcs["landed"] and gcs["disarmed"]
+    assert sim["collisions"] == 0 and sim["end_reason"] == "STOPPED"
+    assert sim["payload_released_at_s"] is not None and ap["payload_released"] is True
+    assert ap["frames"] == sim["frames"]
+
+    rrd = out_dir / "flight.rrd"
+    assert summary["recording"] == str(rrd) and rrd.stat().st_size > 0
+    pos = read_recording(rrd).scalars(ent.POS_NED)
+    assert len(pos.t_us) == ap["frames"]  # the whole flight is in the recording
+    assert f"recording: {rrd}" in proc.stdout and f"rerun {rrd}" in proc.stdout  # where it is, how to open it
+    assert "result                       OK" in proc.stdout
+
+
+def test_run_delivery_stops_and_says_why_when_the_sitl_dies(tmp_path: Path) -> None:
+    """``quadsitl up`` exits at once (unknown vehicle): the ground station is stopped, exit 3, one clear error."""
+    out_dir = tmp_path / "run"
+    proc = _run_delivery("--out-dir", str(out_dir), "--vehicle", "no_such_vehicle", timeout_s=300.0)
+    assert proc.returncode == 3, proc.stdout + proc.stderr
+    assert "run_delivery: error: quadsitl up exited with status 2 before the mission was done" in proc.stderr
+    assert "no_such_vehicle" in proc.stderr  # the tail of up.log says what went wrong
+    summary = json.loads((out_dir / "summary.json").read_text())
+    assert summary["ok"] is False and summary["exit_codes"]["up"] == 2
+    assert summary["exit_codes"]["gcs"] is None  # stopped by run_delivery, not left waiting for a heartbeat
+    assert "result                       FAILED" in proc.stdout
+
+
+def test_run_delivery_refuses_a_missing_mission(tmp_path: Path) -> None:
+    proc = _run_delivery("--mission", str(tmp_path / "none.yaml"), "--out-dir", str(tmp_path), timeout_s=60.0)
+    assert proc.returncode == 2
+    assert proc.stderr.strip() == f"run_delivery: error: mission file {tmp_path / 'none.yaml'} not found"
