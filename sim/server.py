@@ -92,6 +92,7 @@ class SimSummary:
     truth_sha256: str  # hash of the truth state after every control step (determinism checks)
     sim_step_us: float  # mean wall time per step in the sim itself (all but the answer wait and pacing sleeps)
     answer_wait_us: float  # mean wall time per step waiting for the answer (autopilot step + transport)
+    sim_cpu_us_per_step: float  # process CPU time per step (the sim's own work; unlike wall time, load-independent)
 
     def to_json(self) -> str:
         """Pretty JSON, one key per line."""
@@ -226,9 +227,11 @@ class SimServer:
         connected = False
         wait_s = sleep_s = 0.0  # wall time waiting for answers, pacing sleeps
         wall0 = time.perf_counter()
+        cpu0 = time.process_time()
         try:
             connected = self._wait_for_autopilot()
             wall0 = time.perf_counter()
+            cpu0 = time.process_time()
             if not connected:
                 v.end(EndReason.STOPPED)
             while v.end_reason is EndReason.RUNNING:
@@ -265,11 +268,12 @@ class SimServer:
                 record()
         finally:
             wall_s = time.perf_counter() - wall0
+            cpu_s = time.process_time() - cpu0
             lockstep.close()
         if cfg.truth_log is not None:
             self._write_truth_log(cfg.truth_log, truth_rows)
         steps = max(self.lockstep.stats.frames, 1)
-        timing_us = ((wall_s - wait_s - sleep_s) / steps * 1e6, wait_s / steps * 1e6)
+        timing_us = ((wall_s - wait_s - sleep_s) / steps * 1e6, wait_s / steps * 1e6, cpu_s / steps * 1e6)
         return self._summary(connected, wall_s, _tilt_deg_from_xy2(max_xy2), truth_hash.hexdigest(), timing_us)
 
     def _wait_for_autopilot(self) -> bool:
@@ -293,7 +297,12 @@ class SimServer:
         np.savez(path, t_s=data[:, 0], state=data[:, 1:])
 
     def _summary(
-        self, connected: bool, wall_s: float, max_tilt: float, truth_sha256: str, timing_us: tuple[float, float]
+        self,
+        connected: bool,
+        wall_s: float,
+        max_tilt: float,
+        truth_sha256: str,
+        timing_us: tuple[float, float, float],
     ) -> SimSummary:
         v, stats = self.vehicle, self.lockstep.stats
         sim_s = v.t_s
@@ -320,4 +329,5 @@ class SimServer:
             truth_sha256=truth_sha256,
             sim_step_us=timing_us[0],
             answer_wait_us=timing_us[1],
+            sim_cpu_us_per_step=timing_us[2],
         )

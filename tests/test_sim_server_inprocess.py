@@ -125,6 +125,9 @@ def test_truth_log_and_summary_file(tmp_path: Path) -> None:
     for key in ("end_reason", "sim_time_s", "wall_time_s", "real_time_factor", "collisions", "min_clearance_m"):
         assert f'"{key}"' in text
     assert '"payload_released_at_s": null' in text and '"max_tilt_deg"' in text
+    # where the wall time went: the sim's own work plus the answer waits is all of it (no pacing at max speed)
+    assert summary.frames == 125 and summary.answer_wait_us > 0.0 and summary.sim_cpu_us_per_step > 0.0
+    assert (summary.sim_step_us + summary.answer_wait_us) * summary.frames == pytest.approx(summary.wall_time_s * 1e6)
 
 
 def test_tilt_from_quaternion() -> None:
