@@ -14,8 +14,11 @@ and reported as the median with the range.
 
 from __future__ import annotations
 
+import math
 import multiprocessing as mp
 import time
+from dataclasses import dataclass
+from multiprocessing.connection import Connection
 
 from mavlink_bridge.codec import Decoder, Encoder
 from mavlink_bridge.lockstep import LockstepClient, LockstepFrame, LockstepServer, encode_frame
@@ -41,8 +44,13 @@ def null_frame(k: int) -> LockstepFrame:
     return LockstepFrame(sensor, gps, truth, ())
 
 
-def _null_autopilot(sim_url: str, idle_exit_s: float) -> None:
-    """Answer every frame with the same hover command until the sim has been silent for ``idle_exit_s``."""
+def _null_autopilot(sim_url: str, idle_exit_s: float, warmup_frames: int, report: Connection) -> None:
+    """Answer every frame with the same hover command until the sim has been silent for ``idle_exit_s``.
+
+    Sends ``(CPU seconds, frames)`` after the warm-up through ``report`` when it exits.
+    """
+    frames = 0
+    cpu0 = cpu_last = 0.0
     with LockstepClient(sim_url, heartbeat_period_s=0.05) as client:
         last_frame_s = time.monotonic()
         while time.monotonic() - last_frame_s < idle_exit_s:
@@ -50,31 +58,63 @@ def _null_autopilot(sim_url: str, idle_exit_s: float) -> None:
             if frame is not None:
                 last_frame_s = time.monotonic()
                 client.answer(ActuatorCommand(frame.time_us, (0.55, 0.55, 0.55, 0.55), True))
+                frames += 1
+                cpu_last = time.process_time()
+                if frames == warmup_frames:
+                    cpu0 = cpu_last
+    report.send((cpu_last - cpu0, frames - warmup_frames))
 
 
-def measure_floor(n_frames: int, warmup_frames: int = 200) -> tuple[float, float, int]:
-    """(real-time factor, mean wall µs per frame, resends) for ``n_frames`` exchanges after a warm-up."""
+@dataclass(frozen=True, slots=True)
+class FloorRun:
+    """One floor measurement: wall-clock rate and each side's CPU per frame (load-independent)."""
+
+    rtf: float
+    frame_us: float  # wall time per frame exchange
+    resends: int
+    sim_cpu_us: float  # null sim process CPU per frame
+    autopilot_cpu_us: float  # null autopilot process CPU per frame
+
+
+def measure_floor_run(n_frames: int, warmup_frames: int = 200) -> FloorRun:
+    """``n_frames`` exchanges after a warm-up, null sim here and null autopilot in a spawned process."""
     server = LockstepServer("udpin:127.0.0.1:0", resend_timeout_s=0.02, peer_lost_timeout_s=5.0)
     host, port = server.local_address
-    proc = mp.get_context("spawn").Process(target=_null_autopilot, args=(f"udpout:{host}:{port}", 1.0), daemon=True)
+    ctx = mp.get_context("spawn")
+    report_rx, report_tx = ctx.Pipe(duplex=False)
+    proc = ctx.Process(
+        target=_null_autopilot, args=(f"udpout:{host}:{port}", 0.5, warmup_frames, report_tx), daemon=True
+    )
     proc.start()
     try:
         if not server.wait_for_autopilot(30.0):
             raise RuntimeError("null autopilot did not start")
         for k in range(warmup_frames):
             server.exchange(null_frame(k))
-        t0 = time.perf_counter()
+        t0, cpu0 = time.perf_counter(), time.process_time()
         for k in range(warmup_frames, warmup_frames + n_frames):
             server.exchange(null_frame(k))
-        wall_s = time.perf_counter() - t0
+        wall_s, cpu_s = time.perf_counter() - t0, time.process_time() - cpu0
         resends = server.stats.resends
+        ap_cpu_s, ap_frames = report_rx.recv() if report_rx.poll(10.0) else (math.nan, 1)
     finally:
         server.close()
         proc.join(5.0)
         if proc.is_alive():
             proc.terminate()
-    sim_s = n_frames / CONTROL_HZ
-    return sim_s / wall_s, wall_s / n_frames * 1e6, resends
+    return FloorRun(
+        n_frames / CONTROL_HZ / wall_s,
+        wall_s / n_frames * 1e6,
+        resends,
+        cpu_s / n_frames * 1e6,
+        ap_cpu_s / max(ap_frames, 1) * 1e6,
+    )
+
+
+def measure_floor(n_frames: int, warmup_frames: int = 200) -> tuple[float, float, int]:
+    """(real-time factor, mean wall µs per frame, resends) for ``n_frames`` exchanges after a warm-up."""
+    r = measure_floor_run(n_frames, warmup_frames)
+    return r.rtf, r.frame_us, r.resends
 
 
 def measure_codec_us(n: int = 2000) -> float:
@@ -91,16 +131,26 @@ def measure_codec_us(n: int = 2000) -> float:
 
 def run(quick: bool) -> list[BenchResult]:
     n_frames = 1500 if quick else 7500
-    runs = sorted(measure_floor(n_frames) for _ in range(FLOOR_RUNS))  # by RTF
-    rtf, frame_us, _ = runs[len(runs) // 2]
+    runs = sorted((measure_floor_run(n_frames) for _ in range(FLOOR_RUNS)), key=lambda r: r.rtf)
+    mid = runs[len(runs) // 2]
     where = f"2 processes, UDP, {CONTROL_HZ} Hz, {n_frames} frames"
     return [
-        BenchResult("lockstep_floor_rtf", rtf, note=f"null sim + null autopilot, {where}, median of {FLOOR_RUNS}"),
-        BenchResult("lockstep_floor_rtf_min", runs[0][0], note="slowest floor run"),
-        BenchResult("lockstep_floor_rtf_max", runs[-1][0], note="fastest floor run"),
-        BenchResult("lockstep_floor_frame_us", frame_us, note="wall time per frame exchange (median run)"),
+        BenchResult("lockstep_floor_rtf", mid.rtf, note=f"null sim + null autopilot, {where}, median of {FLOOR_RUNS}"),
+        BenchResult("lockstep_floor_rtf_min", runs[0].rtf, note="slowest floor run"),
+        BenchResult("lockstep_floor_rtf_max", runs[-1].rtf, note="fastest floor run"),
+        BenchResult("lockstep_floor_frame_us", mid.frame_us, note="wall time per frame exchange (median run)"),
         BenchResult(
-            "lockstep_floor_resends", float(sum(r[2] for r in runs)), note="frames re-sent, all runs (0 on loopback)"
+            "lockstep_floor_sim_cpu_us", min(r.sim_cpu_us for r in runs), note="null sim CPU per frame (best run)"
+        ),
+        BenchResult(
+            "lockstep_floor_autopilot_cpu_us",
+            min(r.autopilot_cpu_us for r in runs),
+            note="null autopilot CPU per frame (best run)",
+        ),
+        BenchResult(
+            "lockstep_floor_resends",
+            float(sum(r.resends for r in runs)),
+            note="frames re-sent, all runs (0 on loopback)",
         ),
         BenchResult("lockstep_codec_frame_us", measure_codec_us(), note="encode+decode frame and answer, in-process"),
     ]
