@@ -262,11 +262,6 @@ def test_mavproxy_arm_and_set_mode_mission_fly_the_loaded_mission(session: Sessi
     assert pos is not None and math.hypot(pos[0], pos[1]) < 1.5  # back home (RTL)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known: MAVProxy uploads WPL line 0 (home, 0 m above home, frame GLOBAL) as item 0 and the "
-    "autopilot refuses it (INVALID_PARAM7, below MIS_ALT_MIN); see the README interoperability section",
-)
 def test_mavproxy_wp_load_of_the_repository_qgc_wpl_file(session: Session) -> None:
     assert session.qgc_ack == "ACCEPTED"
     want = _wpl_rows(QGC_FILE.read_text())

@@ -37,7 +37,7 @@ from dataclasses import dataclass, replace
 from enum import IntEnum
 
 from autopilot.mission.commands import GripperAction, MavCmd, MissionState
-from autopilot.mission.plan import item_position_ned, items_match, uses_current_position
+from autopilot.mission.plan import is_wpl_home_line, item_position_ned, items_match, uses_current_position
 from autopilot.params import ParamStore
 from mavlink_bridge.frames import GeoPoint, LocalNedFrame
 from mavlink_bridge.gcs_types import MissionItem
@@ -350,6 +350,8 @@ class MissionExecutor:
         """Run the current item's phases as far as this sample allows; True when the item is complete."""
         item = self._items[self._cur]
         cmd = item.command
+        if is_wpl_home_line(self._cur, item, self._frame.home):
+            return True  # MAVProxy's home entry: acknowledged, never flown to
         if cmd == MavCmd.DO_CHANGE_SPEED:
             if item.param2 > 0.0:
                 self._speed_override = item.param2

@@ -11,7 +11,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, fields
 from typing import Any
 
-from autopilot.mission.commands import AMSL_FRAMES, CURRENT_POSITION_OK
+from autopilot.mission.commands import AMSL_FRAMES, CURRENT_POSITION_OK, MavCmd
 from mavlink_bridge.frames import GeoPoint, LocalNedFrame
 from mavlink_bridge.gcs_types import MissionItem
 
@@ -43,6 +43,21 @@ class MissionPlan:
 def uses_current_position(item: MissionItem) -> bool:
     """True when the item's lat = lon = 0 means "at the vehicle's current position"."""
     return item.command in CURRENT_POSITION_OK and item.x_lat_deg == 0.0 and item.y_lon_deg == 0.0
+
+
+def is_wpl_home_line(index: int, item: MissionItem, home: GeoPoint) -> bool:
+    """True for an ArduPilot-style home entry sent as mission item 0 (MAVProxy's ``wp load``).
+
+    MAVProxy uploads line 0 of a QGC WPL file (the home position, frame GLOBAL, altitude AMSL)
+    as item 0. It is kept so a download equals the upload, passes validation although it sits
+    on the ground, and completes at once in the executor: it is never flown to.
+    """
+    return (
+        index == 0
+        and item.command == MavCmd.NAV_WAYPOINT
+        and item.frame in AMSL_FRAMES
+        and abs(alt_rel_home_m(item, home)) < 1.0
+    )
 
 
 def alt_rel_home_m(item: MissionItem, home: GeoPoint) -> float:

@@ -24,7 +24,7 @@ from autopilot.mission.commands import (
     frame_name,
 )
 from autopilot.mission.fence import FenceError, geofence_from_items
-from autopilot.mission.plan import alt_rel_home_m, uses_current_position
+from autopilot.mission.plan import alt_rel_home_m, is_wpl_home_line, uses_current_position
 from autopilot.params import ParamStore
 from mavlink_bridge.frames import GeoPoint, LocalNedFrame
 from mavlink_bridge.gcs_types import MissionItem, MissionResult, MissionType
@@ -122,7 +122,8 @@ def _check_position(i: int, item: MissionItem, home: GeoPoint, frame: LocalNedFr
                 "x_lat_deg",
                 f"{dist:.0f} m from home, more than the {limits.max_dist_m:g} m allowed (MIS_DIST_MAX)",
             )
-    if item.command in _ALT_CHECKED and not (here and item.command == MavCmd.NAV_LOITER_TIME):
+    on_ground_ok = (here and item.command == MavCmd.NAV_LOITER_TIME) or is_wpl_home_line(i, item, home)
+    if item.command in _ALT_CHECKED and not on_ground_ok:
         alt = alt_rel_home_m(item, home)
         if not limits.alt_min_m <= alt <= limits.alt_max_m:
             raise _RefusedError(
