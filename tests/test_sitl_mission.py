@@ -14,20 +14,18 @@ import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
-from conftest import REPO_ROOT, free_udp_port
-from sitl_procs import Ports, logs, read_json, start_autopilot, start_sim, stop
+from conftest import REPO_ROOT
+from sitl_procs import SitlPair, connect_gcs, landed_disarmed, logs, read_json, sitl_pair, upload_arm_start
 
 from autopilot.mission.commands import MavCmd
 from autopilot.mission.files import load_mission_file
-from autopilot.mission.plan import MissionPlan
 from autopilot.telemetry.recording_reader import read_recording
-from mavlink_bridge.gcs_client import CommandFailedError, GcsClient, MissionUploadError, VehicleStatus
-from mavlink_bridge.gcs_types import FlightMode, LandedState, MissionItem, MissionResult, MissionType
+from mavlink_bridge.gcs_client import GcsClient, MissionUploadError, VehicleStatus
+from mavlink_bridge.gcs_types import FlightMode, MissionItem, MissionResult
 from tools import gcs as gcs_script
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
@@ -60,70 +58,10 @@ mission:
 """
 
 
-@dataclass(frozen=True)
-class Sitl:
-    """One running sim + autopilot pair: the GCS link URL (and the API link's, when asked for)."""
-
-    log_dir: Path
-    gcs_url: str
-    api_url: str | None
-
-
-@contextmanager
-def sitl(log_dir: Path, mission: Path, *, seed: int = 3, api: bool = False, ap_extra: tuple[str, ...] = ()):
-    """Start ``python -m sim --world mission`` and ``python -m autopilot`` on free ports; stop both after.
-
-    The exit statuses are checked on the way out (both must stop cleanly on SIGTERM).
-    """
-    vehicle = load_mission_file(mission).vehicle
-    ports = Ports.free()
-    extra = list(ap_extra)
-    api_url = None
-    if api:
-        api_in, api_out = free_udp_port(), free_udp_port()
-        extra += ["--api", f"udpin:127.0.0.1:{api_in}", "--api-target", f"udpout:127.0.0.1:{api_out}"]
-        api_url = f"udpin:127.0.0.1:{api_out}"
-    sim_args = ("--world", str(mission), "--vehicle", vehicle, "--seed", str(seed), "--autopilot-timeout-s", "30")
-    sim = start_sim(log_dir, ports.sim, *sim_args)
-    ap = start_autopilot(log_dir, ports.sim, ports, "--vehicle", vehicle, *extra)
-    try:
-        yield Sitl(log_dir, f"udpin:127.0.0.1:{ports.gcs_target}", api_url)
-    finally:
-        ap_rc, sim_rc = stop(ap), stop(sim)
-    assert (ap_rc, sim_rc) == (0, 0), logs(log_dir)
-
-
 def _write(tmp_path: Path, text: str, name: str = "mission.yaml") -> Path:
     path = tmp_path / name
     path.write_text(text)
     return path
-
-
-def _connect(url: str) -> GcsClient:
-    client = GcsClient(url, timeout_s=20.0)
-    client.wait_heartbeat(60.0)
-    return client
-
-
-def _upload_arm_start(client: GcsClient, plan: MissionPlan) -> None:
-    """Upload mission + fence once the vehicle has a GPS fix and home, arm (retrying while refused), start."""
-    client.wait_until(lambda s: s.gps_fix_type >= 3 and s.home is not None, 60.0)
-    client.upload_mission(plan.items, MissionType.MISSION)
-    client.upload_mission(plan.fence, MissionType.FENCE)
-    deadline = time.monotonic() + 60.0
-    while True:
-        try:
-            client.arm()
-            break
-        except CommandFailedError:
-            if time.monotonic() > deadline:
-                raise
-            client.pump(0.5)
-    client.start_mission()
-
-
-def _landed_disarmed(s: VehicleStatus) -> bool:
-    return not s.armed and s.landed_state is LandedState.ON_GROUND
 
 
 def _north(s: VehicleStatus) -> float:
@@ -151,9 +89,9 @@ def test_delivery_mission_through_gcs_fly(tmp_path: Path) -> None:
     mission = MISSIONS / "delivery.yaml"
     plan = load_mission_file(mission)
     rrd, summary_path = tmp_path / "flight.rrd", tmp_path / "gcs_summary.json"
-    with sitl(tmp_path, mission, seed=2, api=True, ap_extra=("--rerun", f"save:{rrd}")) as s:
+    with sitl_pair(tmp_path, mission, seed=2, api=True, ap_extra=("--rerun", f"save:{rrd}")) as s:
         assert s.api_url is not None
-        with _connect(s.api_url) as observer:  # a second client on the API link sees what the GCS sees
+        with connect_gcs(s.api_url) as observer:  # a second client on the API link sees what the GCS sees
             cmd = [sys.executable, "-m", "tools.gcs", "--connect", s.gcs_url, "fly", str(mission)]
             cmd += ["--summary", str(summary_path), "--no-progress", "--timeout-s", "400"]
             with open(tmp_path / "gcs.log", "wb") as out:
@@ -175,7 +113,7 @@ def test_delivery_mission_through_gcs_fly(tmp_path: Path) -> None:
     assert summary["ok"] is True and summary["landed"] is True and summary["disarmed"] is True
     assert summary["items_total"] == summary["items_reached"] == n
     assert seen.items_reached == tuple(range(n))  # MISSION_ITEM_REACHED, each once, in mission order
-    assert _landed_disarmed(seen)
+    assert landed_disarmed(seen)
 
     ap, sim = read_json(tmp_path / "autopilot_summary.json"), read_json(tmp_path / "sim_summary.json")
     assert ap["reached_seqs"] == list(range(n))  # the autopilot's own log: no item twice, none skipped
@@ -204,16 +142,16 @@ def test_rtl_and_land_commanded_in_flight(tmp_path: Path, command: str, mode: Fl
     """Mid-way along the first leg: RTL flies home and lands there, LAND lands where it is; both disarm."""
     mission = _write(tmp_path, SHORT_ROUTE)
     plan = load_mission_file(mission)
-    with sitl(tmp_path, mission) as s, _connect(s.gcs_url) as client:
+    with sitl_pair(tmp_path, mission) as s, connect_gcs(s.gcs_url) as client:
         client.set_param("MIS_RTL_ALT", 8.0)  # return at the cruise altitude (no climb): a shorter flight
-        _upload_arm_start(client, plan)
+        upload_arm_start(client, plan)
         client.wait_until(lambda st: _north(st) > 20.0, 120.0)
         if command == "rtl":
             client.rtl()
         else:
             client.land()
         client.wait_until(lambda st: st.mode is mode, 20.0)
-        end = client.wait_until(_landed_disarmed, 180.0)
+        end = client.wait_until(landed_disarmed, 180.0)
     assert plan.items and len(plan.items) - 1 not in end.items_reached  # the mission was cut short
     ap, sim = read_json(tmp_path / "autopilot_summary.json"), read_json(tmp_path / "sim_summary.json")
     assert mode.name in [m["mode"] for m in ap["mode_history"]]  # type: ignore[union-attr]
@@ -246,8 +184,8 @@ def test_speed_limit_changed_in_flight_takes_effect(tmp_path: Path) -> None:
     """MPC_XY_VEL_MAX lowered from 12 to 3 m/s on a leg flown at 8 m/s: the ground speed follows it."""
     mission = _write(tmp_path, LONG_LEG)
     plan = load_mission_file(mission)
-    with sitl(tmp_path, mission) as s, _connect(s.gcs_url) as client:
-        _upload_arm_start(client, plan)
+    with sitl_pair(tmp_path, mission) as s, connect_gcs(s.gcs_url) as client:
+        upload_arm_start(client, plan)
         client.wait_until(lambda st: _north(st) > 15.0, 120.0)
         before = _ground_speeds(client, lambda st: _north(st) > 40.0, 60.0)
         assert client.set_param("MPC_XY_VEL_MAX", 3.0) == 3.0
@@ -271,8 +209,8 @@ def test_invalid_mission_in_flight_is_refused_and_the_old_one_completes(tmp_path
     mission = _write(tmp_path, SHORT_ROUTE)
     plan = load_mission_file(mission)
     n = len(plan.items)
-    with sitl(tmp_path, mission) as s, _connect(s.gcs_url) as client:
-        _upload_arm_start(client, plan)
+    with sitl_pair(tmp_path, mission) as s, connect_gcs(s.gcs_url) as client:
+        upload_arm_start(client, plan)
         client.wait_until(lambda st: _north(st) > 5.0, 120.0)  # airborne, on the first leg
         for what, corrupt, result in BAD_ITEMS:
             new = [*plan.items, replace(plan.items[2], x_lat_deg=plan.items[2].x_lat_deg + 1e-4)]
@@ -281,7 +219,7 @@ def test_invalid_mission_in_flight_is_refused_and_the_old_one_completes(tmp_path
                 client.upload_mission(new)
             assert err.value.result is result, what
         _assert_same_items(client.download_mission(), plan.items)  # the old mission is still the mission
-        end = client.wait_until(_landed_disarmed, 240.0)
+        end = client.wait_until(landed_disarmed, 240.0)
         client.pump(0.5)
         end = client.telemetry()
     assert end.items_reached == tuple(range(n)), logs(tmp_path)
@@ -292,17 +230,17 @@ def test_invalid_mission_in_flight_is_refused_and_the_old_one_completes(tmp_path
 
 # ---- upload / download round trips with the real autopilot ---------------------------------------------------
 @pytest.fixture(scope="module")
-def idle_sitl(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Sitl]:
+def idle_sitl(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SitlPair]:
     """One idle pair for the round trips (nothing flies)."""
     log_dir = tmp_path_factory.mktemp("round_trip")
-    with sitl(log_dir, MISSIONS / "delivery.yaml") as s:
-        with _connect(s.gcs_url) as client:
+    with sitl_pair(log_dir, MISSIONS / "delivery.yaml") as s:
+        with connect_gcs(s.gcs_url) as client:
             client.wait_until(lambda st: st.gps_fix_type >= 3 and st.home is not None, 60.0)
         yield s
 
 
 @pytest.mark.parametrize("name", ["delivery.yaml", "delivery.waypoints", "delivery.plan"])
-def test_upload_download_round_trip(idle_sitl: Sitl, tmp_path: Path, name: str) -> None:
+def test_upload_download_round_trip(idle_sitl: SitlPair, tmp_path: Path, name: str) -> None:
     """``tools.gcs upload FILE`` then ``download OUT`` (same format): the file read back equals the original."""
     src = MISSIONS / name
     out = tmp_path / f"downloaded{src.suffix}"
@@ -323,10 +261,10 @@ def test_upload_download_round_trip(idle_sitl: Sitl, tmp_path: Path, name: str) 
     reason="autopilot/runner.py Autopilot.snapshot() never sets TelemetrySnapshot.mission_state, so every "
     "MISSION_CURRENT says MISSION_STATE_UNKNOWN (0) instead of NOT_STARTED/ACTIVE/PAUSED/COMPLETE",
 )
-def test_mission_current_reports_the_mission_state(idle_sitl: Sitl) -> None:
+def test_mission_current_reports_the_mission_state(idle_sitl: SitlPair) -> None:
     """After an upload and before MISSION_START: MISSION_CURRENT says NOT_STARTED with the item count."""
     plan = load_mission_file(MISSIONS / "delivery.yaml")
-    with _connect(idle_sitl.gcs_url) as client:
+    with connect_gcs(idle_sitl.gcs_url) as client:
         client.upload_mission(plan.items)
         status = client.wait_until(lambda st: st.mission_count == len(plan.items), 30.0)
         client.pump(1.5)  # MISSION_CURRENT is streamed (PX4: 1 Hz) besides being sent on change
@@ -335,8 +273,8 @@ def test_mission_current_reports_the_mission_state(idle_sitl: Sitl) -> None:
     assert status.mission_state == MISSION_STATE_NOT_STARTED
 
 
-def test_600_item_upload_and_download(idle_sitl: Sitl) -> None:
-    with _connect(idle_sitl.gcs_url) as client:
+def test_600_item_upload_and_download(idle_sitl: SitlPair) -> None:
+    with connect_gcs(idle_sitl.gcs_url) as client:
         home = client.wait_until(lambda st: st.home is not None, 60.0).home
         assert home is not None
         lat_e7, lon_e7 = round(home.lat_deg * 1e7), round(home.lon_deg * 1e7)
