@@ -67,6 +67,11 @@ AUTOPILOT_SYSTEM_ID = 1
 AUTOPILOT_COMPONENT_ID = _dialect.MAV_COMP_ID_AUTOPILOT1
 
 _HIL_CONTROLS_COUNT = 16
+#: HIL_ACTUATOR_CONTROLS payload (time_usec, flags, controls[16], mode) with only the channels we send as
+#: arguments: the motors (0-3) and the gripper; pad bytes are the zero floats of the unused channels.
+_ACTUATORS_PAYLOAD = struct.Struct(
+    f"<QQ4f{4 * (GRIPPER_CHANNEL - 4)}xf{4 * (_HIL_CONTROLS_COUNT - GRIPPER_CHANNEL - 1)}xB"
+)
 _UINT16_UNKNOWN = 0xFFFF
 
 
@@ -155,12 +160,15 @@ def _u16_or_unknown(x: float) -> int:
     return _sat(x, 0, _UINT16_UNKNOWN - 1) if math.isfinite(x) else _UINT16_UNKNOWN
 
 
+_MG_PER_M_S2 = 1000.0 / GRAVITY_M_S2
+
+
 def _truth_payload(t: GroundTruth, i16: Callable[[float], int], i32: Callable[[float], int]) -> bytes:
     """HIL_STATE_QUATERNION payload; ``i16``/``i32`` round (fast path) or round and saturate."""
     q, w, v, a = t.q_ned_frd, t.rate_frd_rad_s, t.vel_ned_m_s, t.accel_frd_m_s2
     vx_cm_s, vy_cm_s, vz_cm_s = i16(v[0] * 100.0), i16(v[1] * 100.0), i16(v[2] * 100.0)
     speed_cm_s = min(round(math.sqrt(vx_cm_s * vx_cm_s + vy_cm_s * vy_cm_s + vz_cm_s * vz_cm_s)), 65535)
-    to_mg = 1000.0 / GRAVITY_M_S2
+    to_mg = _MG_PER_M_S2
     return _HIL_STATE_Q.payload.pack(
         t.time_us,
         q[0],
@@ -286,14 +294,16 @@ class Encoder:
         return self._frame(_OBSTACLE_3D, payload)
 
     def actuators(self, c: ActuatorCommand) -> bytes:
-        """HIL_ACTUATOR_CONTROLS (motors on channels 0-3, gripper on GRIPPER_CHANNEL)."""
-        controls = [0.0] * _HIL_CONTROLS_COUNT
-        controls[0:4] = c.motor_cmd
-        controls[GRIPPER_CHANNEL] = 1.0 if c.gripper_release else 0.0
-        payload = _HIL_ACTUATORS.payload.pack(
+        """HIL_ACTUATOR_CONTROLS (motors on channels 0-3, gripper on GRIPPER_CHANNEL, the other channels 0)."""
+        m = c.motor_cmd
+        payload = _ACTUATORS_PAYLOAD.pack(
             c.time_us,
             ACTUATOR_FLAG_LOCKSTEP if c.lockstep else 0,
-            *controls,
+            m[0],
+            m[1],
+            m[2],
+            m[3],
+            1.0 if c.gripper_release else 0.0,
             ACTUATOR_MODE_ARMED if c.armed else 0,
         )
         return self._frame(_HIL_ACTUATORS, payload)
