@@ -123,6 +123,7 @@ _PAD = tuple(bytes(k) for k in range(256))
 
 _V2_HEADER = struct.Struct("<BBBBBBBHB")  # magic, len, incompat, compat, seq, sys, comp, id lo16, id hi8
 _V2_HEADER_LEN = _V2_HEADER.size  # 10
+_V2_HEADER_IN = struct.Struct("<xBBxxBBHB")  # what decoding reads: len, incompat, sys, comp, id lo16, id hi8
 _V1_HEADER = struct.Struct("<BBBBBB")  # magic, len, seq, sys, comp, id
 _V1_HEADER_LEN = _V1_HEADER.size  # 6
 _CRC = struct.Struct("<H")
@@ -431,52 +432,57 @@ class Decoder:
     def decode(self, data: bytes) -> list[WireMessage]:
         """All wire messages in one datagram, in order."""
         out: list[WireMessage] = []
-        stats = self.stats
         view = memoryview(data)
         n = len(data)
         i = 0
+        decoded = ignored = signed = 0
+        system_id = component_id = -1
         while i < n:
             magic = data[i]
             if magic == _V2_MAGIC and n - i >= _V2_HEADER_LEN + 2:
-                _, plen, incompat, _, _, system_id, component_id, id_lo, id_hi = _V2_HEADER.unpack_from(data, i)
+                plen, incompat, sys_id, comp_id, id_lo, id_hi = _V2_HEADER_IN.unpack_from(data, i)
                 msg_id = id_lo | (id_hi << 16)
                 start = i + _V2_HEADER_LEN
-                end = start + plen
-                frame_end = end + 2 + (_SIGNATURE_LEN if incompat & _IFLAG_SIGNED else 0)
             elif magic == _V1_MAGIC and n - i >= _V1_HEADER_LEN + 2:
-                _, plen, _, system_id, component_id, msg_id = _V1_HEADER.unpack_from(data, i)
+                _, plen, _, sys_id, comp_id, msg_id = _V1_HEADER.unpack_from(data, i)
                 incompat = 0
                 start = i + _V1_HEADER_LEN
-                end = start + plen
-                frame_end = end + 2
             else:
                 i = self._resync(data, i + 1)
                 continue
+            end = start + plen
+            frame_end = end + 2 + (_SIGNATURE_LEN if incompat & _IFLAG_SIGNED else 0)
             entry = _TABLE.get(msg_id)
             if (
                 entry is None
                 or incompat & ~_IFLAG_SIGNED
                 or frame_end > n
-                or _CRC.unpack_from(data, end)[0] != _crc_mcrf4xx(entry[0], _crc_mcrf4xx(view[i + 1 : end]))
+                or data[end] | (data[end + 1] << 8) != _crc_mcrf4xx(entry[0], _crc_mcrf4xx(view[i + 1 : end]))
             ):
                 i = self._resync(data, i + 1)
                 continue
             i = frame_end
-            self.last_system_id = system_id
-            self.last_component_id = component_id
+            system_id, component_id = sys_id, comp_id
             if incompat:
-                stats.signed += 1
+                signed += 1
             _, size, fn = entry
             if fn is None:
-                stats.ignored += 1
+                ignored += 1
                 continue
             # in place when nothing was truncated (longer: extensions we do not read), else zero-padded
             msg = fn(data, start) if plen >= size else fn(data[start:end] + _PAD[size - plen], 0)
             if msg is None:
-                stats.ignored += 1
+                ignored += 1
             else:
-                stats.decoded += 1
+                decoded += 1
                 out.append(msg)
+        if system_id >= 0:
+            self.last_system_id = system_id
+            self.last_component_id = component_id
+        stats = self.stats
+        stats.decoded += decoded
+        stats.ignored += ignored
+        stats.signed += signed
         return out
 
     def _resync(self, data: bytes, start: int) -> int:
