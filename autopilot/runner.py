@@ -34,7 +34,7 @@ from autopilot.control.airframe import Airframe, load_airframe
 from autopilot.control.cascade import GRAVITY_M_S2, CascadeController
 from autopilot.control.param_decls import gains_from_params, limits_from_params
 from autopilot.estimator import Estimator, FrameLike, VehicleState, make_estimator
-from autopilot.failsafe import BatteryModel, FailsafeInputs, FailsafeMonitor
+from autopilot.failsafe import BatteryModel, FailsafeInputs, FailsafeKind, FailsafeMonitor
 from autopilot.fence_zones import planner_fence_zones
 from autopilot.mission.commands import MissionState
 from autopilot.mission.executor import (
@@ -76,6 +76,11 @@ from mavlink_bridge.wire import ActuatorCommand, ObstacleDetection, Vec3
 #: motor outputs, AHRS, battery.
 _SENSORS_PRESENT = 0x1 | 0x2 | 0x4 | 0x8 | 0x20 | 0x400 | 0x800 | 0x4000 | 0x8000 | 0x200000 | 0x2000000
 _SENSOR_GPS = 0x20
+#: Geofence (healthy = no breach; MAVProxy reports a breach when the bit is absent) and pre-arm checks
+#: (healthy = arming checks pass; MAVSDK's ``health.is_armable`` and QGC's "ready to fly" read it).
+_SENSOR_GEOFENCE = 0x100000
+_SENSOR_PREARM_CHECK = 0x10000000
+_SENSORS_REPORTED = _SENSORS_PRESENT | _SENSOR_GEOFENCE | _SENSOR_PREARM_CHECK
 #: Publish the telemetry snapshot every this many control steps (62.5 Hz at 250 Hz) and on any event.
 _SNAPSHOT_EVERY = 4
 #: Controller parameters that are cascade limits rather than gains (the cascade packs them at construction).
@@ -719,13 +724,23 @@ class Autopilot:
             battery_current_a=self.battery.current_a(self.thrust_ratio),
             battery_remaining_pct=100.0 * self.battery.remaining,
             throttle_pct=100.0 * min(1.0, self.thrust_ratio * self._hover_fraction()),
-            sensors_present=_SENSORS_PRESENT,
-            sensors_enabled=_SENSORS_PRESENT,
-            sensors_health=_SENSORS_PRESENT if gps_ok else _SENSORS_PRESENT & ~_SENSOR_GPS,
+            sensors_present=_SENSORS_REPORTED,
+            sensors_enabled=_SENSORS_REPORTED,
+            sensors_health=self._sensors_health(state, gps_ok),
             mission_seq_current=out.current_seq if out is not None else 0,
             mission_count=len(self.mission),
             mission_reached=reached,
         )
+
+    def _sensors_health(self, state: VehicleState, gps_ok: bool) -> int:
+        """SYS_STATUS health bits: GPS with a 3D fix, no geofence breach, pre-arm checks passing."""
+        commander = self.commander
+        health = _SENSORS_PRESENT if gps_ok else _SENSORS_PRESENT & ~_SENSOR_GPS
+        if FailsafeKind.GEOFENCE.value not in commander.failsafe_reasons:
+            health |= _SENSOR_GEOFENCE
+        if commander.armed or commander.arming_refusal(state) is None:
+            health |= _SENSOR_PREARM_CHECK
+        return health
 
     def _hover_fraction(self) -> float:
         """Hover thrust as a fraction of the maximum (to turn thrust_ratio into throttle)."""

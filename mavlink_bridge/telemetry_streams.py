@@ -151,12 +151,13 @@ class TelemetryStreams:
             self._heartbeat(snapshot)
             self._extended_sys_state(snapshot)
             self._next_due_us[M.MAVLINK_MSG_ID_HEARTBEAT] = t_us + self.interval_us[M.MAVLINK_MSG_ID_HEARTBEAT]
+        # MISSION_ITEM_REACHED before the MISSION_CURRENT that moves past it, so progress never steps back
+        for seq in snapshot.mission_reached:
+            self._mav.mission_item_reached_send(seq)
         mission = (snapshot.mission_seq_current, snapshot.mission_count, snapshot.mission_state)
         if mission != self._last_mission:
             self._last_mission = mission
             self._mission_current(snapshot)
-        for seq in snapshot.mission_reached:
-            self._mav.mission_item_reached_send(seq)
         if t_us < self._next_any_due_us:
             return  # most control steps: nothing due
         wall_s = self._wall_clock() if self._min_wall_gap_scale is not None else 0.0
