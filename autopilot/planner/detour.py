@@ -4,32 +4,58 @@ For each side the detour lies in a plane through the obstacle centre spanned by 
 route direction ``e1`` and the side direction ``e2`` (up/down for over/under, right/left for the
 sides); the third coordinate is interpolated linearly from the vehicle to the rejoin point. In that
 plane the shortest path from the vehicle to the rejoin point around the safety circle of radius
-``ρ = r + R_safe + margin`` is tangent–arc–tangent; its length is the candidate's Euclidean
-cost. Cheap rules first (ground, altitude floor/ceiling, a column's unknown top), then, in order of
-cost, the fitted Bézier (``bezier.fit_detour``) is checked against the dynamic limits, every
-tracked obstacle (clearance >= R_safe + half the sample spacing), the altitude band and the
-fences; the first candidate that passes is chosen.
+``ρ = r + R_safe + margin`` is tangent–arc–tangent; its length is the candidate's Euclidean cost.
+
+The rejoin point lies ``ρ + rejoin_m`` along the route past the route's *first* pass by the
+obstacle (progress along a self-crossing route is monotone: a later pass of the same place is not
+where the vehicle is). The route after the rejoin point, for the vehicle's stopping distance plus
+``CONTINUATION_S`` of flight, must clear every obstacle by R_safe too: a detour must not hand the
+vehicle back to the route where it cannot brake or turn before the next safety volume.
+
+One search (:func:`plan_detour`), in plain Python until a curve is fitted (numpy's per-call overhead
+dominates on a handful of points):
+
+1. the four sides around the threat are built once (tangent–arc–tangent polylines), ruled out by
+   cheap rules (ground, altitude floor/ceiling, a column's unknown top) and checked exactly, segment
+   by segment, against every tracked obstacle's R_safe volume and the fences;
+2. while a side blocked by other obstacles is cheaper than the best open candidate, the threat's
+   volume is merged with the nearest blocker (:func:`enclosing_volume`, up to ``MAX_CLUSTER_MERGES``
+   times) and the four sides are built around the cluster: candidates of every merge level are
+   ranked together by cost;
+3. only the cheapest open candidate is fitted (``bezier.fit_detour``) and its curve checked against
+   the dynamic limits, every obstacle (clearance >= R_safe + half the sample spacing), the altitude
+   band and the fences; on failure the next one is, and the first that passes is chosen. A side
+   whose curve broke the dynamic limits is not fitted again around a larger cluster (it only turns
+   harder).
 """
 
 from __future__ import annotations
 
+import heapq
 import itertools
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import Enum
 
 import numpy as np
 
 from .bezier import BezierPath, bernstein_matrix, fit_detour
-from .geometry import FenceZone, path_clear_of_fences, polyline_length
+from .geometry import FenceZone, path_clear_of_fences
 from .obstacle_map import ObstacleArrays, ObstacleKind, TrackedObstacle
 
-_UP_NED = np.array((0.0, 0.0, -1.0))
 _ARC_STEP_RAD = math.radians(30.0)
 _SAMPLE_STEP_M = 0.4
 #: How many times blocking neighbours may be merged into the threat's volume before giving up.
 MAX_CLUSTER_MERGES = 3
+#: The route after the rejoin point is checked for the stopping distance plus this many seconds of flight.
+CONTINUATION_S = 2.0
+#: How many times the rejoin point is pushed past a later pass of the same obstacle(s) on the route.
+_MAX_REJOIN_PUSHES = 3
+
+V3 = tuple[float, float, float]
+#: ``ObstacleArrays.rows``: (id, north, east, down, radius, is_sphere, top_down).
+Row = tuple[int, float, float, float, float, bool, float]
 
 
 class DetourSide(Enum):
@@ -46,8 +72,8 @@ class CandidateStatus(Enum):
     """Outcome of one candidate."""
 
     CHOSEN = "chosen"
-    RULED_OUT = "ruled out"  # by a rule before fitting (ground, ceiling, column top unknown, fence)
-    BLOCKED = "blocked"  # its fitted curve fails a check (obstacle, fence, limits)
+    RULED_OUT = "ruled out"  # by a rule before fitting (ground, ceiling, column top unknown)
+    BLOCKED = "blocked"  # its polyline or fitted curve fails a check (obstacle, fence, limits)
     NOT_EVALUATED = "not evaluated"  # a cheaper candidate was chosen first
 
 
@@ -79,7 +105,13 @@ class DetourLimits:
 
 @dataclass(frozen=True, slots=True)
 class DetourPlan:
-    """A chosen detour: via polyline, the fitted Bézier path, its samples and checks."""
+    """A chosen detour: via polyline, the fitted Bézier path, its samples and checks.
+
+    ``rejoin_route_index`` is the index, in the route the detour was planned on (0 = the current
+    target, k = the k-th waypoint after it), of the waypoint that ends the route leg the detour
+    rejoins: once the detour is flown, the route resumes toward it (the waypoints before it were
+    bypassed). ``continuation_ned`` is the route after the rejoin point that was checked clear.
+    """
 
     side: DetourSide
     obstacle_id: int
@@ -89,6 +121,8 @@ class DetourPlan:
     cost_m: float
     min_clearance_m: float  # over the samples, to every tracked obstacle surface
     rejoin_ned: np.ndarray
+    rejoin_route_index: int = 0
+    continuation_ned: np.ndarray = field(default_factory=lambda: np.empty((0, 3)))
 
 
 @dataclass(frozen=True, slots=True)
@@ -99,49 +133,129 @@ class DetourResult:
     candidates: tuple[CandidateReport, ...]
 
 
-def _unit(v: np.ndarray) -> np.ndarray | None:
-    n = float(np.linalg.norm(v))
-    return v / n if n > 1e-9 else None
+# ------------------------------------------------------------------------------- scalar geometry
 
 
-def _point_at_arclength(points: np.ndarray, s_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """Point at arc length ``s_m`` along a polyline (clamped) and the unit direction there."""
-    left = max(s_m, 0.0)
-    for a, b in itertools.pairwise(points):
-        seg = float(np.linalg.norm(b - a))
-        if seg < 1e-9:
+def _seg_distance(a: V3, b: V3, c: V3, planar: bool) -> tuple[float, float]:
+    """Distance from point c to segment a->b (horizontal only when ``planar``) and the closest fraction t."""
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    fx, fy = c[0] - a[0], c[1] - a[1]
+    if planar:
+        dd = dx * dx + dy * dy
+        t = 0.0 if dd < 1e-12 else min(max((fx * dx + fy * dy) / dd, 0.0), 1.0)
+        return math.hypot(fx - t * dx, fy - t * dy), t
+    dz, fz = b[2] - a[2], c[2] - a[2]
+    dd = dx * dx + dy * dy + dz * dz
+    t = 0.0 if dd < 1e-12 else min(max((fx * dx + fy * dy + fz * dz) / dd, 0.0), 1.0)
+    ex, ey, ez = fx - t * dx, fy - t * dy, fz - t * dz
+    return math.sqrt(ex * ex + ey * ey + ez * ez), t
+
+
+def _row_distance(row: Row, p: V3) -> float:
+    """Signed distance of a point to one obstacle row (same volumes as ``ObstacleArrays``)."""
+    _, cx, cy, cz, r, sphere, top = row
+    h = math.hypot(p[0] - cx, p[1] - cy)
+    if sphere:
+        return math.hypot(h, p[2] - cz) - r
+    dr, cap = h - r, top - p[2]
+    if cap > 0.0:
+        return math.hypot(max(dr, 0.0), cap) + min(max(dr, cap), 0.0)
+    return dr
+
+
+def _polyline_blocker(points: Sequence[V3], rows: Sequence[Row], need: Sequence[float]) -> int:
+    """Id of the obstacle whose clearance along the polyline falls furthest below ``need`` (-1: none).
+
+    Exact per segment (sphere: 3D segment distance; column: horizontal, skipped where the segment
+    passes ``need`` above a known top); obstacles out of reach of the polyline's bounding box are skipped.
+    """
+    xs, ys, zs = [p[0] for p in points], [p[1] for p in points], [p[2] for p in points]
+    x0, x1, y0, y1, z0, z1 = min(xs), max(xs), min(ys), max(ys), min(zs), max(zs)
+    worst, worst_id = 0.0, -1
+    for k, row in enumerate(rows):
+        oid, cx, cy, cz, r, sphere, top = row
+        reach = r + need[k]
+        if cx < x0 - reach or cx > x1 + reach or cy < y0 - reach or cy > y1 + reach:
             continue
-        if left <= seg:
-            return a + (b - a) * (left / seg), (b - a) / seg
-        left -= seg
-    tail = next(
-        (b - a for a, b in zip(points[-2::-1], points[::-1], strict=False) if np.linalg.norm(b - a) > 1e-9), None
-    )
-    direction = _unit(tail) if tail is not None else None
-    return points[-1].copy(), direction if direction is not None else np.array((1.0, 0.0, 0.0))
+        if sphere and (cz < z0 - reach or cz > z1 + reach):
+            continue
+        c = (cx, cy, cz)
+        for i in range(len(points) - 1):
+            a, b = points[i], points[i + 1]
+            if not sphere and max(a[2], b[2]) < top - need[k]:
+                continue
+            short = reach - _seg_distance(a, b, c, not sphere)[0]
+            if short > worst:
+                worst, worst_id = short, oid
+    return worst_id
 
 
-def _closest_arclength(points: np.ndarray, obstacle: TrackedObstacle) -> float:
-    """Arc length of the polyline point nearest the obstacle centre (axis for a column)."""
-    c = np.array(obstacle.center_ned)
-    dims = slice(0, 3) if obstacle.kind is ObstacleKind.SPHERE else slice(0, 2)
-    best_d, best_s, s0 = math.inf, 0.0, 0.0
-    for a, b in itertools.pairwise(points):
-        d = (b - a)[dims]
-        seg = float(np.linalg.norm(b - a))
-        dd = float(d @ d)
-        t = 0.0 if dd < 1e-12 else min(max(float((c[dims] - a[dims]) @ d) / dd, 0.0), 1.0)
-        dist = float(np.linalg.norm(a[dims] + t * d - c[dims]))
-        if dist < best_d:
-            best_d, best_s = dist, s0 + t * seg
-        s0 += seg
-    return best_s
+class _Route:
+    """The route ahead as a polyline (vehicle first) with cumulative arc lengths."""
+
+    def __init__(self, points: list[V3]) -> None:
+        self.points = points
+        self.cum = [0.0]
+        for a, b in itertools.pairwise(points):
+            self.cum.append(self.cum[-1] + math.dist(a, b))
+
+    def first_pass(self, center: V3, planar: bool, rho: float) -> float:
+        """Arc length of the point nearest ``center`` on the route's first pass within ``rho`` of it.
+
+        A pass is a run of consecutive segments within ``rho``; the nearest point over the whole
+        route is the fallback when no segment comes that close.
+        """
+        best_d, best_s = math.inf, 0.0
+        pass_d, pass_s = math.inf, -1.0
+        pts, cum = self.points, self.cum
+        for i in range(len(pts) - 1):
+            d, t = _seg_distance(pts[i], pts[i + 1], center, planar)
+            s = cum[i] + t * (cum[i + 1] - cum[i])
+            if d < best_d:
+                best_d, best_s = d, s
+            if d <= rho:
+                if d < pass_d:
+                    pass_d, pass_s = d, s
+            elif pass_s >= 0.0:
+                break
+        return pass_s if pass_s >= 0.0 else best_s
+
+    def at(self, s_m: float) -> tuple[V3, V3, int]:
+        """Point at arc length ``s_m`` (clamped to the ends), the unit direction there and the segment index."""
+        pts, cum = self.points, self.cum
+        s_m = max(s_m, 0.0)
+        direction, index = (1.0, 0.0, 0.0), 0
+        for i in range(len(pts) - 1):
+            seg = cum[i + 1] - cum[i]
+            if seg < 1e-9:
+                continue
+            a, b = pts[i], pts[i + 1]
+            direction, index = ((b[0] - a[0]) / seg, (b[1] - a[1]) / seg, (b[2] - a[2]) / seg), i
+            if s_m <= cum[i + 1]:
+                t = (s_m - cum[i]) / seg
+                return (a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2])), direction, i
+        return pts[-1], direction, index
+
+    def stretch(self, s_from: float, length_m: float) -> list[V3]:
+        """The route polyline from arc length ``s_from`` for ``length_m`` (clamped to its end)."""
+        start, _, i = self.at(s_from)
+        out = [start]
+        s_end = s_from + length_m
+        for j in range(i + 1, len(self.points)):
+            if self.cum[j] >= s_end:
+                out.append(self.at(s_end)[0])
+                return out
+            out.append(self.points[j])
+        return out
 
 
-def _tangent_angle(p_uw: np.ndarray, rho: float) -> float:
+# ------------------------------------------------------------------------------- candidates
+
+
+def _tangent_angle(pu: float, pw: float, rho: float) -> float:
     """Angle of the tangent point from p to the circle |x| = ρ on the +w side (radial if inside)."""
-    d = math.hypot(p_uw[0], p_uw[1])
-    alpha = math.atan2(p_uw[1], p_uw[0])
+    d = math.hypot(pu, pw)
+    alpha = math.atan2(pw, pu)
     if d <= rho:
         return alpha
     beta = math.acos(rho / d)
@@ -149,71 +263,105 @@ def _tangent_angle(p_uw: np.ndarray, rho: float) -> float:
     return a1 if math.sin(a1) >= math.sin(a2) else a2
 
 
-def _arc_polyline_uw(p_uw: np.ndarray, j_uw: np.ndarray, rho: float) -> tuple[np.ndarray, float]:
+def _arc_polyline_uw(
+    p: tuple[float, float], j: tuple[float, float], rho: float
+) -> tuple[list[tuple[float, float]], float]:
     """Tangent–arc–tangent from p to j passing the circle on the +w side: via points (u, w) and length."""
-    th_p, th_j = _tangent_angle(p_uw, rho), _tangent_angle(j_uw, rho)
+    two_pi = 2.0 * math.pi
+    th_p = _tangent_angle(p[0], p[1], rho) % two_pi
+    th_j = _tangent_angle(j[0], j[1], rho) % two_pi
     # angles measured so that moving from p (behind, u < 0) to j (ahead) decreases θ through π/2
-    th_p = th_p % (2 * math.pi)
-    th_j = th_j % (2 * math.pi)
     if th_j > th_p:
-        th_j -= 2 * math.pi
+        th_j -= two_pi
     sweep = th_p - th_j
-    if sweep > math.pi * 1.5 or (p_uw[1] >= rho and j_uw[1] >= rho):
-        return np.empty((0, 2)), float(np.linalg.norm(j_uw - p_uw))  # the straight line already clears
+    if sweep > math.pi * 1.5 or (p[1] >= rho and j[1] >= rho):
+        return [], math.dist(p, j)  # the straight line already clears
     n = max(1, math.ceil(sweep / _ARC_STEP_RAD))
     step = sweep / n
     r_via = rho / math.cos(step / 2.0)  # circumscribed polygon: its chords stay outside ρ
-    th = th_p - step * np.arange(n + 1)
-    via = r_via * np.stack((np.cos(th), np.sin(th)), axis=1)
-    length = (
-        math.hypot(*(via[0] - p_uw))
-        + float(np.linalg.norm(np.diff(via, axis=0), axis=1).sum())
-        + math.hypot(*(j_uw - via[-1]))
-    )
-    return via, length
+    via = [(r_via * math.cos(th_p - step * i), r_via * math.sin(th_p - step * i)) for i in range(n + 1)]
+    chord = 2.0 * r_via * math.sin(step / 2.0)
+    return via, math.dist(p, via[0]) + n * chord + math.dist(via[-1], j)
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class _Candidate:
+    """One side around one merge level's volume, as the search sees it (mutable within one search)."""
+
     side: DetourSide
-    via_ned: np.ndarray
+    level: int
+    via: list[V3]  # vehicle, via points, rejoin
     cost_m: float
-    rule: str  # non-empty: ruled out by this rule
+    status: CandidateStatus | None = None  # None: open (passed the polyline checks, not fitted yet)
+    reason: str = ""
+
+    def report(self) -> CandidateReport:
+        return CandidateReport(self.side, self.cost_m, self.status or CandidateStatus.NOT_EVALUATED, self.reason)
+
+
+@dataclass(slots=True)
+class _Level:
+    """One merge level: the volume, where the detours around it rejoin, and its four candidates."""
+
+    volume: TrackedObstacle
+    members: frozenset[int]  # obstacle ids the volume encloses
+    rejoin: V3
+    route_dir: V3
+    rejoin_index: int
+    continuation: list[V3]
+    candidates: list[_Candidate]
+    blockers: set[int]  # obstacles (not members) that block a candidate: merging one may open it
+    bound_m: float  # least cost of a candidate so blocked (a merge cannot be cheaper than that side was)
+
+
+_SIDES = (DetourSide.LEFT, DetourSide.RIGHT, DetourSide.OVER, DetourSide.UNDER)
+
+
+def _side_axes(side: DetourSide, e1: V3) -> tuple[V3, V3]:
+    """The side direction e2 and the normal e3 = e1 × e2 of a candidate's plane (e1 horizontal)."""
+    ex, ey = e1[0], e1[1]
+    if side is DetourSide.OVER:
+        return (0.0, 0.0, -1.0), (-ey, ex, 0.0)
+    if side is DetourSide.UNDER:
+        return (0.0, 0.0, 1.0), (ey, -ex, 0.0)
+    if side is DetourSide.RIGHT:
+        return (-ey, ex, 0.0), (0.0, 0.0, 1.0)
+    return (ey, -ex, 0.0), (0.0, 0.0, -1.0)
 
 
 def _build_candidate(
-    side: DetourSide,
-    pos: np.ndarray,
-    rejoin: np.ndarray,
-    obstacle: TrackedObstacle,
-    e1: np.ndarray,
-    rho: float,
-    limits: DetourLimits,
+    side: DetourSide, level: int, pos: V3, rejoin: V3, volume: TrackedObstacle, e1: V3, rho: float, limits: DetourLimits
 ) -> _Candidate:
-    right = np.array((-e1[1], e1[0], 0.0))
-    e2 = {DetourSide.OVER: _UP_NED, DetourSide.UNDER: -_UP_NED, DetourSide.RIGHT: right, DetourSide.LEFT: -right}[side]
-    e3 = np.cross(e1, e2)
-    c = np.array(obstacle.center_ned)
-    if obstacle.kind is ObstacleKind.COLUMN and side in (DetourSide.OVER, DetourSide.UNDER):
+    """The tangent–arc–tangent polyline on one side, its cost and any rule that rules it out."""
+    if volume.kind is ObstacleKind.COLUMN and side in (DetourSide.OVER, DetourSide.UNDER):
         rule = "stands on the ground" if side is DetourSide.UNDER else "top unknown"
-        return _Candidate(side, np.empty((0, 3)), math.inf, rule)
-    basis = np.stack((e1, e2, e3))
-    p_l, j_l = basis @ (pos - c), basis @ (rejoin - c)
-    via_uw, length = _arc_polyline_uw(p_l[:2], j_l[:2], rho)
+        return _Candidate(side, level, [], math.inf, CandidateStatus.RULED_OUT, rule)
+    e2, e3 = _side_axes(side, e1)
+    c = volume.center_ned
+    rp = (pos[0] - c[0], pos[1] - c[1], pos[2] - c[2])
+    rj = (rejoin[0] - c[0], rejoin[1] - c[1], rejoin[2] - c[2])
+    p_l = tuple(e[0] * rp[0] + e[1] * rp[1] + e[2] * rp[2] for e in (e1, e2, e3))
+    j_l = tuple(e[0] * rj[0] + e[1] * rj[1] + e[2] * rj[2] for e in (e1, e2, e3))
+    via_uw, length = _arc_polyline_uw((p_l[0], p_l[1]), (j_l[0], j_l[1]), rho)
     du = j_l[0] - p_l[0]
-    frac = np.clip((via_uw[:, 0] - p_l[0]) / du, 0.0, 1.0) if abs(du) > 1e-9 else np.full(len(via_uw), 0.5)
-    third = p_l[2] + frac * (j_l[2] - p_l[2])
-    via = c + np.column_stack((via_uw, third)) @ basis
-    polyline = np.vstack((pos, via, rejoin))
-    cost = polyline_length(polyline) if len(via) else length
-    alts = -polyline[:, 2]
-    if alts.min() < max(limits.min_agl_m, 0.0) - 1e-9:
-        return _Candidate(side, polyline, cost, "ground")
-    if alts.min() < limits.alt_floor_m - 1e-9:
-        return _Candidate(side, polyline, cost, "altitude floor")
-    if alts.max() > limits.alt_ceiling_m + 1e-9:
-        return _Candidate(side, polyline, cost, "ceiling")
-    return _Candidate(side, polyline, cost, "")
+    points = [pos]
+    for u, w in via_uw:
+        frac = min(max((u - p_l[0]) / du, 0.0), 1.0) if abs(du) > 1e-9 else 0.5
+        t3 = p_l[2] + frac * (j_l[2] - p_l[2])
+        points.append(tuple(c[k] + u * e1[k] + w * e2[k] + t3 * e3[k] for k in range(3)))
+    points.append(rejoin)
+    cand = _Candidate(side, level, points, length)
+    alt_lo, alt_hi = -max(p[2] for p in points), -min(p[2] for p in points)
+    if alt_lo < max(limits.min_agl_m, 0.0) - 1e-9:
+        cand.status, cand.reason = CandidateStatus.RULED_OUT, "ground"
+    elif alt_lo < limits.alt_floor_m - 1e-9:
+        cand.status, cand.reason = CandidateStatus.RULED_OUT, "altitude floor"
+    elif alt_hi > limits.alt_ceiling_m + 1e-9:
+        cand.status, cand.reason = CandidateStatus.RULED_OUT, "ceiling"
+    return cand
+
+
+# ------------------------------------------------------------------------------- checks
 
 
 Obstacles = Sequence[TrackedObstacle] | ObstacleArrays
@@ -234,6 +382,29 @@ def path_clearance(samples_ned: np.ndarray, obstacles: Obstacles) -> tuple[float
     return float(per_obstacle[i]), int(arrays.ids[i])
 
 
+def _check_samples(
+    samples_ned: np.ndarray, start_ned: np.ndarray, arrays: ObstacleArrays, limits: DetourLimits, tol_m: float
+) -> tuple[str, float]:
+    """``check_path``'s verdict and the samples' smallest clearance to any obstacle (inf if none)."""
+    clearance = math.inf
+    if len(arrays):
+        need = np.minimum(limits.r_safe_m + tol_m, arrays.signed_distance(start_ned[None, :])[0] - 0.05)
+        per_obstacle = arrays.signed_distance(samples_ned).min(axis=0)
+        short = per_obstacle - need
+        worst = int(short.argmin())
+        if short[worst] < 0.0:
+            return f"obstacle {int(arrays.ids[worst])}", float(per_obstacle.min())
+        clearance = float(per_obstacle.min())
+    down = samples_ned[:, 2]
+    if -float(down.max()) < max(limits.min_agl_m, limits.alt_floor_m) - 1e-6:
+        return ("ground" if limits.min_agl_m >= limits.alt_floor_m else "altitude floor"), clearance
+    if -float(down.min()) > limits.alt_ceiling_m + 1e-6:
+        return "ceiling", clearance
+    if limits.fences and path_clear_of_fences(limits.fences, samples_ned, 0.0) is not None:
+        return "fence", clearance
+    return "", clearance
+
+
 def check_path(
     samples_ned: np.ndarray,
     start_ned: np.ndarray,
@@ -247,21 +418,119 @@ def check_path(
     points between two samples are within that of one); an obstacle already nearer than that at the start must not
     get nearer. Altitudes stay in [max(min AGL, floor), ceiling]; fences are checked per segment.
     """
-    arrays = as_arrays(obstacles)
-    if len(arrays):
-        need = np.minimum(limits.r_safe_m + tol_m, arrays.signed_distance(start_ned[None, :])[0] - 0.05)
-        short = arrays.signed_distance(samples_ned).min(axis=0) - need
-        worst = int(short.argmin())
-        if short[worst] < 0.0:
-            return f"obstacle {int(arrays.ids[worst])}"
-    alts = -samples_ned[:, 2]
-    if alts.min() < max(limits.min_agl_m, limits.alt_floor_m) - 1e-6:
-        return "ground" if limits.min_agl_m >= limits.alt_floor_m else "altitude floor"
-    if alts.max() > limits.alt_ceiling_m + 1e-6:
-        return "ceiling"
-    if path_clear_of_fences(limits.fences, samples_ned, 0.0) is not None:
-        return "fence"
-    return ""
+    return _check_samples(samples_ned, np.asarray(start_ned, float), as_arrays(obstacles), limits, tol_m)[0]
+
+
+def _densify(points: Sequence[V3], step_m: float) -> np.ndarray:
+    """Points along a polyline at most ``step_m`` apart (vertices included), ``(m, 3)``."""
+    poly = np.asarray(points, float).reshape(-1, 3)
+    out = [poly[:1]]
+    for a, b in itertools.pairwise(poly):
+        n = max(1, math.ceil(float(np.linalg.norm(b - a)) / step_m))
+        out.append(a + (b - a) * (np.arange(1, n + 1) / n)[:, None])
+    return np.concatenate(out)
+
+
+# ------------------------------------------------------------------------------- the search
+
+
+def _block(lvl: _Level, cand: _Candidate, oid: int) -> None:
+    """Mark a candidate blocked by obstacle ``oid``; a blocker outside the volume is a merge option."""
+    cand.status, cand.reason = CandidateStatus.BLOCKED, f"obstacle {oid}"
+    if oid not in lvl.members:
+        lvl.blockers.add(oid)
+        lvl.bound_m = min(lvl.bound_m, cand.cost_m)
+
+
+class _Search:
+    """One detour search from a vehicle state: merge levels, candidates, fits."""
+
+    def __init__(
+        self, pos: np.ndarray, vel: np.ndarray, route: np.ndarray, arrays: ObstacleArrays, limits: DetourLimits
+    ) -> None:
+        self.pos_np, self.vel_np = pos, vel
+        self.pos: V3 = (float(pos[0]), float(pos[1]), float(pos[2]))
+        self.route = _Route([self.pos] + [(float(p[0]), float(p[1]), float(p[2])) for p in route])
+        self.arrays, self.limits = arrays, limits
+        self.rows = arrays.rows
+        # an obstacle the vehicle is already nearer than R_safe must not get nearer (cf. check_path)
+        self.need = [min(limits.r_safe_m, _row_distance(row, self.pos) - 0.05) for row in self.rows]
+        self.need_route = [limits.r_safe_m] * len(self.rows)
+        speed = math.sqrt(float(vel[0]) ** 2 + float(vel[1]) ** 2 + float(vel[2]) ** 2)
+        self.speed_end = min(limits.v_max_m_s, max(speed, limits.cruise_m_s))
+        self.continuation_m = self.speed_end**2 / (2.0 * limits.a_max_m_s2) + CONTINUATION_S * self.speed_end
+
+    def level(self, volume: TrackedObstacle, members: frozenset[int], index: int) -> _Level:
+        """Rejoin point, route continuation and the four candidates around ``volume``."""
+        lim = self.limits
+        rho = volume.radius_m + lim.r_safe_m + lim.margin_m
+        planar = volume.kind is ObstacleKind.COLUMN
+        s_rejoin = self.route.first_pass(volume.center_ned, planar, rho) + rho + lim.rejoin_m
+        blocked_by = -1
+        for _ in range(_MAX_REJOIN_PUSHES + 1):
+            continuation = self.route.stretch(s_rejoin, self.continuation_m)
+            blocked_by = _polyline_blocker(continuation, self.rows, self.need_route) if len(continuation) > 1 else -1
+            if blocked_by < 0 or blocked_by not in members:
+                break
+            # the route passes the volume again soon after the rejoin point: rejoin after that pass
+            sub = _Route(continuation)
+            s_rejoin += sub.first_pass(volume.center_ned, planar, rho) + rho + lim.rejoin_m
+        rejoin, route_dir, seg = self.route.at(s_rejoin)
+        hx, hy = rejoin[0] - self.pos[0], rejoin[1] - self.pos[1]
+        h = math.hypot(hx, hy)
+        if h < 1e-9:
+            hx, hy = route_dir[0], route_dir[1]
+            h = math.hypot(hx, hy)
+        e1 = (hx / h, hy / h, 0.0) if h > 1e-9 else (1.0, 0.0, 0.0)
+        cands = [_build_candidate(side, index, self.pos, rejoin, volume, e1, rho, lim) for side in _SIDES]
+        lvl = _Level(volume, members, rejoin, route_dir, seg, continuation, cands, set(), math.inf)
+        for cand in cands:
+            if cand.status is not None:
+                continue
+            oid = blocked_by if blocked_by >= 0 else _polyline_blocker(cand.via, self.rows, self.need)
+            if oid >= 0:
+                _block(lvl, cand, oid)
+            elif lim.fences and path_clear_of_fences(lim.fences, np.array(cand.via), 0.0) is not None:
+                cand.status, cand.reason = CandidateStatus.BLOCKED, "fence"
+        return lvl
+
+    def merged(self, lvl: _Level, index: int) -> _Level:
+        """The next level: ``lvl``'s volume merged with its blocker nearest the volume's centre."""
+        c = lvl.volume.center_ned
+        by_id = {row[0]: row for row in self.rows}
+        nearest = min(lvl.blockers, key=lambda oid: (_row_distance(by_id[oid], c), oid))
+        other = next(o for o in self.arrays.obstacles if o.obstacle_id == nearest)
+        return self.level(enclosing_volume(lvl.volume, other), lvl.members | {nearest}, index)
+
+    def fit(self, cand: _Candidate, lvl: _Level, threat_id: int) -> DetourPlan | str:
+        """The checked Bézier detour of a candidate, or why it fails."""
+        lim = self.limits
+        s = self.speed_end
+        vel_end = (lvl.route_dir[0] * s, lvl.route_dir[1] * s, lvl.route_dir[2] * s)
+        path = fit_detour(cand.via, self.vel_np, vel_end, lim.v_max_m_s, lim.a_max_m_s2)
+        if not path.limits_ok:
+            return "dynamic limits"
+        samples = path.sample(_SAMPLE_STEP_M)
+        why, clearance = _check_samples(samples, self.pos_np, self.arrays, lim, 0.5 * _SAMPLE_STEP_M)
+        if why:
+            return why
+        samples.setflags(write=False)
+        via = np.array(cand.via)
+        via.setflags(write=False)
+        continuation = _densify(lvl.continuation, _SAMPLE_STEP_M)
+        continuation.setflags(write=False)
+        return DetourPlan(
+            cand.side,
+            threat_id,
+            via,
+            path,
+            samples,
+            cand.cost_m,
+            clearance,
+            np.array(lvl.rejoin),
+            lvl.rejoin_index,
+            continuation,
+        )
 
 
 def plan_detour(
@@ -275,109 +544,80 @@ def plan_detour(
     """Choose and fit the least-cost safe detour around ``threat`` that rejoins ``route_ned``.
 
     ``route_ned`` is the route ahead of the vehicle (current target, next target, ...). The detour
-    starts at ``pos_ned`` with ``vel_ned`` and rejoins the route ``ρ + rejoin_m`` past the point
-    nearest the obstacle along the route at the speed it had (at least ``cruise_m_s``, at most v_max).
-    If every side is blocked by other obstacles, the threat and the nearest blocker are wrapped in
-    one enclosing volume and the sides are tried around it (up to MAX_CLUSTER_MERGES times).
+    starts at ``pos_ned`` with ``vel_ned`` and rejoins the route ``ρ + rejoin_m`` past its first pass
+    by the obstacle, along the route at the speed it had (at least ``cruise_m_s``, at most v_max).
+    Candidates around the threat and around clusters of it with blocking neighbours (up to
+    ``MAX_CLUSTER_MERGES`` merges) are ranked by cost; the cheapest that passes every check is chosen
+    (module docstring). The reports are those of the chosen candidate's merge level (the last level
+    built when none passes).
     """
-    pos = np.asarray(pos_ned, float)
-    vel = np.asarray(vel_ned, float)
-    route = np.vstack((pos, np.asarray(route_ned, float).reshape(-1, 3)))
-    reports: dict[DetourSide, CandidateReport] = {}
-    sides = (DetourSide.LEFT, DetourSide.RIGHT, DetourSide.OVER, DetourSide.UNDER)
-    obstacles = as_arrays(obstacles)
-    by_id = {o.obstacle_id: o for o in obstacles.obstacles}
-    volume = threat
-    for attempt in range(MAX_CLUSTER_MERGES + 1):
-        chosen = _try_sides(pos, vel, route, volume, threat.obstacle_id, obstacles, limits, sides, reports)
-        if chosen is not None:
-            return DetourResult(chosen, tuple(reports[s] for s in sides))
-        blockers = {int(r.reason.split()[1]) for r in reports.values() if r.reason.startswith("obstacle ")}
-        blockers = {b for b in blockers if b in by_id}
-        if not blockers or attempt == MAX_CLUSTER_MERGES:
+    search = _Search(
+        np.asarray(pos_ned, float),
+        np.asarray(vel_ned, float),
+        np.asarray(route_ned, float).reshape(-1, 3),
+        as_arrays(obstacles),
+        limits,
+    )
+    levels = [search.level(threat, frozenset((threat.obstacle_id,)), 0)]
+    heap: list[tuple[float, int, _Candidate]] = []
+    seq = 0
+
+    def push(lvl: _Level) -> None:
+        nonlocal seq
+        for cand in lvl.candidates:
+            if cand.status is None:
+                heapq.heappush(heap, (cand.cost_m, seq, cand))
+            seq += 1
+
+    push(levels[0])
+    dynamic_failed: set[DetourSide] = set()
+    chosen: DetourPlan | None = None
+    chosen_level = -1
+    while True:
+        last = levels[-1]
+        best = heap[0][0] if heap else math.inf
+        if len(levels) <= MAX_CLUSTER_MERGES and last.blockers and last.bound_m < best:
+            levels.append(search.merged(last, len(levels)))
+            push(levels[-1])
+            continue
+        if not heap:
             break
-        c = np.array(volume.center_ned)
-        nearest = min(blockers, key=lambda b: float(by_id[b].signed_distance(c[None, :])[0]))
-        volume = enclosing_volume(volume, by_id[nearest])
-    return DetourResult(None, tuple(reports[s] for s in sides))
+        cand = heapq.heappop(heap)[2]
+        lvl = levels[cand.level]
+        if cand.side in dynamic_failed:
+            cand.status, cand.reason = CandidateStatus.BLOCKED, "dynamic limits"
+            continue
+        result = search.fit(cand, lvl, threat.obstacle_id)
+        if isinstance(result, DetourPlan):
+            cand.status, chosen, chosen_level = CandidateStatus.CHOSEN, result, cand.level
+            break
+        if result.startswith("obstacle "):
+            _block(lvl, cand, int(result.split()[1]))
+        else:
+            cand.status, cand.reason = CandidateStatus.BLOCKED, result
+            if result == "dynamic limits":
+                dynamic_failed.add(cand.side)
+    reported = levels[chosen_level] if chosen is not None else levels[-1]
+    return DetourResult(chosen, tuple(c.report() for c in reported.candidates))
 
 
 def enclosing_volume(a: TrackedObstacle, b: TrackedObstacle) -> TrackedObstacle:
     """The smallest sphere (or, if either is a column, vertical column) enclosing two obstacles; keeps a's id."""
     column = ObstacleKind.COLUMN in (a.kind, b.kind)
-    ca, cb = np.array(a.center_ned), np.array(b.center_ned)
+    ca, cb = a.center_ned, b.center_ned
     if column:
-        cb[2] = ca[2]
-    d = float(np.linalg.norm(cb - ca))
+        cb = (cb[0], cb[1], ca[2])
+    d = math.dist(ca, cb)
     if d + b.radius_m <= a.radius_m:
         c, r = ca, a.radius_m
     elif d + a.radius_m <= b.radius_m:
         c, r = cb, b.radius_m
     else:
         r = 0.5 * (d + a.radius_m + b.radius_m)
-        c = ca + (cb - ca) * (r - a.radius_m) / d
+        f = (r - a.radius_m) / d
+        c = (ca[0] + (cb[0] - ca[0]) * f, ca[1] + (cb[1] - ca[1]) * f, ca[2] + (cb[2] - ca[2]) * f)
     kind = ObstacleKind.COLUMN if column else ObstacleKind.SPHERE
-    center = (float(c[0]), float(c[1]), float(c[2]))
-    return TrackedObstacle(a.obstacle_id, kind, center, r, a.first_seen_us, a.last_seen_us, a.detections)
-
-
-def _try_sides(
-    pos: np.ndarray,
-    vel: np.ndarray,
-    route: np.ndarray,
-    volume: TrackedObstacle,
-    threat_id: int,
-    obstacles: ObstacleArrays,
-    limits: DetourLimits,
-    sides: tuple[DetourSide, ...],
-    reports: dict[DetourSide, CandidateReport],
-) -> DetourPlan | None:
-    """Build the four candidates around ``volume``, check them in order of cost; fill ``reports``."""
-    rho = volume.radius_m + limits.r_safe_m + limits.margin_m
-    s_rejoin = _closest_arclength(route, volume) + rho + limits.rejoin_m
-    rejoin, route_dir = _point_at_arclength(route, s_rejoin)
-    horiz = _unit(np.array((rejoin[0] - pos[0], rejoin[1] - pos[1], 0.0)))
-    if horiz is None:
-        horiz = _unit(np.array((route_dir[0], route_dir[1], 0.0)))
-    e1 = horiz if horiz is not None else np.array((1.0, 0.0, 0.0))
-    speed = min(limits.v_max_m_s, max(float(np.linalg.norm(vel)), limits.cruise_m_s))
-    vel_end = route_dir * speed
-    candidates = sorted(
-        (_build_candidate(side, pos, rejoin, volume, e1, rho, limits) for side in sides), key=lambda c: c.cost_m
-    )
-    chosen: DetourPlan | None = None
-    for cand in candidates:
-        if cand.rule:
-            reports[cand.side] = CandidateReport(cand.side, cand.cost_m, CandidateStatus.RULED_OUT, cand.rule)
-            continue
-        if chosen is not None:
-            reports[cand.side] = CandidateReport(cand.side, cand.cost_m, CandidateStatus.NOT_EVALUATED)
-            continue
-        why = check_path(_densify(cand.via_ned, 1.0), pos, obstacles, limits, tol_m=0.0)  # cheap pre-check
-        if not why:
-            path = fit_detour(cand.via_ned, vel, vel_end, limits.v_max_m_s, limits.a_max_m_s2)
-            if not path.limits_ok:
-                why = "dynamic limits"
-            else:
-                samples = path.sample(_SAMPLE_STEP_M)
-                why = check_path(samples, pos, obstacles, limits)
-        if why:
-            reports[cand.side] = CandidateReport(cand.side, cand.cost_m, CandidateStatus.BLOCKED, why)
-            continue
-        clearance, _ = path_clearance(samples, obstacles)
-        samples.setflags(write=False)
-        chosen = DetourPlan(cand.side, threat_id, cand.via_ned, path, samples, cand.cost_m, clearance, rejoin)
-        reports[cand.side] = CandidateReport(cand.side, cand.cost_m, CandidateStatus.CHOSEN)
-    return chosen
-
-
-def _densify(polyline: np.ndarray, step_m: float) -> np.ndarray:
-    """Points along a polyline at most ``step_m`` apart (vertices included)."""
-    out = [polyline[:1]]
-    for a, b in itertools.pairwise(polyline):
-        n = max(1, math.ceil(float(np.linalg.norm(b - a)) / step_m))
-        out.append(a + (b - a) * (np.arange(1, n + 1) / n)[:, None])
-    return np.concatenate(out)
+    return TrackedObstacle(a.obstacle_id, kind, c, r, a.first_seen_us, a.last_seen_us, a.detections)
 
 
 def brake_path(pos_ned: np.ndarray, vel_ned: np.ndarray, a_max_m_s2: float) -> BezierPath:

@@ -251,6 +251,11 @@ class ObstacleArrays:
         self.top_down = np.array([o.top_down for o in obstacles], float)
         self.any_sphere = bool(self.is_sphere.any())
         self.any_column = not bool(self.is_sphere.all())
+        #: The same volumes as plain tuples ``(id, north, east, down, radius, is_sphere, top_down)`` for scalar
+        #: per-segment checks (numpy's per-call overhead dominates on a handful of points).
+        self.rows: tuple[tuple[int, float, float, float, float, bool, float], ...] = tuple(
+            (o.obstacle_id, *o.center_ned, o.radius_m, o.kind is ObstacleKind.SPHERE, o.top_down) for o in obstacles
+        )
 
     def __len__(self) -> int:
         return len(self.obstacles)

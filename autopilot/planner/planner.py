@@ -4,8 +4,15 @@ Per ``update``: fold the detections into the obstacle map; while CLEAR, look for
 threat on the route / velocity direction and, if there is one, plan a detour (``detour.plan_detour``)
 or, when no side is safe, brake to a hover (HOLD) and retry every ``CA_REPLAN_S``. While on a
 detour, its Bézier reference is the setpoint override; when new or grown obstacles make the rest
-of the detour unsafe it is replanned from the current reference state (continuous position and
-velocity). When the detour ends the route resumes (override None).
+of the detour (or the route just after its rejoin point) unsafe it is replanned from the current
+reference state (continuous position and velocity). When the detour ends the route resumes
+(override None).
+
+A detour may rejoin the route past some waypoints. ``PlannerOutput.rejoin_route_index`` says how
+many of the waypoints handed to ``update`` it bypassed; the caller advances its mission target by
+that many (at once or when the detour ends: once advanced, later updates report 0). Until it does,
+the planner itself plans on the route from the rejoined leg on (a detour that ends where the next
+one starts never sends the vehicle back to a bypassed waypoint).
 
 Each decision is an :class:`AvoidanceDecision` with a STATUSTEXT-ready ``text``; the runner sends
 it (MAVLink 2 STATUSTEXT chunks long texts; ``short_text`` fits one 50-character message).
@@ -122,6 +129,10 @@ class PlannerOutput:
     clearance_m: float  # vehicle to the nearest tracked obstacle surface (inf if none)
     look_ahead_ned: Vec3 | None = None  # where the forward camera should look (reference LOOK_AHEAD_S ahead)
     replanned: bool = False  # a detour search ran in this update (for planning-time statistics)
+    #: Waypoints of this update's route (0 = ``route_target_ned``, k = the k-th of ``route_next_ned``) that the
+    #: active or last detour bypassed: the route resumes toward ``route[rejoin_route_index]``; the caller
+    #: advances its target by this many (0: nothing bypassed, or already advanced).
+    rejoin_route_index: int = 0
 
     @property
     def planned_path_ned(self) -> np.ndarray | None:
@@ -156,6 +167,7 @@ class AvoidancePlanner:
         self._t0_us = 0
         self._last_try_us = -(10**18)
         self._unchecked: set[int] = set()  # obstacles changed since the active detour was last checked
+        self._rejoin_wp: tuple[float, float, float] | None = None  # waypoint the last detour resumes toward
         self._searches = 0  # detour searches run (plan_detour calls)
 
     @property
@@ -182,6 +194,7 @@ class AvoidancePlanner:
     def reset(self) -> None:
         """Forget obstacles and any detour (e.g. on landing)."""
         self.map.clear()
+        self._rejoin_wp = None
         self._clear(PlannerState.CLEAR if self.params.enable else PlannerState.DISABLED)
 
     def limits(self) -> DetourLimits:
@@ -229,6 +242,8 @@ class AvoidancePlanner:
         route = np.asarray(route_target_ned, float)[None, :]
         if route_next_ned is not None:
             route = np.vstack((route, np.asarray(route_next_ned, float).reshape(-1, 3)))
+        skip = self._route_skip(route)
+        route = route[skip:]
         decisions: list[AvoidanceDecision] = []
         threat: Threat | None = None
         searches = self._searches
@@ -255,7 +270,21 @@ class AvoidancePlanner:
             clearance,
             look,
             self._searches != searches,
+            skip,
         )
+
+    def _route_skip(self, route: np.ndarray) -> int:
+        """Index in ``route`` of the waypoint the last detour resumes toward (0 once the caller advanced)."""
+        wp = self._rejoin_wp
+        if wp is None:
+            return 0
+        for i, row in enumerate(route.tolist()):
+            if abs(row[0] - wp[0]) + abs(row[1] - wp[1]) + abs(row[2] - wp[2]) < 1e-6:
+                if i == 0:
+                    self._rejoin_wp = None  # the caller's target is the rejoined leg's end: consumed
+                return i
+        self._rejoin_wp = None  # not in the route any more (the caller moved past it)
+        return 0
 
     def _step(
         self,
@@ -305,7 +334,8 @@ class AvoidancePlanner:
     ) -> Threat | None:
         """Re-check the rest of the active detour after map changes; replan from the reference if unsafe."""
         sp_pos, sp_vel, _ = self._path.state_at(t_s)
-        why = check_path(self._remaining_samples(t_s), sp_pos, self.map.arrays, self.limits())
+        ahead = np.concatenate((self._remaining_samples(t_s), self._plan.continuation_ned))
+        why = check_path(ahead, sp_pos, self.map.arrays, self.limits())
         if not why:
             self._unchecked.clear()
             return None
@@ -362,6 +392,8 @@ class AvoidancePlanner:
         if result.plan is not None:
             self._state, self._plan, self._path = PlannerState.DETOUR, result.plan, result.plan.path
             self._t0_us = time_us
+            wp = route[result.plan.rejoin_route_index]
+            self._rejoin_wp = (float(wp[0]), float(wp[1]), float(wp[2]))
             side = result.plan.side
         else:
             if self._state is not PlannerState.HOLD:

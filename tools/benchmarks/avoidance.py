@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from autopilot.planner.geometry import FenceZone, point_segment_distance
+from autopilot.planner.geometry import FenceZone
 from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import AvoidancePlanner, PlannerState
 from mavlink_bridge.frames import quat_from_euler
@@ -96,7 +96,6 @@ def fly_route(
     track_err = 0.0
     steps = int(max_time_s / dt_s)
     k = 0
-    on_detour = False
     for k in range(steps):
         time_us = round(k * dt_s * 1e6)
         q = quat_from_euler(0.0, 0.0, yaw)
@@ -109,9 +108,8 @@ def fly_route(
         if out.replanned:
             plan_t.append(dt_cpu)
         texts.extend(d.text for d in out.decisions)
-        if out.setpoint is None and on_detour:  # detour over: skip the waypoints it bypassed
-            target_i = _leg_after_detour(wps, target_i, pos)
-        on_detour = out.setpoint is not None
+        if out.rejoin_route_index:  # the detour rejoins a later leg: skip the waypoints it bypassed
+            target_i = min(target_i + out.rejoin_route_index, len(wps) - 1)
         if out.setpoint is not None:
             sp_p, sp_v, sp_a = (
                 np.array(x) for x in (out.setpoint.pos_ned_m, out.setpoint.vel_ned_m_s, out.setpoint.acc_ned_m_s2)
@@ -158,22 +156,6 @@ def fly_route(
         tuple(texts),
         track_err,
     )
-
-
-def _leg_after_detour(wps: np.ndarray, target_i: int, pos: np.ndarray) -> int:
-    """The waypoint to fly to after a detour: the end of the first route leg (from the one being flown, up to
-    ``ROUTE_AHEAD_WAYPOINTS`` ahead) the vehicle is back on (within ``2·ACCEPT_RADIUS_M``), else of the nearest.
-
-    A detour rejoins the route on a later leg, possibly past waypoints; the first leg within reach (not
-    merely the nearest waypoint, which may lie behind) is where it rejoined.
-    """
-    first = max(target_i - 1, 0)
-    last = min(target_i + ROUTE_AHEAD_WAYPOINTS, len(wps) - 1)
-    gaps = [point_segment_distance(wps[i], wps[i + 1], pos) for i in range(first, last)]
-    if not gaps:
-        return target_i
-    near = next((k for k, g in enumerate(gaps) if g < 2.0 * ACCEPT_RADIUS_M), int(np.argmin(gaps)))
-    return max(target_i, first + near + 1)
 
 
 def _look_point(detour_look: tuple[float, float, float] | None, pos: np.ndarray, wps: np.ndarray, i: int) -> np.ndarray:
