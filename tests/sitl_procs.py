@@ -115,7 +115,12 @@ def sitl_pair(
     assert (ap_rc, sim_rc) == (0, 0), logs(log_dir)
 
 
-def connect_gcs(url: str, heartbeat_timeout_s: float = 60.0) -> GcsClient:
+#: Wall seconds a fresh autopilot may take to be heard and get a GPS fix: a cold JIT cache compiles the
+#: controller first, which takes a minute or more on a loaded 2-core machine.
+STARTUP_TIMEOUT_S = 180.0
+
+
+def connect_gcs(url: str, heartbeat_timeout_s: float = STARTUP_TIMEOUT_S) -> GcsClient:
     """A ground-station client on ``url`` that has heard the vehicle (long exchange timeouts: a loaded machine)."""
     client = GcsClient(url, timeout_s=20.0)
     client.wait_heartbeat(heartbeat_timeout_s)
@@ -126,7 +131,7 @@ def landed_disarmed(status: VehicleStatus) -> bool:
     return not status.armed and status.landed_state is LandedState.ON_GROUND
 
 
-def upload_arm_start(client: GcsClient, plan: MissionPlan, timeout_s: float = 60.0) -> None:
+def upload_arm_start(client: GcsClient, plan: MissionPlan, timeout_s: float = STARTUP_TIMEOUT_S) -> None:
     """Upload mission + fence once the vehicle has a GPS fix and home, arm (retrying while refused), start."""
     client.wait_until(lambda s: s.gps_fix_type >= 3 and s.home is not None, timeout_s)
     client.upload_mission(plan.items, MissionType.MISSION)

@@ -19,7 +19,16 @@ from pathlib import Path
 
 import pytest
 from conftest import REPO_ROOT
-from sitl_procs import SitlPair, connect_gcs, landed_disarmed, logs, read_json, sitl_pair, upload_arm_start
+from sitl_procs import (
+    STARTUP_TIMEOUT_S,
+    SitlPair,
+    connect_gcs,
+    landed_disarmed,
+    logs,
+    read_json,
+    sitl_pair,
+    upload_arm_start,
+)
 
 from autopilot.mission.commands import MavCmd
 from autopilot.mission.files import load_mission_file
@@ -235,7 +244,7 @@ def idle_sitl(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SitlPair]:
     log_dir = tmp_path_factory.mktemp("round_trip")
     with sitl_pair(log_dir, MISSIONS / "delivery.yaml") as s:
         with connect_gcs(s.gcs_url) as client:
-            client.wait_until(lambda st: st.gps_fix_type >= 3 and st.home is not None, 60.0)
+            client.wait_until(lambda st: st.gps_fix_type >= 3 and st.home is not None, STARTUP_TIMEOUT_S)
         yield s
 
 
