@@ -154,11 +154,6 @@ def test_mavsdk_param_download_and_set(flight: Flight) -> None:
     assert params["after"] == pytest.approx(value)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known: MISSION_CURRENT of a step goes out before that step's MISSION_ITEM_REACHED "
-    "(mavlink_bridge/telemetry_streams.py publish), so MAVSDK's progress steps back once",
-)
 def test_mavsdk_mission_progress_never_steps_back(flight: Flight) -> None:
     progress = flight.result["progress"]
     assert all(a[0] <= b[0] for a, b in pairwise(progress)), progress

@@ -150,6 +150,8 @@ def fly(
             return bool(health.is_home_position_ok and health.is_global_position_ok)
 
         _wait_for("home and global position health", position_ok, deadline)
+        # the subscription reports changes only: record the mode on the ground (HOLD) explicitly
+        rec.append_if_new("flight_modes", telemetry.flight_mode().name)
         health = telemetry.health()
         rec.step("health", armable=bool(health.is_armable), local_position_ok=bool(health.is_local_position_ok))
         check_params(Param(system), *set_param, rec)
