@@ -4,12 +4,13 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: venv run test bench lint paper tune clean
+.PHONY: venv run test bench lint paper interop clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	$(BIN)/python -m tools.warm_jit
 	touch $(STAMP)
 
 venv: $(STAMP)
@@ -29,6 +30,11 @@ lint: venv
 
 paper: venv
 	$(BIN)/python -m tools.paper_table
+
+# Third-party GCS interoperability (MAVProxy, MAVSDK-Python): installs the clients, runs their tests.
+interop: venv
+	$(BIN)/python -m pip install --quiet -e '.[dev,interop]'
+	$(BIN)/python -m pytest -q tests/test_interop_mavproxy.py tests/test_interop_mavsdk.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .ruff_cache

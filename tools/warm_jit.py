@@ -1,0 +1,77 @@
+"""Compile every numba kernel once and write numba's on-disk cache (run by the Makefile after install).
+
+The physics, world, sensor and control kernels are ``@njit(cache=True)``: the first process that
+calls one compiles it (tens of seconds on a small machine) and writes ``__pycache__/*.nbi|nbc``;
+later processes load it in milliseconds. Doing it at setup keeps that first compile out of the
+lockstep, where a silent autopilot would be declared lost, and out of the first ``make run``.
+
+Usage: ``python -m tools.warm_jit`` (idempotent; a warm cache makes it take about a second).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+
+
+def warm() -> dict[str, float]:
+    """Exercise every cached kernel with the argument types the processes use; seconds per part."""
+    timings: dict[str, float] = {}
+
+    t0 = time.perf_counter()
+    from sim.batch import BatchSim
+    from sim.obstacle_sensor import ObstacleSensor
+    from sim.sensors import SensorModel
+    from sim.vehicle import VehicleSim
+    from sim.vehicle_config import load_vehicle
+    from sim.world import load_world
+
+    vehicle = load_vehicle("x500")
+    world = load_world(
+        {
+            "world": {
+                "obstacles": [
+                    {"cylinder": {"north_m": 20, "east_m": 0, "radius_m": 2, "height_m": 20}},
+                    {"box": {"north_m": 40, "east_m": 0, "size_m": [4, 4, 20], "yaw_deg": 10}},
+                    {"sphere": {"north_m": 60, "east_m": 0, "alt_m": 10, "radius_m": 2}},
+                ],
+                "wind": {"north_m_s": 1.0, "east_m_s": 0.0, "down_m_s": 0.0, "gust_m_s": 0.5, "seed": 1},
+            }
+        }
+    )
+    single = VehicleSim(vehicle, world=world, seed=1)
+    sensors = SensorModel(vehicle, world.home, 1)
+    single.step(np.full(4, 0.6))
+    sensors.imu_baro_mag(single)
+    single.ground_truth()
+    ObstacleSensor(world, seed=1).detect(single.pos_ned, single.q_ned_frd, 0)
+    BatchSim(vehicle, 3, world=world, seed=1).step(np.full((3, 4), 0.6))
+    timings["sim_s"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    from autopilot.control.airframe import load_airframe
+    from autopilot.control.cascade import CascadeController
+    from autopilot.control.gains import CascadeGains
+    from autopilot.runner import Autopilot, AutopilotConfig
+
+    Autopilot(AutopilotConfig(vehicle="x500"))  # warms the single-vehicle cascade path itself
+    batch = CascadeController(load_airframe("x500"), CascadeGains.paper_default(), 3)
+    z3, q3 = np.zeros((3, 3)), np.tile([1.0, 0.0, 0.0, 0.0], (3, 1))
+    batch.update_position(z3, z3, q3, z3, z3, z3, z3, np.zeros(3))
+    batch.update_attitude(q3, z3, z3, np.full(3, 10.0))
+    timings["autopilot_s"] = time.perf_counter() - t0
+    return timings
+
+
+def main() -> int:
+    t0 = time.perf_counter()
+    timings = warm()
+    parts = ", ".join(f"{k} {v:.1f}" for k, v in timings.items())
+    print(f"numba kernels compiled and cached in {time.perf_counter() - t0:.1f} s ({parts})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
