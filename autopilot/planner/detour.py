@@ -42,7 +42,7 @@ import numpy as np
 
 from .bezier import BezierPath, bernstein_matrix, fit_detour
 from .geometry import FenceZone, path_clear_of_fences
-from .obstacle_map import ObstacleArrays, ObstacleKind, TrackedObstacle
+from .obstacle_map import ObstacleArrays, ObstacleKind, TrackedObstacle, row_signed_distance
 
 _ARC_STEP_RAD = math.radians(30.0)
 _SAMPLE_STEP_M = 0.4
@@ -149,18 +149,6 @@ def _seg_distance(a: V3, b: V3, c: V3, planar: bool) -> tuple[float, float]:
     t = 0.0 if dd < 1e-12 else min(max((fx * dx + fy * dy + fz * dz) / dd, 0.0), 1.0)
     ex, ey, ez = fx - t * dx, fy - t * dy, fz - t * dz
     return math.sqrt(ex * ex + ey * ey + ez * ez), t
-
-
-def _row_distance(row: Row, p: V3) -> float:
-    """Signed distance of a point to one obstacle row (same volumes as ``ObstacleArrays``)."""
-    _, cx, cy, cz, r, sphere, top = row
-    h = math.hypot(p[0] - cx, p[1] - cy)
-    if sphere:
-        return math.hypot(h, p[2] - cz) - r
-    dr, cap = h - r, top - p[2]
-    if cap > 0.0:
-        return math.hypot(max(dr, 0.0), cap) + min(max(dr, cap), 0.0)
-    return dr
 
 
 def _polyline_blocker(points: Sequence[V3], rows: Sequence[Row], need: Sequence[float]) -> int:
@@ -382,19 +370,24 @@ def path_clearance(samples_ned: np.ndarray, obstacles: Obstacles) -> tuple[float
     return float(per_obstacle[i]), int(arrays.ids[i])
 
 
+def _need(start: V3, arrays: ObstacleArrays, clearance_m: float) -> list[float]:
+    """Clearance each obstacle must keep along a path from ``start``: ``clearance_m``, or for an obstacle already
+    nearer than that at the start, not nearer than it is now (less 5 cm)."""
+    return [min(clearance_m, row_signed_distance(row, start) - 0.05) for row in arrays.rows]
+
+
 def _check_samples(
-    samples_ned: np.ndarray, start_ned: np.ndarray, arrays: ObstacleArrays, limits: DetourLimits, tol_m: float
+    samples_ned: np.ndarray, need: np.ndarray, arrays: ObstacleArrays, limits: DetourLimits
 ) -> tuple[str, float]:
-    """``check_path``'s verdict and the samples' smallest clearance to any obstacle (inf if none)."""
+    """``check_path``'s verdict (``need``: per-obstacle clearance) and the samples' smallest clearance (inf: none)."""
     clearance = math.inf
     if len(arrays):
-        need = np.minimum(limits.r_safe_m + tol_m, arrays.signed_distance(start_ned[None, :])[0] - 0.05)
         per_obstacle = arrays.signed_distance(samples_ned).min(axis=0)
         short = per_obstacle - need
         worst = int(short.argmin())
-        if short[worst] < 0.0:
-            return f"obstacle {int(arrays.ids[worst])}", float(per_obstacle.min())
         clearance = float(per_obstacle.min())
+        if short[worst] < 0.0:
+            return f"obstacle {int(arrays.ids[worst])}", clearance
     down = samples_ned[:, 2]
     if -float(down.max()) < max(limits.min_agl_m, limits.alt_floor_m) - 1e-6:
         return ("ground" if limits.min_agl_m >= limits.alt_floor_m else "altitude floor"), clearance
@@ -418,7 +411,10 @@ def check_path(
     points between two samples are within that of one); an obstacle already nearer than that at the start must not
     get nearer. Altitudes stay in [max(min AGL, floor), ceiling]; fences are checked per segment.
     """
-    return _check_samples(samples_ned, np.asarray(start_ned, float), as_arrays(obstacles), limits, tol_m)[0]
+    arrays = as_arrays(obstacles)
+    start = np.asarray(start_ned, float).tolist()
+    need = np.array(_need((start[0], start[1], start[2]), arrays, limits.r_safe_m + tol_m))
+    return _check_samples(np.asarray(samples_ned, float), need, arrays, limits)[0]
 
 
 def _densify(points: Sequence[V3], step_m: float) -> np.ndarray:
@@ -454,7 +450,8 @@ class _Search:
         self.arrays, self.limits = arrays, limits
         self.rows = arrays.rows
         # an obstacle the vehicle is already nearer than R_safe must not get nearer (cf. check_path)
-        self.need = [min(limits.r_safe_m, _row_distance(row, self.pos) - 0.05) for row in self.rows]
+        self.need = _need(self.pos, arrays, limits.r_safe_m)
+        self.need_curve = np.array(_need(self.pos, arrays, limits.r_safe_m + 0.5 * _SAMPLE_STEP_M))
         self.need_route = [limits.r_safe_m] * len(self.rows)
         speed = math.sqrt(float(vel[0]) ** 2 + float(vel[1]) ** 2 + float(vel[2]) ** 2)
         self.speed_end = min(limits.v_max_m_s, max(speed, limits.cruise_m_s))
@@ -498,7 +495,7 @@ class _Search:
         """The next level: ``lvl``'s volume merged with its blocker nearest the volume's centre."""
         c = lvl.volume.center_ned
         by_id = {row[0]: row for row in self.rows}
-        nearest = min(lvl.blockers, key=lambda oid: (_row_distance(by_id[oid], c), oid))
+        nearest = min(lvl.blockers, key=lambda oid: (row_signed_distance(by_id[oid], c), oid))
         other = next(o for o in self.arrays.obstacles if o.obstacle_id == nearest)
         return self.level(enclosing_volume(lvl.volume, other), lvl.members | {nearest}, index)
 
@@ -511,7 +508,7 @@ class _Search:
         if not path.limits_ok:
             return "dynamic limits"
         samples = path.sample(_SAMPLE_STEP_M)
-        why, clearance = _check_samples(samples, self.pos_np, self.arrays, lim, 0.5 * _SAMPLE_STEP_M)
+        why, clearance = _check_samples(samples, self.need_curve, self.arrays, lim)
         if why:
             return why
         samples.setflags(write=False)

@@ -68,22 +68,28 @@ class TrackedObstacle:
         return cylinder_signed_distance(points_ned, np.array(self.center_ned[:2]), self.radius_m, self.top_down)
 
 
+Vec3 = tuple[float, float, float]
+
+
 @dataclass(slots=True)
 class _Track:
+    """A track's running sums (plain floats: a handful of detections per frame, numpy costs more per call)."""
+
     obstacle_id: int
     kind: ObstacleKind
-    center_sum: np.ndarray
+    center_sum: list[float]
     radius_sum: float
     weight: float
     first_seen_us: int
     last_seen_us: int
     detections: int
-    published_center: np.ndarray  # centre and radius in the snapshot the planner sees
+    published_center: Vec3  # centre and radius in the snapshot the planner sees
     published_radius: float
 
     @property
-    def center(self) -> np.ndarray:
-        return self.center_sum / self.weight
+    def center(self) -> Vec3:
+        w = self.weight
+        return (self.center_sum[0] / w, self.center_sum[1] / w, self.center_sum[2] / w)
 
     @property
     def radius(self) -> float:
@@ -91,7 +97,7 @@ class _Track:
 
     def drifted(self) -> bool:
         """Whether the track moved or grew beyond the change thresholds since it was published."""
-        moved = float(np.linalg.norm(self.center - self.published_center)) > CHANGE_CENTER_M
+        moved = math.dist(self.center, self.published_center) > CHANGE_CENTER_M
         return moved or self.radius > self.published_radius + CHANGE_RADIUS_M
 
     def frozen(self) -> TrackedObstacle:
@@ -99,13 +105,7 @@ class _Track:
         c = self.center
         self.published_center, self.published_radius = c, self.radius
         return TrackedObstacle(
-            self.obstacle_id,
-            self.kind,
-            (float(c[0]), float(c[1]), float(c[2])),
-            self.radius,
-            self.first_seen_us,
-            self.last_seen_us,
-            self.detections,
+            self.obstacle_id, self.kind, c, self.radius, self.first_seen_us, self.last_seen_us, self.detections
         )
 
 
@@ -113,23 +113,34 @@ def _kind_of(shape: ObstacleShape) -> ObstacleKind:
     return ObstacleKind.COLUMN if shape in (ObstacleShape.CYLINDER, ObstacleShape.BOX) else ObstacleKind.SPHERE
 
 
+def _volume(det: ObstacleDetection, pos: Vec3, rel_ned: Vec3) -> tuple[ObstacleKind, Vec3, float, float]:
+    """(kind, centre NED, radius m, range m) of a detection whose surface point is ``rel_ned`` from ``pos``."""
+    rng = math.sqrt(rel_ned[0] ** 2 + rel_ned[1] ** 2 + rel_ned[2] ** 2)
+    surface = (pos[0] + rel_ned[0], pos[1] + rel_ned[1], pos[2] + rel_ned[2])
+    kind = _kind_of(det.shape)
+    radius = max(float(det.radius_m), 0.1)
+    if kind is ObstacleKind.SPHERE:
+        f = radius / max(rng, 1e-6)
+        return (
+            kind,
+            (surface[0] + f * rel_ned[0], surface[1] + f * rel_ned[1], surface[2] + f * rel_ned[2]),
+            radius,
+            rng,
+        )
+    h = math.hypot(rel_ned[0], rel_ned[1])
+    if h > 1e-6:
+        surface = (surface[0] + radius * rel_ned[0] / h, surface[1] + radius * rel_ned[1] / h, surface[2])
+    return kind, surface, radius, rng
+
+
 def detection_volume(
     det: ObstacleDetection, pos_ned: np.ndarray, q_ned_frd: np.ndarray
 ) -> tuple[ObstacleKind, np.ndarray, float, float]:
     """(kind, centre NED, radius m, range m) of one detection seen from ``pos_ned`` with attitude ``q_ned_frd``."""
-    rel_ned = rotate_frd_to_ned(np.asarray(q_ned_frd, float), np.asarray(det.pos_frd_m, float))
-    rng = float(np.linalg.norm(rel_ned))
-    surface = np.asarray(pos_ned, float) + rel_ned
-    kind = _kind_of(det.shape)
-    radius = max(float(det.radius_m), 0.1)
-    if kind is ObstacleKind.SPHERE:
-        center = surface + radius * rel_ned / max(rng, 1e-6)
-    else:
-        h = math.hypot(rel_ned[0], rel_ned[1])
-        center = surface.copy()
-        if h > 1e-6:
-            center[:2] += radius * rel_ned[:2] / h
-    return kind, center, radius, rng
+    rel = rotate_frd_to_ned(np.asarray(q_ned_frd, float), np.asarray(det.pos_frd_m, float)).tolist()
+    p = np.asarray(pos_ned, float).tolist()
+    kind, center, radius, rng = _volume(det, (p[0], p[1], p[2]), (rel[0], rel[1], rel[2]))
+    return kind, np.array(center), radius, rng
 
 
 class ObstacleMap:
@@ -167,20 +178,39 @@ class ObstacleMap:
         A track "changes" when its centre moves more than 0.3 m or its radius grows more than 0.2 m.
         """
         changed: set[int] = set()
-        for det in detections:
-            kind, center, radius, rng = detection_volume(det, pos_ned, q_ned_frd)
+        detections = tuple(detections)
+        rel_ned: list[list[float]] = []
+        if detections:  # one rotation of the whole frame's surface points, body FRD -> NED
+            frame_frd = np.array([d.pos_frd_m for d in detections], float)
+            rel_ned = rotate_frd_to_ned(np.asarray(q_ned_frd, float), frame_frd).tolist()
+        p = np.asarray(pos_ned, float).tolist()
+        pos = (p[0], p[1], p[2])
+        for det, rel in zip(detections, rel_ned, strict=True):
+            kind, center, radius, rng = _volume(det, pos, (rel[0], rel[1], rel[2]))
             weight = 1.0 / (1.0 + (rng / 10.0) ** 2)
             track = self._find(det.obstacle_id, kind, center, radius)
             if track is None:
                 self._tracks[det.obstacle_id] = _Track(
-                    det.obstacle_id, kind, center * weight, radius * weight, weight, time_us, time_us, 1, center, radius
+                    det.obstacle_id,
+                    kind,
+                    [c * weight for c in center],
+                    radius * weight,
+                    weight,
+                    time_us,
+                    time_us,
+                    1,
+                    center,
+                    radius,
                 )
                 self._alias[det.obstacle_id] = det.obstacle_id
                 changed.add(det.obstacle_id)
                 continue
             self._alias[det.obstacle_id] = track.obstacle_id
-            if self._alias_is_native(det.obstacle_id, track):
-                track.center_sum += center * weight
+            if det.obstacle_id == track.obstacle_id:
+                cs = track.center_sum
+                cs[0] += center[0] * weight
+                cs[1] += center[1] * weight
+                cs[2] += center[2] * weight
                 track.radius_sum += radius * weight
                 track.weight += weight
             else:  # merge: grow the track to enclose both volumes
@@ -200,38 +230,48 @@ class ObstacleMap:
             self._arrays = ObstacleArrays(self._snapshot)
         return changed
 
-    @staticmethod
-    def _alias_is_native(sensor_id: int, track: _Track) -> bool:
-        return sensor_id == track.obstacle_id
-
-    def _find(self, sensor_id: int, kind: ObstacleKind, center: np.ndarray, radius: float) -> _Track | None:
+    def _find(self, sensor_id: int, kind: ObstacleKind, center: Vec3, radius: float) -> _Track | None:
         track_id = self._alias.get(sensor_id)
         if track_id is not None and track_id in self._tracks:
             return self._tracks[track_id]
         for track in self._tracks.values():
             if track.kind is not kind:
                 continue
-            delta = center - track.center
-            gap = float(np.linalg.norm(delta if kind is ObstacleKind.SPHERE else delta[:2]))
+            c = track.center
+            dx, dy = center[0] - c[0], center[1] - c[1]
+            gap = math.sqrt(dx * dx + dy * dy + ((center[2] - c[2]) ** 2 if kind is ObstacleKind.SPHERE else 0.0))
             if gap - radius - track.radius < -self.merge_m:
                 return track
         return None
 
     @staticmethod
-    def _enclose(track: _Track, center: np.ndarray, radius: float) -> None:
+    def _enclose(track: _Track, center: Vec3, radius: float) -> None:
         c0, r0 = track.center, track.radius
         if track.kind is ObstacleKind.COLUMN:  # columns merge in the horizontal plane
-            center = np.array((center[0], center[1], c0[2]))
-        d = float(np.linalg.norm(center - c0))
+            center = (center[0], center[1], c0[2])
+        d = math.dist(center, c0)
         if d + radius <= r0:
             return
         if d + r0 <= radius:
             c1, r1 = center, radius
         else:
             r1 = 0.5 * (d + r0 + radius)
-            c1 = c0 + (center - c0) * (r1 - r0) / d
-        track.center_sum = c1 * track.weight
+            f = (r1 - r0) / d
+            c1 = (c0[0] + (center[0] - c0[0]) * f, c0[1] + (center[1] - c0[1]) * f, c0[2] + (center[2] - c0[2]) * f)
+        track.center_sum = [c * track.weight for c in c1]
         track.radius_sum = r1 * track.weight
+
+
+def row_signed_distance(row: tuple[int, float, float, float, float, bool, float], p: Vec3) -> float:
+    """Signed distance of a point to one ``ObstacleArrays.rows`` volume (same as ``signed_distance``)."""
+    _, cx, cy, cz, r, sphere, top = row
+    h = math.hypot(p[0] - cx, p[1] - cy)
+    if sphere:
+        return math.hypot(h, p[2] - cz) - r
+    dr, cap = h - r, top - p[2]
+    if cap > 0.0:
+        return math.hypot(max(dr, 0.0), cap) + min(max(dr, cap), 0.0)
+    return dr
 
 
 class ObstacleArrays:
@@ -251,6 +291,12 @@ class ObstacleArrays:
         self.top_down = np.array([o.top_down for o in obstacles], float)
         self.any_sphere = bool(self.is_sphere.any())
         self.any_column = not bool(self.is_sphere.all())
+        self.any_capped = bool(np.isfinite(self.top_down[~self.is_sphere]).any())  # a column with a known top
+        self._north, self._east, self._down = (
+            self.center[:, 0].copy(),
+            self.center[:, 1].copy(),
+            self.center[:, 2].copy(),
+        )
         #: The same volumes as plain tuples ``(id, north, east, down, radius, is_sphere, top_down)`` for scalar
         #: per-segment checks (numpy's per-call overhead dominates on a handful of points).
         self.rows: tuple[tuple[int, float, float, float, float, bool, float], ...] = tuple(
@@ -260,22 +306,24 @@ class ObstacleArrays:
     def __len__(self) -> int:
         return len(self.obstacles)
 
+    def nearest_distance(self, p: Vec3) -> float:
+        """Smallest signed surface distance (m) of one point to any obstacle (inf when there is none)."""
+        return min((row_signed_distance(row, p) for row in self.rows), default=math.inf)
+
     def signed_distance(self, points_ned: np.ndarray) -> np.ndarray:
         """Signed surface distances (m) of points ``(m, 3)`` to every obstacle, shape ``(m, n)``."""
         p = np.asarray(points_ned, float)
-        dx = p[:, 0:1] - self.center[:, 0]
-        dy = p[:, 1:2] - self.center[:, 1]
-        horiz = np.sqrt(dx * dx + dy * dy)
+        horiz = np.hypot(p[:, 0:1] - self._north, p[:, 1:2] - self._east)
         if not self.any_column:
-            dz = p[:, 2:3] - self.center[:, 2]
-            return np.sqrt(horiz * horiz + dz * dz) - self.radius
-        dr = horiz - self.radius
-        with np.errstate(invalid="ignore"):
-            cap = self.top_down - p[:, 2:3]  # > 0 above the top
-            column = np.where(
-                cap > 0.0, np.sqrt(np.maximum(dr, 0.0) ** 2 + cap * cap) + np.minimum(np.maximum(dr, cap), 0.0), dr
-            )
+            return np.hypot(horiz, p[:, 2:3] - self._down) - self.radius
+        column = horiz - self.radius
+        if self.any_capped:
+            dr = column
+            with np.errstate(invalid="ignore"):
+                cap = self.top_down - p[:, 2:3]  # > 0 above the top
+                column = np.where(
+                    cap > 0.0, np.sqrt(np.maximum(dr, 0.0) ** 2 + cap * cap) + np.minimum(np.maximum(dr, cap), 0.0), dr
+                )
         if not self.any_sphere:
             return column
-        dz = p[:, 2:3] - self.center[:, 2]
-        return np.where(self.is_sphere, np.sqrt(horiz * horiz + dz * dz) - self.radius, column)
+        return np.where(self.is_sphere, np.hypot(horiz, p[:, 2:3] - self._down) - self.radius, column)

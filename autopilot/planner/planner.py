@@ -142,10 +142,6 @@ class PlannerOutput:
         return sample_path(self.hold_path) if self.hold_path is not None else None
 
 
-def _vec3(v: np.ndarray) -> Vec3:
-    return (float(v[0]), float(v[1]), float(v[2]))
-
-
 class AvoidancePlanner:
     """Obstacle map + threat + detour state machine. Pure: no clock or I/O; ``time_us`` is sim time."""
 
@@ -249,15 +245,14 @@ class AvoidancePlanner:
         searches = self._searches
         if self._state is not PlannerState.DISABLED:
             threat = self._step(time_us, pos, vel, route, obstacles, changed, decisions)
-        arrays = self.map.arrays
-        clearance = float(arrays.signed_distance(pos[None, :]).min()) if len(arrays) else math.inf
+        p = pos.tolist()
+        clearance = self.map.arrays.nearest_distance((p[0], p[1], p[2]))
         setpoint = None
         look = None
         if self._path is not None:
             t_s = (time_us - self._t0_us) * 1e-6
-            p, v, a = self._path.state_at(t_s)
-            setpoint = DetourSetpoint(_vec3(p), _vec3(v), _vec3(a))
-            look = _vec3(self._path.state_at(t_s + LOOK_AHEAD_S)[0])
+            setpoint = DetourSetpoint(*self._path.state_tuple(t_s))
+            look = self._path.state_tuple(t_s + LOOK_AHEAD_S)[0]
         return PlannerOutput(
             time_us,
             self._state,
@@ -355,7 +350,7 @@ class AvoidancePlanner:
         p = self.params
         speed = float(np.linalg.norm(vel))
         ray_m = min(p.lookahead_m, speed * speed / (2.0 * p.a_max_m_s2) + RAY_HORIZON_S * speed)
-        return assess_threat(pos, vel, route, obstacles, p.r_safe_m, p.lookahead_m, ray_m)
+        return assess_threat(pos, vel, route, self.map.arrays, p.r_safe_m, p.lookahead_m, ray_m)
 
     @staticmethod
     def _blocking(why: str, pos: np.ndarray, obstacles: tuple[TrackedObstacle, ...]) -> Threat | None:
