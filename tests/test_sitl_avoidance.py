@@ -33,9 +33,10 @@ STORM_REASON = (
     "(sim end COLLISION at 71 s sim, clearance 0.37 m)"
 )
 LISSAJOUS_REASON = (
-    "missions/lissajous_obstacles.yaml seq 14 is 0.99 m inside sphere 1 (N10 E0.6 alt 8, r1) and seq 38 0.94 m "
-    "inside the other: flying to seq 14 the vehicle hits that sphere (sim end COLLISION at 19-37 s sim, clearance "
-    "0.37 m): the planner does not keep R_safe when the waypoint itself is inside an obstacle"
+    "missions/lissajous_obstacles.yaml seq 14 is 0.99 m inside sphere 1 (N10 E0.6 alt 8, r1; seq 38 is 0.94 m "
+    "inside the other): the planner sees the sphere at 6.6 m and goes LEFT, the executor meanwhile advances to "
+    "seq 14, the replan at 3.1 m finds 'no safe detour, holding' and the vehicle cannot stop in time (sim end "
+    "COLLISION at 18.5-37 s sim, clearance 0.37 m)"
 )
 
 
