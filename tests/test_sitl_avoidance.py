@@ -26,11 +26,11 @@ MISSIONS = REPO_ROOT / "missions"
 PROGRESS_TIMEOUT_SIM_S = 90.0
 
 STORM_REASON = (
-    "missions/storm_obstacles.yaml puts route waypoints inside its spheres (seq 36 is 0.49 m inside sphere 2 at "
-    "N9.3 E-0.5 alt 6.6 r0.8, seq 35 1.5 m from its surface; seq 54 0.66 m inside sphere 1) and the SITL executor "
-    "needs each waypoint within its 1 m acceptance radius: depending on the planner revision the flight either "
-    "stops progressing at seq 34 (0 collisions, nothing reached for 400 s sim) or reaches seq 36 and hits sphere 2 "
-    "(sim end COLLISION at 71 s sim, clearance 0.37 m)"
+    "missions/storm_obstacles.yaml puts route waypoints inside its spheres (seq 36 is 0.49 m inside the sphere at "
+    "N9.3 E-0.5 alt 6.6 r0.8, seq 35 1.5 m from its surface; seq 54 0.66 m inside the other): at 51.9 s sim the "
+    "planner says 'no safe detour, holding' 6.3 m from it (every side ruled out by that obstacle), 19 s later the "
+    "vehicle moves on, reaches seq 34-36 and flies into the sphere (sim end COLLISION at 71-73 s sim, clearance "
+    "0.37 m); an earlier planner revision instead held at seq 34 for 400 s sim"
 )
 LISSAJOUS_REASON = (
     "missions/lissajous_obstacles.yaml seq 14 is 0.99 m inside sphere 1 (N10 E0.6 alt 8, r1; seq 38 is 0.94 m "
