@@ -157,12 +157,13 @@ def _problems(outcome: FlightOutcome, gcs: dict[str, object], sim: dict[str, obj
 
 
 def _print_summary(summary: dict[str, object], problems: list[str], recording: Path | None, out_dir: Path) -> None:
-    gcs, sim = summary["gcs"], summary["sim"]
-    assert isinstance(gcs, dict) and isinstance(sim, dict)
+    gcs, sim, ap = summary["gcs"], summary["sim"], summary["autopilot"]
+    assert isinstance(gcs, dict) and isinstance(sim, dict) and isinstance(ap, dict)
+    progress = gcs or ap  # the autopilot's own count when the ground station was stopped before its summary
     rows = [
         ("result", "OK" if summary["ok"] else "FAILED"),
-        ("items reached", f"{gcs.get('items_reached', '?')}/{gcs.get('items_total', '?')}"),
-        ("landed / disarmed", f"{gcs.get('landed', '?')} / {gcs.get('disarmed', '?')}"),
+        ("items reached", f"{progress.get('items_reached', '?')}/{progress.get('items_total', '?')}"),
+        ("landed / disarmed", f"{progress.get('landed', '?')} / {progress.get('disarmed', '?')}"),
         ("sim time", _num(sim.get("sim_time_s"), 1, " s")),
         ("wall time (flight / total)", f"{_num(sim.get('wall_time_s'), 1, ' s')} / {summary['wall_time_s']} s"),
         ("real-time factor", _num(sim.get("real_time_factor"), 2, "x")),
@@ -175,6 +176,7 @@ def _print_summary(summary: dict[str, object], problems: list[str], recording: P
     print()
     for name, value in rows:
         print(f"{name:<28} {value}")
+    sys.stdout.flush()  # the table first, then the error lines, in a terminal too
     for line in problems:
         print(f"run_delivery: error: {line}" if not line.startswith("    ") else line, file=sys.stderr)
     print(f"\nsummary:   {out_dir / 'summary.json'}")
