@@ -13,7 +13,7 @@ from autopilot.mission.files import expand_pattern
 from autopilot.planner.geometry import CircleZone, PolygonZone
 from autopilot.planner.param_decls import PlannerParams
 from sim.world import load_world
-from tools.benchmarks.avoidance import fly_route, random_field
+from tools.benchmarks.avoidance import benchmark_fields, fly_route, random_field
 
 PARAMS = PlannerParams()
 FLOOR_M = PARAMS.r_safe_m - PARAMS.track_tol_m
@@ -82,5 +82,23 @@ def test_mission_worlds_are_flown_safely(repo_root) -> None:
     spiral = np.array(expand_pattern("storm", 2.0, {}))
     spiral[:, 2] = -np.maximum(spiral[:, 2], 2.0)  # pattern altitudes above home -> down
     result = fly_route(storm, spiral, PARAMS, speed_m_s=3.0, seed=2)
+    _check(result)
+    assert len(result.decisions) >= 2
+
+
+@pytest.mark.parametrize("field", [22, 26])
+def test_benchmark_field_keeps_the_clearance_floor(field: int) -> None:
+    """Quick-benchmark fields whose clearance dipped to 0.67 m (22) and 0.36 m (26): in field 22 a detour
+    rejoined the route 2.5 m before another obstacle's safety sphere, too close to turn or brake."""
+    *_, (world, wps) = benchmark_fields(field + 1, PARAMS)
+    _check(fly_route(world, wps, PARAMS, seed=field))
+
+
+def test_lissajous_obstacles_mission_completes(repo_root) -> None:
+    """The 3D Lissajous pattern (dense 2 m waypoints) past its two floating spheres and the lamp post."""
+    world = load_world(repo_root / "missions" / "lissajous_obstacles.yaml")
+    route = np.array(expand_pattern("lissajous", 2.0, {}))
+    route[:, 2] = -np.maximum(route[:, 2], 2.0)  # pattern altitudes above home -> down
+    result = fly_route(world, route, PARAMS, speed_m_s=3.0, seed=2)
     _check(result)
     assert len(result.decisions) >= 2

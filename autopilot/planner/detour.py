@@ -50,6 +50,8 @@ _SAMPLE_STEP_M = 0.4
 MAX_CLUSTER_MERGES = 3
 #: The route after the rejoin point is checked for the stopping distance plus this many seconds of flight.
 CONTINUATION_S = 2.0
+#: A fitted curve's clearance is evaluated to the obstacles within R_safe + this of its control hull.
+_CLEARANCE_REACH_M = 1.0
 #: How many times the rejoin point is pushed past a later pass of the same obstacle(s) on the route.
 _MAX_REJOIN_PUSHES = 3
 
@@ -119,7 +121,7 @@ class DetourPlan:
     path: BezierPath
     samples_ned: np.ndarray  # (m, 3) consecutive points <= _SAMPLE_STEP_M apart
     cost_m: float
-    min_clearance_m: float  # over the samples, to every tracked obstacle surface
+    min_clearance_m: float  # over the samples, to the tracked obstacles within R_safe + 1 m of the curve (inf: none)
     rejoin_ned: np.ndarray
     rejoin_route_index: int = 0
     continuation_ned: np.ndarray = field(default_factory=lambda: np.empty((0, 3)))
@@ -377,17 +379,24 @@ def _need(start: V3, arrays: ObstacleArrays, clearance_m: float) -> list[float]:
 
 
 def _check_samples(
-    samples_ned: np.ndarray, need: np.ndarray, arrays: ObstacleArrays, limits: DetourLimits
+    samples_ned: np.ndarray,
+    need: list[float],
+    arrays: ObstacleArrays,
+    limits: DetourLimits,
+    near: list[int] | None = None,
 ) -> tuple[str, float]:
-    """``check_path``'s verdict (``need``: per-obstacle clearance) and the samples' smallest clearance (inf: none)."""
+    """``check_path``'s verdict (``need``: per-obstacle clearance) and the samples' smallest clearance (inf: none).
+
+    ``near``: indices of the only obstacles that can come within reach (the others are not evaluated).
+    """
     clearance = math.inf
-    if len(arrays):
-        per_obstacle = arrays.signed_distance(samples_ned).min(axis=0)
-        short = per_obstacle - need
-        worst = int(short.argmin())
-        clearance = float(per_obstacle.min())
-        if short[worst] < 0.0:
-            return f"obstacle {int(arrays.ids[worst])}", clearance
+    index = list(range(len(arrays))) if near is None else near
+    if index:
+        per_obstacle = arrays.signed_distance(samples_ned, near).min(axis=0).tolist()
+        clearance = min(per_obstacle)
+        short, worst = min((d - need[k], k) for d, k in zip(per_obstacle, index, strict=True))
+        if short < 0.0:
+            return f"obstacle {arrays.rows[worst][0]}", clearance
     down = samples_ned[:, 2]
     if -float(down.max()) < max(limits.min_agl_m, limits.alt_floor_m) - 1e-6:
         return ("ground" if limits.min_agl_m >= limits.alt_floor_m else "altitude floor"), clearance
@@ -396,6 +405,20 @@ def _check_samples(
     if limits.fences and path_clear_of_fences(limits.fences, samples_ned, 0.0) is not None:
         return "fence", clearance
     return "", clearance
+
+
+def _near_hull(ctrl_ned: np.ndarray, rows: Sequence[Row], reach_m: Sequence[float]) -> list[int]:
+    """Indices of the obstacles within ``reach_m`` of the bounding box of a Bézier chain's control points
+    (the curve lies in their convex hull, so the others are farther than their reach from every point of it)."""
+    pts = ctrl_ned.reshape(-1, 3)
+    (x0, y0, z0), (x1, y1, z1) = pts.min(axis=0).tolist(), pts.max(axis=0).tolist()
+    near = []
+    for k, (_, cx, cy, cz, r, sphere, _top) in enumerate(rows):
+        reach = r + reach_m[k]
+        in_plane = x0 - reach <= cx <= x1 + reach and y0 - reach <= cy <= y1 + reach
+        if in_plane and (not sphere or z0 - reach <= cz <= z1 + reach):
+            near.append(k)
+    return near
 
 
 def check_path(
@@ -413,7 +436,7 @@ def check_path(
     """
     arrays = as_arrays(obstacles)
     start = np.asarray(start_ned, float).tolist()
-    need = np.array(_need((start[0], start[1], start[2]), arrays, limits.r_safe_m + tol_m))
+    need = _need((start[0], start[1], start[2]), arrays, limits.r_safe_m + tol_m)
     return _check_samples(np.asarray(samples_ned, float), need, arrays, limits)[0]
 
 
@@ -451,7 +474,8 @@ class _Search:
         self.rows = arrays.rows
         # an obstacle the vehicle is already nearer than R_safe must not get nearer (cf. check_path)
         self.need = _need(self.pos, arrays, limits.r_safe_m)
-        self.need_curve = np.array(_need(self.pos, arrays, limits.r_safe_m + 0.5 * _SAMPLE_STEP_M))
+        self.need_curve = _need(self.pos, arrays, limits.r_safe_m + 0.5 * _SAMPLE_STEP_M)
+        self.reach_curve = [n + _CLEARANCE_REACH_M for n in self.need_curve]
         self.need_route = [limits.r_safe_m] * len(self.rows)
         speed = math.sqrt(float(vel[0]) ** 2 + float(vel[1]) ** 2 + float(vel[2]) ** 2)
         self.speed_end = min(limits.v_max_m_s, max(speed, limits.cruise_m_s))
@@ -508,7 +532,8 @@ class _Search:
         if not path.limits_ok:
             return "dynamic limits"
         samples = path.sample(_SAMPLE_STEP_M)
-        why, clearance = _check_samples(samples, self.need_curve, self.arrays, lim)
+        near = _near_hull(path.ctrl_ned, self.rows, self.reach_curve)
+        why, clearance = _check_samples(samples, self.need_curve, self.arrays, lim, near)
         if why:
             return why
         samples.setflags(write=False)

@@ -310,20 +310,32 @@ class ObstacleArrays:
         """Smallest signed surface distance (m) of one point to any obstacle (inf when there is none)."""
         return min((row_signed_distance(row, p) for row in self.rows), default=math.inf)
 
-    def signed_distance(self, points_ned: np.ndarray) -> np.ndarray:
-        """Signed surface distances (m) of points ``(m, 3)`` to every obstacle, shape ``(m, n)``."""
+    def signed_distance(self, points_ned: np.ndarray, index: list[int] | None = None) -> np.ndarray:
+        """Signed surface distances (m) of points ``(m, 3)`` to every obstacle, shape ``(m, n)``; with ``index``,
+        to those obstacles only, shape ``(m, len(index))``."""
         p = np.asarray(points_ned, float)
-        horiz = np.hypot(p[:, 0:1] - self._north, p[:, 1:2] - self._east)
-        if not self.any_column:
-            return np.hypot(horiz, p[:, 2:3] - self._down) - self.radius
-        column = horiz - self.radius
+        north, east, down, radius, is_sphere = self._north, self._east, self._down, self.radius, self.is_sphere
+        any_sphere, any_column, top_down = self.any_sphere, self.any_column, self.top_down
+        if index is not None:
+            north, east, down, radius, is_sphere = (
+                north[index],
+                east[index],
+                down[index],
+                radius[index],
+                is_sphere[index],
+            )
+            any_sphere, any_column, top_down = bool(is_sphere.any()), not bool(is_sphere.all()), top_down[index]
+        horiz = np.hypot(p[:, 0:1] - north, p[:, 1:2] - east)
+        if not any_column:
+            return np.hypot(horiz, p[:, 2:3] - down) - radius
+        column = horiz - radius
         if self.any_capped:
             dr = column
             with np.errstate(invalid="ignore"):
-                cap = self.top_down - p[:, 2:3]  # > 0 above the top
+                cap = top_down - p[:, 2:3]  # > 0 above the top
                 column = np.where(
                     cap > 0.0, np.sqrt(np.maximum(dr, 0.0) ** 2 + cap * cap) + np.minimum(np.maximum(dr, cap), 0.0), dr
                 )
-        if not self.any_sphere:
+        if not any_sphere:
             return column
-        return np.where(self.is_sphere, np.hypot(horiz, p[:, 2:3] - self._down) - self.radius, column)
+        return np.where(is_sphere, np.hypot(horiz, p[:, 2:3] - down) - radius, column)

@@ -238,8 +238,8 @@ class AvoidancePlanner:
         route = np.asarray(route_target_ned, float)[None, :]
         if route_next_ned is not None:
             route = np.vstack((route, np.asarray(route_next_ned, float).reshape(-1, 3)))
-        skip = self._route_skip(route)
-        route = route[skip:]
+        full_route = route
+        route = route[self._route_skip(route) :]
         decisions: list[AvoidanceDecision] = []
         threat: Threat | None = None
         searches = self._searches
@@ -265,7 +265,7 @@ class AvoidancePlanner:
             clearance,
             look,
             self._searches != searches,
-            skip,
+            self._route_skip(full_route),  # after this update's decisions: a new detour counts at once
         )
 
     def _route_skip(self, route: np.ndarray) -> int:

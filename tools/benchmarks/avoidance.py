@@ -23,7 +23,7 @@ from __future__ import annotations
 import itertools
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,8 +43,10 @@ VEHICLE_ACC_MAX_M_S2 = 6.0
 ACCEPT_RADIUS_M = 1.5
 #: Closer than this to a waypoint, the nose turns to the next one (the camera looks around the corner).
 LOOK_NEXT_WITHIN_M = 10.0
-#: Upcoming waypoints handed to the planner (dense expanded patterns need more than one).
-ROUTE_AHEAD_WAYPOINTS = 12
+#: The route handed to the planner reaches at least this many look-ahead lengths past the current target
+#: (a detour around an obstacle near the look-ahead horizon must find its rejoin point on it; dense expanded
+#: patterns need many waypoints for that).
+ROUTE_AHEAD_LOOKAHEADS = 2.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -81,7 +83,9 @@ def fly_route(
     sensor = ObstacleSensor(world, seed=seed, config=sensor_config)
     planner = AvoidancePlanner(params, fences=fences)
     wps = np.asarray(waypoints_ned, float)
-    route_len = float(np.linalg.norm(np.diff(wps, axis=0), axis=1).sum())
+    s_wps = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(wps, axis=0), axis=1))))
+    route_len = float(s_wps[-1])
+    ahead_m = ROUTE_AHEAD_LOOKAHEADS * params.lookahead_m
     max_time_s = max_time_s or 3.0 * route_len / speed_m_s + 30.0
     pos, vel = wps[0].copy(), np.zeros(3)
     yaw = math.atan2(wps[1, 1] - wps[0, 1], wps[1, 0] - wps[0, 0])
@@ -100,7 +104,8 @@ def fly_route(
         time_us = round(k * dt_s * 1e6)
         q = quat_from_euler(0.0, 0.0, yaw)
         dets = sensor.detect(pos, q, time_us) if k % sensor_every == 0 else ()
-        nxt = wps[target_i + 1 : target_i + 1 + ROUTE_AHEAD_WAYPOINTS] if target_i + 1 < len(wps) else None
+        last_i = int(np.searchsorted(s_wps, s_wps[target_i] + ahead_m)) + 1
+        nxt = wps[target_i + 1 : last_i] if target_i + 1 < len(wps) else None
         t0 = time.thread_time()
         out = planner.update(time_us, pos, vel, q, dets, wps[target_i], nxt)
         dt_cpu = time.thread_time() - t0
@@ -237,15 +242,24 @@ def random_field(rng: np.random.Generator, r_keep_m: float) -> tuple[World, np.n
     return world, wps
 
 
+#: Seed of the benchmark's field sequence (field i of a run is the i-th of it, flown with sensor seed i).
+FIELD_SEED = 20240611
+
+
+def benchmark_fields(n_fields: int, params: PlannerParams) -> Iterator[tuple[World, np.ndarray]]:
+    """The benchmark's first ``n_fields`` random fields, in order (a quick run flies the first 30)."""
+    rng = np.random.default_rng(FIELD_SEED)
+    for _ in range(n_fields):
+        yield random_field(rng, r_keep_m=params.r_safe_m + 6.0)
+
+
 def run(quick: bool) -> list[BenchResult]:
     """Monte Carlo over seeded random fields (200, or 30 with ``quick``)."""
     params = PlannerParams()
     n_fields = 30 if quick else 200
-    rng = np.random.default_rng(20240611)
-    results = []
-    for i in range(n_fields):
-        world, wps = random_field(rng, r_keep_m=params.r_safe_m + 6.0)
-        results.append(fly_route(world, wps, params, seed=i))
+    results = [
+        fly_route(world, wps, params, seed=i) for i, (world, wps) in enumerate(benchmark_fields(n_fields, params))
+    ]
     plan_ms = np.array([t for r in results for t in r.plan_times_s]) * 1e3
     upd_ms = np.array([t for r in results for t in r.update_times_s]) * 1e3
     collisions = sum(r.collisions for r in results)

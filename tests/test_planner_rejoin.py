@@ -1,0 +1,101 @@
+"""Where a detour rejoins the route (issue 6, round 3): the first pass of a self-crossing route, a clear
+route after the rejoin point, and the waypoints it bypassed reported to the caller."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from autopilot.planner.detour import DetourLimits, plan_detour
+from autopilot.planner.obstacle_map import ObstacleKind, TrackedObstacle
+from autopilot.planner.param_decls import PlannerParams
+from autopilot.planner.planner import AvoidancePlanner, PlannerState
+from mavlink_bridge.frames import quat_from_euler
+from mavlink_bridge.wire import ObstacleDetection, ObstacleShape
+
+POS = np.array([0.0, 0.0, -10.0])
+VEL = np.array([5.0, 0.0, 0.0])
+LIMITS = DetourLimits(
+    r_safe_m=2.0,
+    margin_m=0.5,
+    v_max_m_s=6.0,
+    a_max_m_s2=3.0,
+    rejoin_m=4.0,
+    min_agl_m=2.0,
+    alt_floor_m=0.0,
+    alt_ceiling_m=120.0,
+)
+Q_NORTH = quat_from_euler(0.0, 0.0, 0.0)
+
+
+def _clearance(points: np.ndarray, obstacles: tuple[TrackedObstacle, ...]) -> float:
+    return min(float(o.signed_distance(points).min()) for o in obstacles)
+
+
+def test_self_crossing_route_rejoins_after_the_first_pass() -> None:
+    """The route crosses itself on the obstacle; its second pass is even nearer the centre than the first.
+
+    The rejoin point follows the first pass (the one the vehicle is on), not the global nearest point of
+    the route, which would send the detour around the whole loop.
+    """
+    obs = TrackedObstacle(1, ObstacleKind.SPHERE, (20.0, 0.3, -10.0), 1.5, 0, 0, 1)
+    route = np.array([[40.0, 0.0, -10.0], [40.0, 15.0, -10.0], [20.0, 15.0, -10.0], [20.0, -30.0, -10.0]])
+    result = plan_detour(POS, VEL, route, obs, (obs,), LIMITS)
+    plan = result.plan
+    assert plan is not None
+    rho = 1.5 + LIMITS.r_safe_m + LIMITS.margin_m
+    assert plan.rejoin_ned == pytest.approx((20.0 + rho + LIMITS.rejoin_m, 0.0, -10.0))
+    assert plan.rejoin_route_index == 0  # still on the leg toward the first waypoint
+    assert plan.cost_m < 40.0
+    assert _clearance(plan.samples_ned, (obs,)) >= LIMITS.r_safe_m
+
+
+def test_route_after_the_rejoin_point_is_clear() -> None:
+    """A second column stands on the route just past where a detour around the first would rejoin (the
+    clearance dip of benchmark field 22): the detour must not hand the vehicle back to the route there."""
+    threat = TrackedObstacle(1, ObstacleKind.COLUMN, (20.0, 0.5, -10.0), 2.0, 0, 0, 1)
+    alone = plan_detour(POS, VEL, np.array([[80.0, 0.0, -10.0]]), threat, (threat,), LIMITS)
+    assert alone.plan is not None
+    s_rejoin_alone = float(alone.plan.rejoin_ned[0])
+    after = TrackedObstacle(2, ObstacleKind.COLUMN, (s_rejoin_alone + 6.0, -0.8, -10.0), 1.5, 0, 0, 1)
+    obstacles = (threat, after)
+    result = plan_detour(POS, VEL, np.array([[80.0, 0.0, -10.0]]), threat, obstacles, LIMITS)
+    plan = result.plan
+    assert plan is not None
+    assert plan.rejoin_ned[0] > after.center_ned[0] + after.radius_m + LIMITS.r_safe_m  # past both
+    assert _clearance(plan.samples_ned, obstacles) >= LIMITS.r_safe_m
+    assert len(plan.continuation_ned) > 10 and _clearance(plan.continuation_ned, obstacles) >= LIMITS.r_safe_m
+
+
+def _sphere_detection(time_us: int, oid: int, pos: np.ndarray, center: np.ndarray, r: float) -> ObstacleDetection:
+    rel = center - pos
+    surface = rel - r * rel / np.linalg.norm(rel)
+    return ObstacleDetection(
+        time_us, oid, (float(surface[0]), float(surface[1]), float(surface[2])), r, ObstacleShape.SPHERE
+    )
+
+
+def test_planner_reports_the_waypoints_a_detour_bypassed() -> None:
+    """The obstacle sits just before a corner: the detour rejoins the leg after the corner waypoint.
+
+    ``rejoin_route_index`` says so (1: resume toward the waypoint after the current target) while the detour
+    is flown and after it ends, until the caller advances its target; then it reports 0.
+    """
+    planner = AvoidancePlanner(PlannerParams())
+    center = np.array([20.0, 0.5, -10.0])
+    corner, after = (26.0, 0.0, -10.0), (26.0, 40.0, -10.0)
+    out = planner.update(0, POS, VEL, Q_NORTH, [_sphere_detection(0, 1, POS, center, 2.0)], corner, after)
+    assert out.state is PlannerState.DETOUR and out.detour is not None
+    assert out.detour.rejoin_route_index == 1 and out.detour.rejoin_ned[1] > 0.0  # on the leg after the corner
+    assert out.rejoin_route_index == 1
+    t_end_us = round(out.detour.path.duration_s * 1e6)
+    for time_us in (t_end_us // 2, t_end_us + 40_000):
+        sp = out.setpoint
+        assert sp is not None
+        pos, vel = np.array(sp.pos_ned_m), np.array(sp.vel_ned_m_s)
+        out = planner.update(time_us, pos, vel, Q_NORTH, (), corner, after)
+        assert out.rejoin_route_index == 1  # the caller has not advanced yet
+    assert out.state is PlannerState.CLEAR and out.setpoint is None
+    out = planner.update(t_end_us + 80_000, pos, vel, Q_NORTH, (), after, None)  # the caller advanced
+    assert out.rejoin_route_index == 0
+    assert out.state is PlannerState.CLEAR
