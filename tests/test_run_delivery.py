@@ -59,6 +59,35 @@ def test_run_delivery_stops_and_says_why_when_the_sitl_dies(tmp_path: Path) -> N
     assert "result                       FAILED" in proc.stdout
 
 
+CRASH_ON_CLIMB = """\
+name: crash_on_climb
+home: {lat_deg: 30.2635, lon_deg: 120.1233, alt_m: 12.0}
+vehicle: x500
+mission:
+  - takeoff: {alt_m: 10}
+  - waypoint: {north_m: 20, east_m: 0, alt_m: 10}
+  - land: {}
+world:
+  obstacles:
+    - sphere: {north_m: 0, east_m: 0, alt_m: 4, radius_m: 1.5}   # right above the pad: the camera looks forward
+"""
+
+
+def test_run_delivery_ends_when_the_sim_ends_the_run_mid_flight(tmp_path: Path) -> None:
+    """A collision on the climb ends the simulator's run: the ground station (still waiting) is stopped, exit 3."""
+    mission = tmp_path / "crash.yaml"
+    mission.write_text(CRASH_ON_CLIMB)
+    out_dir = tmp_path / "run"
+    proc = _run_delivery("--mission", str(mission), "--out-dir", str(out_dir), "--rerun", "off", timeout_s=300.0)
+    assert proc.returncode == 3, proc.stdout + proc.stderr
+    assert "quadsitl up exited with status 4 before the mission was done (sim end reason: COLLISION)" in proc.stderr
+    assert "run_delivery: error: simulator: collisions = 1" in proc.stderr
+    summary = json.loads((out_dir / "summary.json").read_text())
+    assert summary["ok"] is False and summary["sim"]["end_reason"] == "COLLISION"
+    assert summary["autopilot"]["armed"] is True  # it was flying, not refused on the ground
+    assert summary["recording"] is None and "recording:" not in proc.stdout  # --rerun off: none promised
+
+
 def test_run_delivery_refuses_a_missing_mission(tmp_path: Path) -> None:
     proc = _run_delivery("--mission", str(tmp_path / "none.yaml"), "--out-dir", str(tmp_path), timeout_s=60.0)
     assert proc.returncode == 2
