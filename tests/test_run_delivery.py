@@ -24,7 +24,7 @@ def _run_delivery(*args: str, timeout_s: float) -> subprocess.CompletedProcess[s
 
 def test_run_delivery_flies_the_default_mission_and_writes_everything(tmp_path: Path) -> None:
     out_dir = tmp_path / "run"
-    proc = _run_delivery("--out-dir", str(out_dir), timeout_s=900.0)
+    proc = _run_delivery("--out-dir", str(out_dir), timeout_s=280.0)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     summary = json.loads((out_dir / "summary.json").read_text())
     assert summary["ok"] is True and summary["errors"] == []

@@ -102,12 +102,12 @@ def test_delivery_mission_through_gcs_fly(tmp_path: Path) -> None:
         assert s.api_url is not None
         with connect_gcs(s.api_url) as observer:  # a second client on the API link sees what the GCS sees
             cmd = [sys.executable, "-m", "tools.gcs", "--connect", s.gcs_url, "fly", str(mission)]
-            cmd += ["--summary", str(summary_path), "--no-progress", "--timeout-s", "400"]
+            cmd += ["--summary", str(summary_path), "--no-progress", "--timeout-s", "240"]
             with open(tmp_path / "gcs.log", "wb") as out:
                 env = dict(os.environ, PYTHONUNBUFFERED="1")
                 fly = subprocess.Popen(cmd, cwd=REPO_ROOT, env=env, stdout=out, stderr=subprocess.STDOUT)
             try:
-                deadline = time.monotonic() + 450.0
+                deadline = time.monotonic() + 260.0
                 while fly.poll() is None and time.monotonic() < deadline:
                     observer.pump(0.1)
             finally:
