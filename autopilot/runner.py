@@ -27,8 +27,6 @@ from enum import Enum
 from pathlib import Path
 from typing import Protocol
 
-import numpy as np
-
 from autopilot.commander import CMD_MISSION_START, Commander
 from autopilot.control.airframe import Airframe, load_airframe
 from autopilot.control.cascade import GRAVITY_M_S2, CascadeController
@@ -274,15 +272,6 @@ class Autopilot:
         self._pack = struct.Struct("<q10d").pack
         self._motor = (0.0, 0.0, 0.0, 0.0)
         self._gcs_heartbeat_age: Callable[[], float | None] = lambda: None
-        # preallocated controller inputs, shaped (n=1, k) so the cascade reads them in place
-        self._pos = np.zeros((1, 3))
-        self._vel = np.zeros((1, 3))
-        self._q = np.zeros((1, 4))
-        self._rate = np.zeros((1, 3))
-        self._pos_sp = np.zeros((1, 3))
-        self._vel_sp = np.zeros((1, 3))
-        self._acc_sp = np.zeros((1, 3))
-        self._yaw_sp = np.zeros(1)
         self._next_failsafe_us = 0
         self.params.subscribe(self._on_param)
         self.frame_detections: tuple[ObstacleDetection, ...] = ()
@@ -293,10 +282,8 @@ class Autopilot:
         """Build the cascade and run it once now: its first call JIT-loads the numba kernels (seconds),
         which must not happen inside the lockstep, where the sim would declare the autopilot lost."""
         controller = CascadeController(self.airframe, self.gains, 1, self._dt_s, self.limits)
-        self._q[0, 0] = 1.0
-        controller.update_position(
-            self._pos, self._vel, self._q, self._rate, self._pos_sp, self._vel_sp, self._acc_sp, self._yaw_sp
-        )
+        zero = (0.0, 0.0, 0.0)
+        controller.update_position_single(zero, zero, (1.0, 0.0, 0.0, 0.0), zero, zero, zero, zero, 0.0)
         controller.reset()
         self.controller = controller
 
@@ -628,32 +615,29 @@ class Autopilot:
             controller.reset()
         self._last_kind = target.kind
         gen.update(target, self._dt_s, state.pos_ned_m)
-        pos_sp, vel_sp, acc_sp = self._pos_sp, self._vel_sp, self._acc_sp
-        pos_sp[0] = gen.pos_ned
-        vel_sp[0] = gen.vel_ned
-        acc_sp[0] = gen.acc_ned
         avoiding = commander.mode is FlightMode.AUTO_MISSION and target.kind is TargetKind.POSITION
-        if self.planner is not None and avoiding:
+        if avoiding and self.planner is not None:
             self._apply_planner(state, target)
-        self._pos[0] = state.pos_ned_m
-        self._vel[0] = state.vel_ned_m_s
-        self._q[0] = state.q_ned_frd
-        self._rate[0] = state.rate_frd_rad_s
-        self._yaw_sp[0] = gen.yaw_rad
-        u = controller.update_position(self._pos, self._vel, self._q, self._rate, pos_sp, vel_sp, acc_sp, self._yaw_sp)
-        diag = controller.diagnostics
-        self.thrust_ratio = diag.thrust_n.item(0) / self._hover_thrust_n
-        self.battery.update(self.thrust_ratio, self._dt_s)
-        ex, ey, ez = diag.pos_err_ned.tolist()[0]
-        eroll, epitch, _ = diag.att_err_rad.tolist()[0]
+        out = controller.update_position_single(
+            state.pos_ned_m,
+            state.vel_ned_m_s,
+            state.q_ned_frd,
+            state.rate_frd_rad_s,
+            tuple(gen.pos_ned),  # type: ignore[arg-type]
+            tuple(gen.vel_ned),  # type: ignore[arg-type]
+            tuple(gen.acc_ned),  # type: ignore[arg-type]
+            gen.yaw_rad,
+        )
+        u0, u1, u2, u3, thrust_n, ex, ey, ez, eroll, epitch = out
+        self.thrust_ratio = thrust_ratio = thrust_n / self._hover_thrust_n
+        self.battery.update(thrust_ratio, self._dt_s)
         q = state.q_ned_frd
         tilt = math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (q[1] * q[1] + q[2] * q[2]))))
         self.tracking.add(math.sqrt(ex * ex + ey * ey + ez * ez), math.sqrt(eroll * eroll + epitch * epitch), tilt)
-        u0, u1, u2, u3 = u.tolist()[0]
         return (u0, u1, u2, u3)
 
     def _apply_planner(self, state: VehicleState, target: NavTarget) -> None:
-        """Let the avoidance planner override the reference (about home at its edge)."""
+        """Let the avoidance planner override the reference (about home at its edge) in the setpoint generator."""
         planner = self.planner
         assert planner is not None
         home = self.home_ned
@@ -672,12 +656,10 @@ class Autopilot:
             self._say(str(decision.text), Severity.NOTICE)
         if setpoint is not None:
             p, v, a = setpoint.pos_ned_m, setpoint.vel_ned_m_s, setpoint.acc_ned_m_s2
-            self._pos_sp[0] = (p[0] + home[0], p[1] + home[1], p[2] + home[2])
-            self._vel_sp[0] = v
-            self._acc_sp[0] = a
-            self.setpoints.pos_ned[:] = (p[0] + home[0], p[1] + home[1], p[2] + home[2])
-            self.setpoints.vel_ned[:] = v
-            self.setpoints.acc_ned[:] = a
+            gen = self.setpoints
+            gen.pos_ned[:] = (float(p[0]) + home[0], float(p[1]) + home[1], float(p[2]) + home[2])
+            gen.vel_ned[:] = (float(v[0]), float(v[1]), float(v[2]))
+            gen.acc_ned[:] = (float(a[0]), float(a[1]), float(a[2]))
 
     # ------------------------------------------------------------------ after the answer
     def drain_texts(self) -> list[StatusText]:

@@ -237,6 +237,57 @@ def _position_single(pos, vel, q4, rate3, pos_sp, vel_sp, acc_ff, yaw_sp, gains,
     work[0, W_OK] = 1.0 if ok else 0.0
 
 
+@njit(cache=True)
+def _position_tuples(
+    pos, vel, q4, rate3, pos_sp, vel_sp, acc_ff, yaw_sp, gains, mass, prm, work, one
+):  # pragma: no cover # noqa: E501
+    """n = 1 entry on tuples (numba unboxes them faster than arrays are filled from Python), copied into the
+    (7, 4) scratch ``one``; returns ``(u0, u1, u2, u3, thrust_n, e_n, e_e, e_d, e_roll, e_pitch)``."""
+    for k in range(3):
+        one[0, k] = pos[k]
+        one[1, k] = vel[k]
+        one[3, k] = rate3[k]
+        one[4, k] = pos_sp[k]
+        one[5, k] = vel_sp[k]
+        one[6, k] = acc_ff[k]
+    for k in range(4):
+        one[2, k] = q4[k]
+    wf = work.reshape(-1)
+    ok = _position_one(
+        one[0:1, 0:3],
+        one[1:2, 0:3],
+        one[2:3, 0:4],
+        one[3:4, 0:3],
+        one[4:5, 0:3],
+        one[5:6, 0:3],
+        one[6:7, 0:3],
+        yaw_sp,
+        mass[0],
+        0,
+        gains.reshape(-1),
+        prm,
+        wf,
+    )
+    wf[W_OK] = 1.0 if ok else 0.0
+    return (
+        wf[W_U],
+        wf[W_U + 1],
+        wf[W_U + 2],
+        wf[W_U + 3],
+        wf[W_THR],
+        wf[W_ERR],
+        wf[W_ERR + 1],
+        wf[W_ERR + 2],
+        wf[W_ERR + 3],
+        wf[W_ERR + 4],
+    )
+
+
+#: What :meth:`CascadeController.update_position_single` returns:
+#: ``(u0, u1, u2, u3, thrust_n, e_n_m, e_e_m, e_d_m, e_roll_rad, e_pitch_rad)``.
+SingleStep = tuple[float, float, float, float, float, float, float, float, float, float]
+
+
 @dataclass(frozen=True)
 class CascadeDiagnostics:
     """Live views of the last step (overwritten by the next update; copy to keep). Shapes with n vehicles.
@@ -315,6 +366,7 @@ class CascadeController:
         self._prm = prm
         self._mass = np.full(n, airframe.mass_kg)
         self._work = np.zeros((n, N_WORK))
+        self._one = np.zeros((7, 4))  # update_position_single's inputs as rows
         self.gains = gains
         self._gains = gains.table(n)
         wk = self._work
@@ -401,6 +453,41 @@ class CascadeController:
             self._work,
         )
         return self._work[:, W_U : W_U + 4].copy()
+
+    def update_position_single(
+        self,
+        pos_ned: tuple[float, float, float],
+        vel_ned: tuple[float, float, float],
+        q_ned_frd: tuple[float, float, float, float],
+        rate_frd: tuple[float, float, float],
+        pos_sp_ned: tuple[float, float, float],
+        vel_sp_ned: tuple[float, float, float],
+        acc_ff_ned: tuple[float, float, float],
+        yaw_sp_rad: float,
+    ) -> SingleStep:
+        """:meth:`update_position` for n = 1 on float tuples (the per-step path of one autopilot).
+
+        Same kernel, same results bit for bit; returns the motor commands, the collective thrust (N)
+        and the position and roll/pitch errors of this step (:data:`SingleStep`); :attr:`diagnostics` is
+        updated as by :meth:`update_position`. Pass floats, not ints (each element type compiles anew).
+        """
+        if self.n != 1:
+            raise ValueError(f"update_position_single needs n = 1, this cascade has n = {self.n}")
+        return _position_tuples(
+            pos_ned,
+            vel_ned,
+            q_ned_frd,
+            rate_frd,
+            pos_sp_ned,
+            vel_sp_ned,
+            acc_ff_ned,
+            yaw_sp_rad,
+            self._gains,
+            self._mass,
+            self._prm,
+            self._work,
+            self._one,
+        )
 
     def update_attitude(
         self,
