@@ -227,9 +227,13 @@ class AvoidancePlanner:
         """One planner step at sim time ``time_us`` with the vehicle state and this step's detections.
 
         ``route_target_ned`` is the current mission target, ``route_next_ned`` the one after it, or
-        an ``(n, 3)`` array of the upcoming ones (pass several when waypoints are dense, e.g. expanded
-        patterns), or None; the detour rejoins the route they define, possibly past some of them:
-        the mission executor should then skip the waypoints the detour bypassed.
+        an ``(n, 3)`` array of the upcoming ones, or None. The detour rejoins the route they define
+        ``ρ + CA_REJOIN_M`` past the obstacle and checks the route after that for the stopping distance
+        + 2 s, so pass enough of it: at least ``CA_LOOKAHEAD_M`` plus that beyond the target (the
+        benchmark passes two look-ahead lengths; with sparse delivery legs the next waypoint is enough,
+        dense expanded patterns need many). A rejoin point past the route's last waypoint is clamped to
+        it. The detour may rejoin past some of them: ``PlannerOutput.rejoin_route_index`` says how many
+        to skip.
         """
         pos = np.asarray(pos_ned, float)
         vel = np.asarray(vel_ned, float)

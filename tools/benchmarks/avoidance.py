@@ -4,8 +4,9 @@ Each field is flown in-process: the sim's :class:`ObstacleSensor` (stereo + ultr
 the autopilot's :class:`AvoidancePlanner`; a point-mass follower with speed and acceleration limits
 (a stand-in for the position loop: PD on the reference plus its acceleration feed-forward) flies the
 route or the planner's detour, nose toward the planner's look-ahead point on a detour and toward
-the next waypoint near a corner (the forward camera looks where the vehicle is going).
-:func:`fly_route` is also what ``tests/test_planner_closed_loop.py`` uses.
+the next waypoint near a corner (the forward camera looks where the vehicle is going). When the
+planner reports bypassed waypoints (``PlannerOutput.rejoin_route_index``) the follower's target skips
+them, as the mission executor must. :func:`fly_route` is also what ``tests/test_planner_closed_loop.py`` uses.
 
 Fields (:func:`random_field`) keep a feasible corridor by construction, so a field that ends in
 HOLD is the planner's failure to find it; those are counted apart (``avoid_blocked_fields``).
