@@ -40,7 +40,7 @@ from autopilot.params import ParamStore
 from autopilot.setpoints import NavTarget, TargetKind
 from mavlink_bridge.frames import GeoPoint, LocalNedFrame
 from mavlink_bridge.gcs_types import CommandRequest, CommandResult, FlightMode, LandedState, Severity, StatusText
-from mavlink_bridge.wire import Vec3
+from mavlink_bridge.wire import Vec3, fast_frozen_init
 
 #: COMPONENT_ARM_DISARM param2 magic that forces arming/disarming (PX4/ArduPilot).
 FORCE_MAGIC = 21196.0
@@ -79,6 +79,7 @@ class RtlPhase(Enum):
     LAND = "land"
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class Home:
     """The home position: where the vehicle was armed (local NED about the origin, and geodetic)."""
@@ -108,6 +109,8 @@ class Commander:
         self._state: VehicleState | None = None
         self._hold_ned: Vec3 = (0.0, 0.0, 0.0)
         self._hold_yaw = math.nan
+        self._hold_key: tuple[object, ...] = ()
+        self._hold_target = NavTarget(TargetKind.IDLE)
         self._goto_ned: Vec3 = (0.0, 0.0, 0.0)
         self._goto_yaw = math.nan
         self._takeoff_down_m = 0.0
@@ -481,7 +484,11 @@ class Commander:
             return self._mission_target
         if mode is FlightMode.OFFBOARD and self._offboard_target is not None:
             return self._offboard_target
-        return NavTarget(TargetKind.POSITION, self._hold_ned, self._hold_yaw, *self._speeds())
+        key = (self._hold_ned, self._hold_yaw, *self._speeds())
+        if key != self._hold_key:  # the same hold target every step while nothing changes: build it once
+            self._hold_key = key
+            self._hold_target = NavTarget(TargetKind.POSITION, *key)
+        return self._hold_target
 
     def _rtl_target(self, state: VehicleState) -> NavTarget:
         p = self.params.get

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from mavlink_bridge.frames import GeoPoint, LocalNedFrame
-from mavlink_bridge.wire import GpsSample, GroundTruth, Quat, SensorSample, Vec3
+from mavlink_bridge.wire import GpsSample, GroundTruth, Quat, SensorSample, Vec3, fast_frozen_init
 
 
 class FrameLike(Protocol):
@@ -35,6 +35,7 @@ class FrameLike(Protocol):
     def truth(self) -> GroundTruth | None: ...
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class VehicleState:
     """The estimated vehicle state at one control step; NED about the local origin, SI units."""

@@ -68,7 +68,7 @@ from mavlink_bridge.gcs_types import (
     StatusText,
     TelemetrySnapshot,
 )
-from mavlink_bridge.wire import ActuatorCommand, ObstacleDetection, Vec3
+from mavlink_bridge.wire import ActuatorCommand, ObstacleDetection, Vec3, fast_frozen_init
 
 #: MAV_SYS_STATUS_SENSOR bits: 3D gyro, accel, mag, abs pressure, GPS, rate/attitude/position control,
 #: motor outputs, AHRS, battery.
@@ -123,6 +123,7 @@ class RoutePlanner(Protocol):
     ) -> object: ...
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class StepRecord:
     """What one control step did, for listeners. Vectors are local NED about the origin; ``home_ned_m`` too."""
@@ -186,9 +187,12 @@ class _Tracking:
         self.n += 1
         self.pos_sq_sum += pos_err_m * pos_err_m
         self.att_sq_sum += att_err_rad * att_err_rad
-        self.pos_max = max(self.pos_max, pos_err_m)
-        self.att_max = max(self.att_max, att_err_rad)
-        self.max_tilt_rad = max(self.max_tilt_rad, tilt_rad)
+        if pos_err_m > self.pos_max:
+            self.pos_max = pos_err_m
+        if att_err_rad > self.att_max:
+            self.att_max = att_err_rad
+        if tilt_rad > self.max_tilt_rad:
+            self.max_tilt_rad = tilt_rad
 
 
 def _mission_to_nav(target: MissionTarget, home_ned: Vec3, commander: Commander) -> NavTarget:

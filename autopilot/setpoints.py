@@ -28,7 +28,7 @@ import math
 from dataclasses import dataclass
 from enum import Enum
 
-from mavlink_bridge.wire import Vec3
+from mavlink_bridge.wire import Vec3, fast_frozen_init
 
 #: Slope of the final approach, 1/s: ``v_des <= K_APPROACH · distance``.
 K_APPROACH = 1.0
@@ -48,6 +48,7 @@ class TargetKind(Enum):
     LAND = "land"  # hold xy of ``pos_ned_m``, descend at ``speed_down_m_s`` until touchdown
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class NavTarget:
     """A navigation target: where to go and how fast (NED about the local origin, SI)."""
@@ -116,19 +117,21 @@ class SetpointGenerator:
             self.reset(vehicle_pos_ned, (0.0, 0.0, 0.0), self.yaw_rad)
             return
         lim = self.limits
-        pos, vel = self.pos_ned, self.vel_ned
+        pos, vel, acc = self.pos_ned, self.vel_ned, self.acc_ned
+        acc_xy, jerk = lim.acc_xy_m_s2, lim.jerk_m_s3
+        tn, te, td = target.pos_ned_m
         # horizontal: desired velocity along the line to the target
-        dn, de = target.pos_ned_m[0] - pos[0], target.pos_ned_m[1] - pos[1]
+        dn, de = tn - pos[0], te - pos[1]
         d_xy = math.hypot(dn, de)
         if d_xy > 1e-9:
-            v = _approach_speed(d_xy, target.speed_xy_m_s, lim.acc_xy_m_s2) / d_xy
+            v = _approach_speed(d_xy, target.speed_xy_m_s, acc_xy) / d_xy
             vn_des, ve_des = dn * v, de * v
         else:
             vn_des = ve_des = 0.0
         dvn, dve = vn_des - vel[0], ve_des - vel[1]
         dv_xy = math.hypot(dvn, dve)
         if dv_xy > 1e-12:
-            a = _accel_toward(dv_xy, lim.acc_xy_m_s2, lim.jerk_m_s3) / dv_xy
+            a = _accel_toward(dv_xy, acc_xy, jerk) / dv_xy
             an_des, ae_des = dvn * a, dve * a
         else:
             an_des = ae_des = 0.0
@@ -136,23 +139,26 @@ class SetpointGenerator:
         if target.kind is TargetKind.LAND:
             vd_des = target.speed_down_m_s
         else:
-            dd = target.pos_ned_m[2] - pos[2]
-            v_lim = target.speed_down_m_s if dd > 0.0 else target.speed_up_m_s
-            a_lim = lim.acc_down_m_s2 if dd > 0.0 else lim.acc_up_m_s2
-            vd_des = math.copysign(_approach_speed(abs(dd), v_lim, a_lim), dd)
+            dd = td - pos[2]
+            if dd > 0.0:
+                vd_des = math.copysign(_approach_speed(dd, target.speed_down_m_s, lim.acc_down_m_s2), dd)
+            else:
+                vd_des = math.copysign(_approach_speed(-dd, target.speed_up_m_s, lim.acc_up_m_s2), dd)
         dvd = vd_des - vel[2]
-        ad_des = math.copysign(
-            _accel_toward(abs(dvd), lim.acc_down_m_s2 if dvd > 0.0 else lim.acc_up_m_s2, lim.jerk_m_s3), dvd
-        )
-        # jerk limit, then integrate
-        dj = lim.jerk_m_s3 * dt_s
-        acc = self.acc_ned
-        acc[0] = _toward(acc[0], an_des, dj)
-        acc[1] = _toward(acc[1], ae_des, dj)
-        acc[2] = _toward(acc[2], ad_des, dj)
-        for i in range(3):
-            vel[i] += acc[i] * dt_s
-            pos[i] += vel[i] * dt_s
+        if dvd > 0.0:
+            ad_des = math.copysign(_accel_toward(dvd, lim.acc_down_m_s2, jerk), dvd)
+        else:
+            ad_des = math.copysign(_accel_toward(-dvd, lim.acc_up_m_s2, jerk), dvd)
+        # jerk limit (inline _toward), then integrate (semi-implicit Euler)
+        dj = jerk * dt_s
+        a0, a1, a2 = acc
+        a0 = a0 + dj if an_des > a0 + dj else (a0 - dj if an_des < a0 - dj else an_des)
+        a1 = a1 + dj if ae_des > a1 + dj else (a1 - dj if ae_des < a1 - dj else ae_des)
+        a2 = a2 + dj if ad_des > a2 + dj else (a2 - dj if ad_des < a2 - dj else ad_des)
+        acc[0], acc[1], acc[2] = a0, a1, a2
+        v0, v1, v2 = vel[0] + a0 * dt_s, vel[1] + a1 * dt_s, vel[2] + a2 * dt_s
+        vel[0], vel[1], vel[2] = v0, v1, v2
+        pos[0], pos[1], pos[2] = pos[0] + v0 * dt_s, pos[1] + v1 * dt_s, pos[2] + v2 * dt_s
         if target.kind is TargetKind.LAND and pos[2] > vehicle_pos_ned[2] + LAND_MAX_LEAD_M:
             pos[2] = vehicle_pos_ned[2] + LAND_MAX_LEAD_M
         # yaw: rate-limited turn toward the target heading along the shorter way

@@ -173,9 +173,10 @@ class BatchSim:
     def step(self, motor_cmd: np.ndarray) -> None:
         """One control step with motor commands ``motor_cmd`` (n, 4) (or (4,) for all) in [0, 1].
 
-        Commands are clipped to [0, 1]; non-finite commands stop that motor.
+        Commands outside [0, 1] act as the nearest bound and non-finite ones stop that motor: the kernel's
+        ``omega_command_rad_s`` clamps, so the commands are only copied (broadcast) here, not clipped twice.
         """
-        np.clip(motor_cmd, 0.0, 1.0, out=self._motor_cmd)
+        self._motor_cmd[:] = motor_cmd
         ph.step_vehicles(
             self.state,
             self._motor_cmd,

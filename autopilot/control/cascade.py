@@ -240,7 +240,7 @@ def _position_single(pos, vel, q4, rate3, pos_sp, vel_sp, acc_ff, yaw_sp, gains,
 @njit(cache=True)
 def _position_tuples(
     pos, vel, q4, rate3, pos_sp, vel_sp, acc_ff, yaw_sp, gains, mass, prm, work, one
-):  # pragma: no cover # noqa: E501
+):  # pragma: no cover
     """n = 1 entry on tuples (numba unboxes them faster than arrays are filled from Python), copied into the
     (7, 4) scratch ``one``; returns ``(u0, u1, u2, u3, thrust_n, e_n, e_e, e_d, e_roll, e_pitch)``."""
     for k in range(3):

@@ -4,7 +4,8 @@ Starts ``python -m sim --speed max`` (250 Hz control, 1 kHz physics) and ``pytho
 as two processes over UDP; the autopilot flies a fixed script (arm, take off to 10 m, fly 20 m,
 land) so the flight does not depend on a GCS. ``lockstep_rtf`` is the sim's own
 ``real_time_factor`` (sim seconds per wall second from the first HEARTBEAT to the end);
-the floor (``lockstep_floor.measure_floor``: null sim + null autopilot) is measured right after.
+flights alternate with floor runs (``lockstep_floor.measure_floor_run``: null sim + null autopilot),
+each fraction uses its own floor, and medians carry the targets with min/max beside them.
 Targets: ``lockstep_rtf >= 30`` and ``lockstep_rtf_fraction_of_floor >= 0.5``. The autopilot's own
 per-step cost is reported too (``autopilot_step_us``: ``Autopilot.step`` on recorded frames, in-process).
 """
@@ -12,6 +13,7 @@ per-step cost is reported too (``autopilot_step_us``: ``Autopilot.step`` on reco
 from __future__ import annotations
 
 import json
+import math
 import os
 import socket
 import subprocess
@@ -21,7 +23,7 @@ import time
 from pathlib import Path
 
 from tools.benchmarks import BenchResult
-from tools.benchmarks.lockstep_floor import measure_floor
+from tools.benchmarks.lockstep_floor import measure_floor_run
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 RTF_TARGET = 30.0
@@ -71,36 +73,72 @@ def fly(duration_s: float, work_dir: Path, seed: int = 0) -> dict[str, object]:
     return summary
 
 
-def run(quick: bool) -> list[BenchResult]:
-    duration_s = 12.0 if quick else 30.0
-    with tempfile.TemporaryDirectory(prefix="lockstep_flight_") as tmp:
-        summary = fly(duration_s, Path(tmp))
-    rtf = float(summary["real_time_factor"])  # type: ignore[arg-type]
-    floor_rtf, _, _ = measure_floor(1500 if quick else 7500)
-    fraction = rtf / floor_rtf
+def _median(values: list[float]) -> float:
+    ordered = sorted(values)
+    mid = len(ordered) // 2
+    return ordered[mid] if len(ordered) % 2 else 0.5 * (ordered[mid - 1] + ordered[mid])
+
+
+def _ranged(key: str, values: list[float], note: str, target: str = "", met: bool | None = None) -> list[BenchResult]:
+    """The median (with the target, if any) and the min/max of ``values`` over the alternating rounds."""
     return [
-        BenchResult(
-            "lockstep_rtf",
-            rtf,
-            f">= {RTF_TARGET:g}",
-            rtf >= RTF_TARGET,
-            f"scripted flight {duration_s:g} s, sim + autopilot processes over UDP, 250 Hz / 1 kHz",
-        ),
-        BenchResult("lockstep_floor_rtf_same_run", floor_rtf, note="null sim + null autopilot, measured right after"),
-        BenchResult(
-            "lockstep_rtf_fraction_of_floor",
-            fraction,
-            f">= {FLOOR_FRACTION_TARGET:g}",
-            fraction >= FLOOR_FRACTION_TARGET,
-            "whole flight / messaging floor",
-        ),
-        BenchResult("lockstep_flight_resends", float(summary["resends"]), note="lockstep re-sends in the flight"),  # type: ignore[arg-type]
-        BenchResult("autopilot_step_us", autopilot_step_us(), note="Autopilot.step per frame in hover, in-process"),
+        BenchResult(key, _median(values), target, met, f"{note}; median of {len(values)} rounds"),
+        BenchResult(f"{key}_min", min(values), note=f"{note}; min over rounds"),
+        BenchResult(f"{key}_max", max(values), note=f"{note}; max over rounds"),
     ]
 
 
-def autopilot_step_us(frames: int = 2000) -> float:
-    """Mean wall time of ``Autopilot.step`` (estimator → commander → setpoints → cascade) in hover.
+def run(quick: bool) -> list[BenchResult]:
+    """Alternate flight and floor runs (load drifts on a shared machine, so each flight gets its own floor)."""
+    duration_s = 12.0 if quick else 30.0
+    rounds = 2 if quick else 3
+    floor_frames = 1500 if quick else 7500
+    flights: list[dict[str, object]] = []
+    floors = []
+    for k in range(rounds):
+        with tempfile.TemporaryDirectory(prefix="lockstep_flight_") as tmp:
+            flights.append(fly(duration_s, Path(tmp), seed=k))
+        floors.append(measure_floor_run(floor_frames))
+    rtf = [float(f["real_time_factor"]) for f in flights]  # type: ignore[arg-type]
+    floor_rtf = [f.rtf for f in floors]
+    fraction = [r / f for r, f in zip(rtf, floor_rtf, strict=True)]
+
+    def field(name: str) -> list[float]:
+        return [float(f.get(name, math.nan)) for f in flights]  # type: ignore[arg-type]
+
+    rtf_med, frac_med = _median(rtf), _median(fraction)
+    flight_note = f"scripted flight {duration_s:g} s, sim + autopilot processes over UDP, 250 Hz / 1 kHz"
+    results = _ranged("lockstep_rtf", rtf, flight_note, f">= {RTF_TARGET:g}", rtf_med >= RTF_TARGET)
+    results += _ranged("lockstep_floor_rtf_same_run", floor_rtf, "null sim + null autopilot, right after each flight")
+    results += _ranged(
+        "lockstep_rtf_fraction_of_floor",
+        fraction,
+        "whole flight / its own messaging floor",
+        f">= {FLOOR_FRACTION_TARGET:g}",
+        frac_med >= FLOOR_FRACTION_TARGET,
+    )
+    results += _ranged("lockstep_flight_sim_step_us", field("sim_step_us"), "sim wall per step, answer wait excluded")
+    results += _ranged("lockstep_flight_answer_wait_us", field("answer_wait_us"), "autopilot step + transport, wall")
+    results += _ranged("lockstep_flight_sim_cpu_us_per_step", field("sim_cpu_us_per_step"), "sim process CPU")
+    results += [
+        BenchResult("lockstep_floor_sim_cpu_us", _median([f.sim_cpu_us for f in floors]), note="null sim CPU/frame"),
+        BenchResult(
+            "lockstep_floor_autopilot_cpu_us",
+            _median([f.autopilot_cpu_us for f in floors]),
+            note="null autopilot CPU per frame",
+        ),
+        BenchResult("lockstep_flight_resends", sum(field("resends")), note="lockstep re-sends over all flights"),
+    ]
+    wall_us, cpu_us = autopilot_step_us()
+    results += [
+        BenchResult("autopilot_step_us", wall_us, note="Autopilot.step per frame in hover, in-process, wall"),
+        BenchResult("autopilot_step_cpu_us", cpu_us, note="Autopilot.step per frame in hover, in-process, CPU"),
+    ]
+    return results
+
+
+def autopilot_step_us(frames: int = 2000) -> tuple[float, float]:
+    """Mean wall and CPU time (µs) of ``Autopilot.step`` (estimator → commander → setpoints → cascade) in hover.
 
     The frames come from the simulator's vehicle model in-process (the autopilot flies it to a
     10 m hover first); only the autopilot step is timed.
@@ -123,7 +161,8 @@ def autopilot_step_us(frames: int = 2000) -> float:
         sim.step(ap.step(frame).motor_cmd)
         if k >= 250 * 12:
             recorded.append(frame)
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.process_time()
     for frame in recorded:
         ap.step(frame)
-    return (time.perf_counter() - t0) / len(recorded) * 1e6
+    n = len(recorded)
+    return (time.perf_counter() - t0) / n * 1e6, (time.process_time() - cpu0) / n * 1e6
