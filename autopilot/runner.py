@@ -716,6 +716,7 @@ class Autopilot:
             mission_seq_current=out.current_seq if out is not None else 0,
             mission_count=len(self.mission),
             mission_reached=reached,
+            mission_state=int(self.executor.state) if self.executor is not None else int(MissionState.NO_MISSION),
         )
 
     def _sensors_health(self, state: VehicleState, gps_ok: bool) -> int:

@@ -265,11 +265,6 @@ def test_upload_download_round_trip(idle_sitl: SitlPair, tmp_path: Path, name: s
     assert (got.home.lat_deg, got.home.lon_deg) == pytest.approx((sent.home.lat_deg, sent.home.lon_deg), abs=1e-6)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="autopilot/runner.py Autopilot.snapshot() never sets TelemetrySnapshot.mission_state, so every "
-    "MISSION_CURRENT says MISSION_STATE_UNKNOWN (0) instead of NOT_STARTED/ACTIVE/PAUSED/COMPLETE",
-)
 def test_mission_current_reports_the_mission_state(idle_sitl: SitlPair) -> None:
     """After an upload and before MISSION_START: MISSION_CURRENT says NOT_STARTED with the item count."""
     plan = load_mission_file(MISSIONS / "delivery.yaml")
