@@ -42,8 +42,12 @@ def _free_udp_port() -> int:
         return int(s.getsockname()[1])
 
 
-def fly(duration_s: float, work_dir: Path, seed: int = 0) -> dict[str, object]:
-    """One scripted flight as two processes; the sim summary (raises if either process failed)."""
+def fly(duration_s: float, work_dir: Path, seed: int = 0, autopilot_args: tuple[str, ...] = ()) -> dict[str, object]:
+    """One scripted flight as two processes; the sim summary (raises if either process failed).
+
+    ``autopilot_args`` are extra ``quadsitl autopilot`` options (e.g. ``("--rerun", "save:PATH")``).
+    """
+    work_dir.mkdir(parents=True, exist_ok=True)
     script = work_dir / "flight.yaml"
     script.write_text(FLIGHT_SCRIPT)
     port = _free_udp_port()
@@ -51,7 +55,7 @@ def fly(duration_s: float, work_dir: Path, seed: int = 0) -> dict[str, object]:
     sim_cmd = [sys.executable, "-m", "sim", "--listen", f"udp:127.0.0.1:{port}", "--speed", "max"]
     sim_cmd += ["--duration-s", str(duration_s), "--seed", str(seed), "--log-dir", str(work_dir)]
     ap_cmd = [sys.executable, "-m", "autopilot", "--sim", f"udpout:127.0.0.1:{port}", "--gcs", "off", "--api", "off"]
-    ap_cmd += ["--script", str(script), "--log-dir", str(work_dir)]
+    ap_cmd += ["--script", str(script), "--log-dir", str(work_dir), *autopilot_args]
     with open(work_dir / "sim.log", "wb") as sim_log, open(work_dir / "autopilot.log", "wb") as ap_log:
         sim = subprocess.Popen(sim_cmd, cwd=REPO_ROOT, env=env, stdout=sim_log, stderr=sim_log)
         autopilot = subprocess.Popen(ap_cmd, cwd=REPO_ROOT, env=env, stdout=ap_log, stderr=ap_log)

@@ -10,12 +10,7 @@ most 20 % of the real-time factor). ``synthetic_records`` is also what ``tests/t
 
 from __future__ import annotations
 
-import json
 import math
-import os
-import socket
-import subprocess
-import sys
 import tempfile
 import time
 from dataclasses import dataclass
@@ -33,7 +28,7 @@ from autopilot.telemetry.sinks import RerunSink, SinkKind, open_recording
 from mavlink_bridge.frames import quat_from_euler
 from mavlink_bridge.gcs_types import FlightMode, LandedState, Severity, StatusText
 from tools.benchmarks import BenchResult
-from tools.benchmarks.lockstep_flight import FLIGHT_SCRIPT, REPO_ROOT
+from tools.benchmarks.lockstep_flight import fly
 
 CONTROL_HZ = 250
 
@@ -163,33 +158,7 @@ def fly_rtf(duration_s: float, work_dir: Path, rerun: str) -> tuple[float, int]:
 
     Returns (real_time_factor, recording bytes or 0).
     """
-    work_dir.mkdir(parents=True, exist_ok=True)
-    script = work_dir / "flight.yaml"
-    script.write_text(FLIGHT_SCRIPT)
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        port = int(s.getsockname()[1])
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
-    sim_cmd = [sys.executable, "-m", "sim", "--listen", f"udp:127.0.0.1:{port}", "--speed", "max"]
-    sim_cmd += ["--duration-s", str(duration_s), "--log-dir", str(work_dir)]
-    ap_cmd = [sys.executable, "-m", "autopilot", "--sim", f"udpout:127.0.0.1:{port}", "--gcs", "off", "--api", "off"]
-    ap_cmd += ["--script", str(script), "--log-dir", str(work_dir), "--rerun", rerun]
-    with open(work_dir / "sim.log", "wb") as sim_log, open(work_dir / "autopilot.log", "wb") as ap_log:
-        sim = subprocess.Popen(sim_cmd, cwd=REPO_ROOT, env=env, stdout=sim_log, stderr=sim_log)
-        autopilot = subprocess.Popen(ap_cmd, cwd=REPO_ROOT, env=env, stdout=ap_log, stderr=ap_log)
-        try:
-            sim.wait(timeout=600)
-        finally:
-            for proc in (autopilot, sim):
-                proc.terminate()
-                try:
-                    proc.wait(timeout=30)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
-                    proc.wait()
-    summary = json.loads((work_dir / "sim_summary.json").read_text())
-    if summary["end_reason"] != "COMPLETED":
-        raise RuntimeError(f"flight with --rerun {rerun} ended {summary['end_reason']}: see {work_dir}")
+    summary = fly(duration_s, work_dir, autopilot_args=("--rerun", rerun))
     rrd = Path(rerun.partition(":")[2]) if rerun.startswith("save:") else None
     return float(summary["real_time_factor"]), (rrd.stat().st_size if rrd is not None and rrd.is_file() else 0)
 
