@@ -27,6 +27,8 @@ from enum import Enum
 from pathlib import Path
 from typing import Protocol
 
+import numpy as np
+
 from autopilot.commander import CMD_MISSION_START, Commander
 from autopilot.control.airframe import Airframe, load_airframe
 from autopilot.control.cascade import GRAVITY_M_S2, CascadeController
@@ -40,6 +42,7 @@ from autopilot.mission.executor import (
     ExecutorConfig,
     ExecutorOutput,
     MissionExecutor,
+    MissionRoute,
     NavKind,
     VehicleSample,
 )
@@ -89,6 +92,10 @@ _CONTROL_LIMIT_PARAMS = frozenset(
 FAILSAFE_PERIOD_US = 100_000
 #: Poll the GCS/API links at most this often (wall seconds).
 _LINK_POLL_PERIOD_S = 0.004
+#: The planner gets the mission route this many CA_LOOKAHEAD_M past its target (the detour rejoins on it and
+#: checks it after the rejoin; the benchmark follower hands the same), at most this many points.
+ROUTE_AHEAD_LOOKAHEADS = 2.0
+ROUTE_MAX_POINTS = 64
 
 
 class StepListener(Protocol):
@@ -119,7 +126,7 @@ class RoutePlanner(Protocol):
         q_ned_frd: Sequence[float],
         detections: Sequence[ObstacleDetection],
         route_target_ned: Sequence[float],
-        route_next_ned: Sequence[float] | None = None,
+        route_next_ned: Sequence[float] | np.ndarray | None = None,
     ) -> object: ...
 
 
@@ -272,6 +279,7 @@ class Autopilot:
         self._pending_reached: list[int] = []
         self._last_output: ExecutorOutput | None = None
         self._planner_output: object | None = None
+        self._route_checked: tuple[object, object] | None = None  # (route, obstacles) last safety-checked
         self._hash = hashlib.sha256()
         self._pack = struct.Struct("<q10d").pack
         self._motor = (0.0, 0.0, 0.0, 0.0)
@@ -641,20 +649,31 @@ class Autopilot:
         return (u0, u1, u2, u3)
 
     def _apply_planner(self, state: VehicleState, target: NavTarget) -> None:
-        """Let the avoidance planner override the reference (about home at its edge) in the setpoint generator."""
+        """Let the avoidance planner override the reference (about home at its edge) in the setpoint generator.
+
+        The planner gets the mission route from the target on (``MissionExecutor.route_ahead``, two
+        CA_LOOKAHEAD_M lengths); waypoints a detour bypassed (``rejoin_route_index``) or that lie inside a
+        tracked obstacle's safety volume are skipped in the executor (reported reached, DO items still run).
+        """
         planner = self.planner
         assert planner is not None
         home = self.home_ned
         rel = (state.pos_ned_m[0] - home[0], state.pos_ned_m[1] - home[1], state.pos_ned_m[2] - home[2])
         goal = (target.pos_ned_m[0] - home[0], target.pos_ned_m[1] - home[1], target.pos_ned_m[2] - home[2])
-        nxt = None
-        out = self._last_output
-        if out is not None and out.target is not None and out.target.next_pos_ned_m is not None:
-            nxt = out.target.next_pos_ned_m
+        route = self._mission_route()
+        nxt: Sequence[float] | np.ndarray | None = None
+        if route is not None:
+            nxt = route.pos_ned_m[1:] if len(route.seqs) > 1 else None
+        else:
+            out = self._last_output
+            if out is not None and out.target is not None and out.target.next_pos_ned_m is not None:
+                nxt = out.target.next_pos_ned_m
         result = planner.update(
             state.time_us, rel, state.vel_ned_m_s, state.q_ned_frd, self.frame_detections, goal, nxt
         )
         self._planner_output = result
+        if route is not None:
+            self._skip_unreachable(state.time_us, route, result)
         setpoint = getattr(result, "setpoint", None)
         for decision in getattr(result, "decisions", ()):
             self._say(str(decision.text), Severity.NOTICE)
@@ -664,6 +683,43 @@ class Autopilot:
             gen.pos_ned[:] = (float(p[0]) + home[0], float(p[1]) + home[1], float(p[2]) + home[2])
             gen.vel_ned[:] = (float(v[0]), float(v[1]), float(v[2]))
             gen.acc_ned[:] = (float(a[0]), float(a[1]), float(a[2]))
+
+    def _mission_route(self) -> MissionRoute | None:
+        """The executor's route when the flown target is its current positional item (None otherwise)."""
+        executor, out = self.executor, self._last_output
+        if executor is None or out is None or out.target is None or executor.state is not MissionState.ACTIVE:
+            return None
+        if out.target.kind not in (NavKind.WAYPOINT, NavKind.LOITER) or out.target.seq != executor.current_seq:
+            return None
+        route = executor.route_ahead(ROUTE_AHEAD_LOOKAHEADS * self.params.get("CA_LOOKAHEAD_M"), ROUTE_MAX_POINTS)
+        return route if route.seqs and route.seqs[0] == out.target.seq else None
+
+    def _skip_unreachable(self, time_us: int, route: MissionRoute, result: object) -> None:
+        """Skip the waypoints a detour bypassed, then any at the head of the route inside a safety volume."""
+        executor = self.executor
+        assert executor is not None
+        k = int(getattr(result, "rejoin_route_index", 0))
+        if 0 < k < len(route.seqs) and executor.skip_to(route.seqs[k], time_us):
+            return  # the route changes with the current item: checked again next step
+        obstacles = getattr(result, "obstacles", ())
+        if not obstacles:
+            return
+        checked = self._route_checked
+        if checked is not None and checked[0] is route and checked[1] is obstacles:
+            return  # both unchanged since the last check (the executor and the map cache them)
+        self._route_checked = (route, obstacles)
+        r_safe = self.params.get("CA_RSAFE_M")
+        clear = np.full(len(route.seqs), np.inf)
+        for obstacle in obstacles:
+            np.minimum(clear, obstacle.signed_distance(route.pos_ned_m), out=clear)
+        if clear[0] >= r_safe:
+            return
+        outside = np.flatnonzero(clear >= r_safe)
+        seq = route.seqs[int(outside[0])] if len(outside) else route.next_seq
+        if seq >= 0 and executor.skip_to(seq, time_us):
+            self._say(
+                f"Skipped to item {seq}: item {route.seqs[0]} is inside an obstacle's safety volume", Severity.NOTICE
+            )
 
     # ------------------------------------------------------------------ after the answer
     def drain_texts(self) -> list[StatusText]:

@@ -27,14 +27,29 @@ Semantics:
   has the identical item at the same seq (no restart), else at the first identical item,
   else restarts at seq 0 (a takeoff below the current altitude then completes at once).
   Jump counters restart with every new mission.
+
+Route and skipping (issue 6, obstacle avoidance; SPEC §7-§8):
+
+- :meth:`MissionExecutor.route_ahead` lists the positional items (NAV_WAYPOINT, NAV_LOITER_TIME with a
+  position) from the current one on, in execution order (DO items passed over, pending DO_JUMPs followed
+  with their counters as they stand), up to a path length: the route the avoidance planner checks.
+- :meth:`MissionExecutor.skip_to` moves on to a later item of that order when a detour bypassed the
+  items in between (or they lie inside an obstacle). Every skipped item is reported as reached, in order
+  (MISSION_ITEM_REACHED semantics: the ground station sees the same sequence as a flight that reached
+  them), in the next step's output. Only positional route items are skipped: DO items on the way are
+  *executed*, never dropped (a DO_GRIPPER between skipped waypoints still fires, DO_CHANGE_SPEED applies,
+  DO_JUMP counts and is followed), and takeoff, land, RTL, delay and position-less loiters are never
+  skipped over (``skip_to`` refuses).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
 from enum import IntEnum
+
+import numpy as np
 
 from autopilot.mission.commands import GripperAction, MavCmd, MissionState
 from autopilot.mission.plan import is_wpl_home_line, item_position_ned, items_match, uses_current_position
@@ -129,6 +144,24 @@ class ExecutorOutput:
     speed_m_s: float
 
 
+@dataclass(frozen=True, slots=True)
+class MissionRoute:
+    """Positional items from the current one on, in execution order (local NED about home, m).
+
+    ``seqs[k]`` is the item at ``pos_ned_m[k]`` (row 0: the current item). ``next_seq`` is the
+    non-positional NAV item the route stops at (e.g. RTL or LAND), -1 when it was cut by length or
+    count or the mission ends after its last point. Empty when the current item is not positional.
+    """
+
+    seqs: tuple[int, ...]
+    pos_ned_m: np.ndarray  # (n, 3), read-only
+    next_seq: int = -1
+
+
+_SKIPPABLE = (MavCmd.NAV_WAYPOINT, MavCmd.NAV_LOITER_TIME)
+_DO_ITEMS = (MavCmd.DO_CHANGE_SPEED, MavCmd.DO_GRIPPER, MavCmd.DO_JUMP)
+
+
 class _Phase(IntEnum):
     START = 0
     CLIMB = 1
@@ -162,6 +195,11 @@ class MissionExecutor:
         self._target: NavTarget | None = None
         self._paused_at_us = 0
         self._hold_pos: Vec3 | None = None
+        self._skipped: list[int] = []  # skip_to's reached items and actions, reported by the next step
+        self._skip_actions: list[MissionAction] = []
+        self._route_key: tuple[int, int, float, int] | None = None
+        self._route: MissionRoute | None = None
+        self._version = 0  # bumped when items or their positions change (route cache)
 
     # ------------------------------------------------------------------ queries
 
@@ -194,6 +232,7 @@ class MissionExecutor:
         self._frame = LocalNedFrame(home)
         self._pos_ned = [self._item_pos(it) for it in self._items]
         self._target = None
+        self._version += 1
 
     def _item_pos(self, item: MissionItem) -> Vec3 | None:
         if item.command not in (MavCmd.NAV_WAYPOINT, MavCmd.NAV_LOITER_TIME, MavCmd.NAV_TAKEOFF, MavCmd.NAV_LAND):
@@ -209,6 +248,7 @@ class MissionExecutor:
         self._pos_ned = [self._item_pos(it) for it in self._items]
         self._jumps_done = [0] * len(self._items)
         self._target = None
+        self._version += 1
         flying = self._state in (MissionState.ACTIVE, MissionState.PAUSED)
         if not self._items:
             self._cur, self._phase = 0, _Phase.START
@@ -278,12 +318,100 @@ class MissionExecutor:
         self._target = None
         return True
 
+    def skip_to(self, seq: int, time_us: int) -> bool:
+        """Skip from the current item to ``seq`` (later in execution order); see the module docstring.
+
+        The current item and every item before ``seq`` are reported reached (in order) by the next
+        :meth:`step`; DO items on the way run (gripper actions stamped ``time_us``). False, and nothing
+        changes, unless ACTIVE and ``seq`` follows within positional items and DO items only.
+        """
+        if self._state != MissionState.ACTIVE or not 0 <= seq < len(self._items) or seq == self._cur:
+            return False
+        jumps: dict[int, int] = {}
+        walked: list[int] = []
+        for k in self._execution_order(self._cur, jumps):
+            if k == seq and walked:
+                break
+            item = self._items[k]
+            if item.command not in _DO_ITEMS and (item.command not in _SKIPPABLE or self._pos_ned[k] is None):
+                return False
+            walked.append(k)
+        else:
+            return False
+        for k in walked:
+            item = self._items[k]
+            if item.command == MavCmd.DO_CHANGE_SPEED:
+                if item.param2 > 0.0:
+                    self._speed_override = item.param2
+                elif item.param2 == -2.0:
+                    self._speed_override = None
+            elif item.command == MavCmd.DO_GRIPPER:
+                kind = ActionKind.GRIPPER_RELEASE if item.param2 == GripperAction.RELEASE else ActionKind.GRIPPER_GRAB
+                self._skip_actions.append(MissionAction(kind, k, time_us, int(item.param1) or 1))
+        for k, done in jumps.items():
+            self._jumps_done[k] = done
+        self._skipped += walked
+        self._cur, self._phase = seq, _Phase.START
+        self._target = None
+        return True
+
+    def route_ahead(self, min_length_m: float, max_points: int) -> MissionRoute:
+        """The current and following positional items (module docstring) until the path through them is at
+        least ``min_length_m`` long or ``max_points`` are listed. Cached until the current item changes."""
+        key = (self._cur, self._version, min_length_m, max_points)
+        if key == self._route_key and self._route is not None:
+            return self._route
+        seqs: list[int] = []
+        pts: list[Vec3] = []
+        next_seq, length = -1, 0.0
+        if self._items and self._state in (MissionState.ACTIVE, MissionState.PAUSED):
+            for k in self._execution_order(self._cur, {}):
+                item = self._items[k]
+                if item.command in _DO_ITEMS:
+                    continue
+                pos = self._pos_ned[k]
+                if item.command not in _SKIPPABLE or pos is None:
+                    next_seq = k if seqs else -1
+                    break
+                if pts:
+                    length += math.dist(pts[-1], pos)
+                seqs.append(k)
+                pts.append(pos)
+                if length >= min_length_m or len(pts) >= max_points:
+                    break
+        arr = np.array(pts, float).reshape(-1, 3)
+        arr.flags.writeable = False
+        self._route = MissionRoute(tuple(seqs), arr, next_seq)
+        self._route_key = key
+        return self._route
+
+    def _execution_order(self, start: int, jumps: dict[int, int]) -> Iterator[int]:
+        """Item indices from ``start`` on as they would run: DO_JUMPs followed while they have repeats left
+        (counts from ``_jumps_done``, updated in ``jumps``); bounded, so a jump loop of DO items ends."""
+        k = start
+        for _ in range(4 * len(self._items) + 4):
+            if not 0 <= k < len(self._items):
+                return
+            yield k
+            item = self._items[k]
+            if item.command == MavCmd.DO_JUMP:
+                done = jumps.get(k, self._jumps_done[k])
+                if item.param2 < 0 or done < item.param2:
+                    jumps[k] = done + 1
+                    k = int(item.param1)
+                    continue
+            k += 1
+
     # ------------------------------------------------------------------ stepping
 
     def step(self, sample: VehicleSample) -> ExecutorOutput:
         """Advance with the vehicle state at ``sample.time_us``; returns the target and this step's events."""
         reached: list[int] = []
         actions: list[MissionAction] = []
+        if self._skipped or self._skip_actions:
+            reached += self._skipped
+            actions += self._skip_actions
+            self._skipped, self._skip_actions = [], []
         if self._state == MissionState.ACTIVE:
             for _ in range(len(self._items) + 1):  # DO items and instant completions chain within one step
                 if self._phase == _Phase.START:
