@@ -99,14 +99,16 @@ def commands(args: argparse.Namespace) -> tuple[list[str], list[str]]:
     return sim, ap
 
 
-def _stop(proc: subprocess.Popen[bytes]) -> None:
+def stop_process(proc: subprocess.Popen[bytes], timeout_s: float = STOP_TIMEOUT_S) -> int:
+    """SIGTERM (a clean stop: summaries are written), wait up to ``timeout_s``, then SIGKILL; the exit status."""
     if proc.poll() is None:
         proc.send_signal(signal.SIGTERM)
         try:
-            proc.wait(timeout=STOP_TIMEOUT_S)
+            proc.wait(timeout=timeout_s)
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+    return int(proc.returncode)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -135,8 +137,8 @@ def main(argv: list[str] | None = None) -> int:
                 if proc.poll() is None:
                     proc.send_signal(stop["signal"])
         # whoever is still running follows the one that ended (the autopilot first: the sim then sums up)
-        _stop(autopilot)
-        _stop(sim)
+        stop_process(autopilot)
+        stop_process(sim)
     finally:
         for proc in (autopilot, sim):
             if proc.poll() is None:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import os
-import signal
 import subprocess
 import sys
 import time
@@ -15,6 +14,7 @@ from pathlib import Path
 
 from conftest import REPO_ROOT, free_udp_port
 
+from autopilot.launcher import stop_process
 from autopilot.mission.files import load_mission_file
 from autopilot.mission.plan import MissionPlan
 from mavlink_bridge.gcs_client import CommandFailedError, GcsClient, VehicleStatus
@@ -58,14 +58,7 @@ def start_autopilot(log_dir: Path, sim_port: int, ports: Ports | None, *extra: s
 
 def stop(proc: subprocess.Popen[bytes], timeout_s: float = 20.0) -> int:
     """SIGTERM, then wait (kill after ``timeout_s``); the exit status."""
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGTERM)
-        try:
-            proc.wait(timeout=timeout_s)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-    return int(proc.returncode)
+    return stop_process(proc, timeout_s)
 
 
 def read_json(path: Path) -> dict[str, object]:

@@ -21,7 +21,6 @@ import argparse
 import contextlib
 import json
 import os
-import signal
 import socket
 import subprocess
 import sys
@@ -29,6 +28,8 @@ import time
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
+
+from autopilot.launcher import stop_process
 
 EXIT_OK = 0
 EXIT_FLIGHT_FAILED = 1
@@ -59,18 +60,6 @@ def free_instance(start: int = 0, limit: int = 200) -> int:
         if _ports_free(instance):
             return instance
     raise RuntimeError(f"no free quadsitl instance in {start}..{start + limit - 1}")
-
-
-def _stop(proc: subprocess.Popen[bytes], timeout_s: float = 30.0) -> int:
-    """SIGTERM, wait up to ``timeout_s``, then SIGKILL; the exit status."""
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGTERM)
-        try:
-            proc.wait(timeout=timeout_s)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-    return int(proc.returncode)
 
 
 def _read_json(path: Path) -> dict[str, object]:
@@ -127,8 +116,8 @@ def fly(up_cmd: list[str], gcs_cmd: list[str], out_dir: Path, wall_limit_s: floa
             interrupted = True
         finally:
             gcs_rc = gcs.returncode if gcs.poll() is not None else None
-            _stop(gcs, 10.0)
-            up_rc = _stop(up)
+            stop_process(gcs, 10.0)
+            up_rc = stop_process(up)
     return FlightOutcome(gcs_rc, up_rc, up_died_first, timed_out, interrupted)
 
 
