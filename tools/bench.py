@@ -38,6 +38,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="shorter runs (smoke check, noisier numbers)")
     parser.add_argument("--only", nargs="*", default=None, help=f"suites to run (default all: {_suites()})")
     parser.add_argument("--out", default="bench/results.json", help="where to write the flat JSON results")
+    parser.add_argument(
+        "--merge", action="store_true", help="keep the keys of suites not run now from an existing --out file"
+    )
     args = parser.parse_args(argv)
     names = args.only or _suites()
     rows: list[tuple[str, BenchResult]] = []
@@ -50,7 +53,10 @@ def main(argv: list[str] | None = None) -> int:
     _print_table(rows)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    results: dict[str, object] = {r.key: r.value for _, r in rows}
+    results: dict[str, object] = {}
+    if args.merge and out.is_file():
+        results.update(json.loads(out.read_text()))
+    results.update({r.key: r.value for _, r in rows})
     results["machine"] = f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}"
     results["quick"] = args.quick
     out.write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
