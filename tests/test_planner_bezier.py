@@ -70,3 +70,17 @@ def test_sample_spacing_bound() -> None:
     path = fit_detour(pts, np.array([4.0, 0, 0]), np.array([4.0, 0, 0]), 5.0, 2.0)
     s = path.sample(0.3)
     assert np.linalg.norm(np.diff(s, axis=0), axis=1).max() <= 0.3
+
+
+def test_sample_times_locate_each_sample_on_the_path() -> None:
+    """Per-segment sampling: each sample is the path's position at its time (the planner re-checks the rest of
+    a detour from the sample at the reference time on), spacing stays bounded, and long segments get more."""
+    pts = np.array([[0, 0, 0], [1.5, 1.0, 0], [3, 1.5, 0], [30, 0, 0.0]])
+    path = fit_detour(pts, np.array([3.0, 0, 0]), np.array([5.0, 0, 0]), 6.0, 3.0)
+    samples, times = path.sample_with_times(0.4)
+    assert len(samples) == len(times) and np.all(np.diff(times) > 0.0) and times[-1] == pytest.approx(path.duration_s)
+    for p, t in zip(samples, times, strict=True):
+        assert p == pytest.approx(path.state_at(float(t))[0], abs=1e-9)
+    assert np.linalg.norm(np.diff(samples, axis=0), axis=1).max() <= 0.4
+    per_segment = np.histogram(times[1:], bins=np.concatenate(([0.0], np.cumsum(path.durations_s))))[0]
+    assert per_segment[-1] > 4 * per_segment[0]  # the 27 m leg is sampled densely, the 1.8 m one sparsely

@@ -11,7 +11,6 @@ convex-hull property the largest control-point norm bounds |v| and |a| over the 
 
 from __future__ import annotations
 
-import functools
 import itertools
 import math
 from dataclasses import dataclass, field
@@ -36,14 +35,6 @@ def bernstein_matrix(degree: int, t: np.ndarray) -> np.ndarray:
 def bezier_eval(ctrl: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Points of a Bézier curve with control points ``(n+1, 3)`` at parameters ``t`` (m,)."""
     return bernstein_matrix(len(ctrl) - 1, t) @ ctrl
-
-
-@functools.lru_cache(maxsize=64)
-def _sample_basis(n: int) -> np.ndarray:
-    """Cubic Bernstein basis at ``t = k/n``, k = 1..n (read-only, cached: ``BezierPath.sample`` reuses it)."""
-    basis = bernstein_matrix(3, np.linspace(0.0, 1.0, n + 1)[1:])
-    basis.setflags(write=False)
-    return basis
 
 
 def hodograph(ctrl: np.ndarray, duration_s: float = 1.0) -> np.ndarray:
@@ -140,12 +131,28 @@ class BezierPath:
     def sample(self, max_step_m: float) -> np.ndarray:
         """Points ``(m, 3)`` along the whole chain, consecutive samples at most ``max_step_m`` apart.
 
-        The spacing bound uses the velocity hull: a segment of duration T moves at most
-        ``v_bound·T`` along its arc, so ``ceil(v_bound·T_max / max_step)`` steps per segment suffice.
+        Per segment, from the hodograph hull: ``|dP/du| <= 3·max|P[i+1] − P[i]|``, so
+        ``n = ceil(3·max|ΔP| / max_step)`` equal parameter steps are at most ``max_step`` long each
+        (short segments get few samples, long ones many).
         """
-        n = max(2, math.ceil(self.v_bound_m_s * float(self.durations_s.max()) / max_step_m))
-        body = np.einsum("mj,kjd->kmd", _sample_basis(n), self.ctrl_ned).reshape(-1, 3)
-        return np.concatenate((self.ctrl_ned[0, :1], body))
+        return self.sample_with_times(max_step_m)[0]
+
+    def sample_with_times(self, max_step_m: float) -> tuple[np.ndarray, np.ndarray]:
+        """``sample`` and the time (s from the start) of each sample, ``(m,)`` increasing."""
+        counts = [
+            max(2, math.ceil(3.0 * max(math.dist(p0, p1), math.dist(p1, p2), math.dist(p2, p3)) / max_step_m))
+            for _, p0, p1, p2, p3 in self._segments
+        ]
+        n = np.array(counts)
+        seg = np.repeat(np.arange(len(counts)), n)  # segment of each sample after the start point
+        first = np.repeat(np.cumsum(n) - n, n)
+        u = (np.arange(1, len(seg) + 1) - first) / n[seg]  # k/n_seg, k = 1..n_seg
+        w = 1.0 - u
+        basis = np.stack((w * w * w, 3.0 * w * w * u, 3.0 * w * u * u, u * u * u), axis=1)
+        body = np.einsum("mj,mjd->md", basis, self.ctrl_ned[seg])
+        starts = np.cumsum(self.durations_s) - self.durations_s
+        times = starts[seg] + u * self.durations_s[seg]
+        return np.concatenate((self.ctrl_ned[0, :1], body)), np.concatenate(((0.0,), times))
 
 
 def _norm(x: float, y: float, z: float) -> float:
@@ -188,6 +195,37 @@ def _segment_excess(d3: Vec, m0: Vec, m1: Vec, s_max: float, inv_t: float, v_max
 _FIRST_SEGMENT_STRETCH = tuple(float(x) for x in np.geomspace(0.5, 1.5, 12))
 
 
+def _first_fitting_stretch(
+    d3: Vec, m0: Vec, m1: Vec, s_max: float, t_nominal: float, v_max: float, a_max: float
+) -> float | None:
+    """The first of ``_FIRST_SEGMENT_STRETCH`` (times ``t_nominal``) whose duration meets both limits, or None.
+
+    Same hulls as :func:`_segment_excess`, expanded in ``s = 1/T``: with ``D = d3``, the middle hull point
+    ``D·s − (m0 + m1)`` and the acceleration hull ``2s·(D·s − (2m0 + m1))``, ``2s·((m0 + 2m1) − D·s)`` are
+    quadratics in ``s`` of a few precomputed dot products (a dozen float operations per stretch).
+    """
+    if s_max > v_max:
+        return None
+    dx, dy, dz = d3
+    mx, my, mz = m0[0] + m1[0], m0[1] + m1[1], m0[2] + m1[2]
+    ex, ey, ez = mx + m0[0], my + m0[1], mz + m0[2]  # 2 m0 + m1
+    fx, fy, fz = mx + m1[0], my + m1[1], mz + m1[2]  # m0 + 2 m1
+    dd = dx * dx + dy * dy + dz * dz
+    dm, mm = dx * mx + dy * my + dz * mz, mx * mx + my * my + mz * mz
+    de, ee = dx * ex + dy * ey + dz * ez, ex * ex + ey * ey + ez * ez
+    df, ff = dx * fx + dy * fy + dz * fz, fx * fx + fy * fy + fz * fz
+    v2_max, a2_max = v_max * v_max, 0.25 * a_max * a_max
+    for stretch in _FIRST_SEGMENT_STRETCH:
+        s = 1.0 / (t_nominal * stretch)
+        ds = dd * s
+        if ds * s - 2.0 * dm * s + mm > v2_max:
+            continue
+        a2 = max(ds * s - 2.0 * de * s + ee, ds * s - 2.0 * df * s + ff)
+        if s * s * a2 <= a2_max:
+            return stretch
+    return None
+
+
 def _first_segment_hopeless(d3: Vec, v0: Vec, v_start: float, chord: float, v_max: float, a_max: float) -> bool:
     """Whether the first segment meets the limits at none of the stretched durations even when it ends at rest.
 
@@ -196,11 +234,7 @@ def _first_segment_hopeless(d3: Vec, v0: Vec, v_start: float, chord: float, v_ma
     measured on the benchmark's fits, it never gave up one that the remaining iterations would have met).
     """
     t_nominal = max(chord / max(0.5 * v_start, 0.2), 1e-3)
-    rest = (0.0, 0.0, 0.0)
-    return all(
-        _segment_excess(d3, v0, rest, v_start, 1.0 / (t_nominal * stretch), v_max, a_max) > 1.0
-        for stretch in _FIRST_SEGMENT_STRETCH
-    )
+    return _first_fitting_stretch(d3, v0, (0.0, 0.0, 0.0), v_start, t_nominal, v_max, a_max) is None
 
 
 def fit_detour(
@@ -252,12 +286,11 @@ def fit_detour(
         first_fits = excess[0] <= 1.0
         if not first_fits:  # the first segment: stretch its duration (its start speed cannot scale)
             s_max = max(speeds[0], speeds[1])
-            for stretch in _FIRST_SEGMENT_STRETCH:
-                e = _segment_excess(d3[0], vel[0], vel[1], s_max, 1.0 / (durations[0] * stretch), v_max_m_s, a_max_m_s2)
-                if e <= 1.0:
-                    durations[0] *= stretch
-                    excess[0], first_fits = e, True
-                    break
+            stretch = _first_fitting_stretch(d3[0], vel[0], vel[1], s_max, durations[0], v_max_m_s, a_max_m_s2)
+            if stretch is not None:
+                durations[0] *= stretch
+                excess[0] = _segment_excess(d3[0], vel[0], vel[1], s_max, 1.0 / durations[0], v_max_m_s, a_max_m_s2)
+                first_fits = True
         if max(excess) <= 1.0 + LIMIT_RTOL:
             break
         if (

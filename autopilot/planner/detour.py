@@ -34,7 +34,7 @@ from __future__ import annotations
 import heapq
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
 
@@ -125,6 +125,7 @@ class DetourPlan:
     rejoin_ned: np.ndarray
     rejoin_route_index: int = 0
     continuation_ned: np.ndarray = field(default_factory=lambda: np.empty((0, 3)))
+    sample_times_s: np.ndarray = field(default_factory=lambda: np.empty(0))  # time of each sample on the path
 
 
 @dataclass(frozen=True, slots=True)
@@ -427,17 +428,20 @@ def check_path(
     obstacles: Obstacles,
     limits: DetourLimits,
     tol_m: float = 0.5 * _SAMPLE_STEP_M,
+    obstacle_ids: Collection[int] | None = None,
 ) -> str:
     """Why a sampled path is unsafe ("" when it is safe).
 
-    Clearance to every obstacle must be >= R_safe + ``tol_m`` (default half the sample spacing:
-    points between two samples are within that of one); an obstacle already nearer than that at the start must not
-    get nearer. Altitudes stay in [max(min AGL, floor), ceiling]; fences are checked per segment.
+    Clearance to every obstacle (or only to those in ``obstacle_ids``, e.g. the ones that changed since the
+    path was last checked) must be >= R_safe + ``tol_m`` (default half the sample spacing: points between
+    two samples are within that of one); an obstacle already nearer than that at the start must not get
+    nearer. Altitudes stay in [max(min AGL, floor), ceiling]; fences are checked per segment.
     """
     arrays = as_arrays(obstacles)
     start = np.asarray(start_ned, float).tolist()
     need = _need((start[0], start[1], start[2]), arrays, limits.r_safe_m + tol_m)
-    return _check_samples(np.asarray(samples_ned, float), need, arrays, limits)[0]
+    near = None if obstacle_ids is None else [k for k, row in enumerate(arrays.rows) if row[0] in obstacle_ids]
+    return _check_samples(np.asarray(samples_ned, float), need, arrays, limits, near)[0]
 
 
 def _densify(points: Sequence[V3], step_m: float) -> np.ndarray:
@@ -531,12 +535,13 @@ class _Search:
         path = fit_detour(cand.via, self.vel_np, vel_end, lim.v_max_m_s, lim.a_max_m_s2)
         if not path.limits_ok:
             return "dynamic limits"
-        samples = path.sample(_SAMPLE_STEP_M)
+        samples, times = path.sample_with_times(_SAMPLE_STEP_M)
         near = _near_hull(path.ctrl_ned, self.rows, self.reach_curve)
         why, clearance = _check_samples(samples, self.need_curve, self.arrays, lim, near)
         if why:
             return why
         samples.setflags(write=False)
+        times.setflags(write=False)
         via = np.array(cand.via)
         via.setflags(write=False)
         continuation = _densify(lvl.continuation, _SAMPLE_STEP_M)
@@ -552,6 +557,7 @@ class _Search:
             np.array(lvl.rejoin),
             lvl.rejoin_index,
             continuation,
+            times,
         )
 
 

@@ -334,7 +334,8 @@ class AvoidancePlanner:
         """Re-check the rest of the active detour after map changes; replan from the reference if unsafe."""
         sp_pos, sp_vel, _ = self._path.state_at(t_s)
         ahead = np.concatenate((self._remaining_samples(t_s), self._plan.continuation_ned))
-        why = check_path(ahead, sp_pos, self.map.arrays, self.limits())
+        # only the changed obstacles: the others were checked against (a superset of) these samples before
+        why = check_path(ahead, sp_pos, self.map.arrays, self.limits(), obstacle_ids=self._unchecked)
         if not why:
             self._unchecked.clear()
             return None
@@ -369,10 +370,11 @@ class AvoidancePlanner:
         return Threat(obs, d, d, math.inf, False)
 
     def _remaining_samples(self, t_s: float) -> np.ndarray:
+        """The detour's samples from the last one at or before ``t_s`` on (at least two)."""
         assert self._plan is not None
         samples = self._plan.samples_ned
-        frac = min(max(t_s / self._plan.path.duration_s, 0.0), 1.0)
-        return samples[min(int(frac * (len(samples) - 1)), len(samples) - 2) :]
+        first = int(np.searchsorted(self._plan.sample_times_s, t_s, side="right")) - 1
+        return samples[min(max(first, 0), len(samples) - 2) :]
 
     def _plan_from(
         self,
