@@ -22,7 +22,7 @@ import math
 import struct
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum
 from pathlib import Path
 from typing import Protocol
@@ -96,6 +96,10 @@ _LINK_POLL_PERIOD_S = 0.004
 #: checks it after the rejoin; the benchmark follower hands the same), at most this many points.
 ROUTE_AHEAD_LOOKAHEADS = 2.0
 ROUTE_MAX_POINTS = 64
+#: In AUTO_MISSION the nose (forward camera) faces a route point at least this far ahead (m), none closer than
+#: FACE_MIN_M (closer, the heading is kept: no spinning over a waypoint).
+FACE_AHEAD_M = 6.0
+FACE_MIN_M = 2.0
 
 
 class StepListener(Protocol):
@@ -202,13 +206,18 @@ class _Tracking:
             self.max_tilt_rad = tilt_rad
 
 
-def _mission_to_nav(target: MissionTarget, home_ned: Vec3, commander: Commander) -> NavTarget:
-    """The executor's target (about home) as a commander target (about the origin)."""
+def _mission_to_nav(
+    target: MissionTarget, home_ned: Vec3, commander: Commander, face_yaw_rad: float = math.nan
+) -> NavTarget:
+    """The executor's target (about home) as a commander target (about the origin); a waypoint or return
+    without a yaw of its own gets ``face_yaw_rad`` (MPC_YAW_MODE 0: the nose, and the camera, along the path)."""
     p = commander.params.get
     n, e, d = (target.pos_ned_m[i] + home_ned[i] for i in range(3))
     speed = min(target.speed_m_s, p("MPC_XY_VEL_MAX"))
     up, down = p("MPC_Z_VEL_MAX_UP"), p("MPC_Z_VEL_MAX_DN")
     yaw = math.nan if math.isnan(target.yaw_deg) else math.radians(target.yaw_deg)
+    if math.isnan(yaw) and target.kind in (NavKind.WAYPOINT, NavKind.RETURN):
+        yaw = face_yaw_rad
     kind = target.kind
     if kind is NavKind.IDLE:
         return NavTarget(TargetKind.IDLE, (n, e, d))
@@ -588,8 +597,13 @@ class Autopilot:
         home = self.home_ned
         pos = (state.pos_ned_m[0] - home[0], state.pos_ned_m[1] - home[1], state.pos_ned_m[2] - home[2])
         landed = commander.landed_state is LandedState.ON_GROUND
-        out = executor.step(VehicleSample(state.time_us, pos, state.vel_ned_m_s, landed))
-        self._last_output = out
+        sample = VehicleSample(state.time_us, pos, state.vel_ned_m_s, landed)
+        out = self._last_output = executor.step(sample)
+        if self._skip_covered_target(state.time_us):  # never fly toward a waypoint inside an obstacle
+            then = executor.step(sample)
+            out = self._last_output = replace(
+                then, reached=out.reached + then.reached, actions=out.actions + then.actions
+            )
         for seq in out.reached:
             self._pending_reached.append(seq)
             self.reached_seqs.append(seq)
@@ -597,7 +611,27 @@ class Autopilot:
         for action in out.actions:
             commander.set_gripper(release=action.kind is ActionKind.GRIPPER_RELEASE)
         target = out.target
-        commander.set_mission_target(None if target is None else _mission_to_nav(target, home, commander))
+        face = self._face_along_path(pos, target) if target is not None else math.nan
+        commander.set_mission_target(None if target is None else _mission_to_nav(target, home, commander, face))
+
+    def _face_along_path(self, pos: Vec3, target: MissionTarget) -> float:
+        """Heading (rad) toward where the vehicle is going, about home: the detour's look-ahead point while
+        avoiding, else the first route point at least FACE_AHEAD_M away (dense patterns), else the target.
+        NaN (keep the heading) with MPC_YAW_MODE 1 or nothing far enough away."""
+        if self.params.get("MPC_YAW_MODE") >= 0.5:
+            return math.nan
+        look = getattr(self._planner_output, "look_ahead_ned", None)
+        if look is None or getattr(self._planner_output, "setpoint", None) is None:
+            look = target.pos_ned_m
+            if target.kind is NavKind.WAYPOINT and math.hypot(look[0] - pos[0], look[1] - pos[1]) < FACE_AHEAD_M:
+                route = self._mission_route()
+                if route is not None:
+                    for row in route.pos_ned_m.tolist()[1:]:
+                        look = row
+                        if math.hypot(row[0] - pos[0], row[1] - pos[1]) >= FACE_AHEAD_M:
+                            break
+        dn, de = look[0] - pos[0], look[1] - pos[1]
+        return math.atan2(de, dn) if math.hypot(dn, de) >= FACE_MIN_M else math.nan
 
     def _follow_mode_changes(self, state: VehicleState) -> None:
         mode = self.commander.mode
@@ -653,7 +687,8 @@ class Autopilot:
 
         The planner gets the mission route from the target on (``MissionExecutor.route_ahead``, two
         CA_LOOKAHEAD_M lengths); waypoints a detour bypassed (``rejoin_route_index``) or that lie inside a
-        tracked obstacle's safety volume are skipped in the executor (reported reached, DO items still run).
+        tracked obstacle's safety volume (``_skip_covered_target``, before the target reaches the commander) are
+        skipped in the executor (reported reached, DO items still run).
         """
         planner = self.planner
         assert planner is not None
@@ -672,8 +707,10 @@ class Autopilot:
             state.time_us, rel, state.vel_ned_m_s, state.q_ned_frd, self.frame_detections, goal, nxt
         )
         self._planner_output = result
-        if route is not None:
-            self._skip_unreachable(state.time_us, route, result)
+        k = int(getattr(result, "rejoin_route_index", 0))
+        if route is not None and 0 < k < len(route.seqs):  # the detour rejoins past waypoints: skip them now
+            assert self.executor is not None
+            self.executor.skip_to(route.seqs[k], state.time_us)
         setpoint = getattr(result, "setpoint", None)
         for decision in getattr(result, "decisions", ()):
             self._say(str(decision.text), Severity.NOTICE)
@@ -694,32 +731,30 @@ class Autopilot:
         route = executor.route_ahead(ROUTE_AHEAD_LOOKAHEADS * self.params.get("CA_LOOKAHEAD_M"), ROUTE_MAX_POINTS)
         return route if route.seqs and route.seqs[0] == out.target.seq else None
 
-    def _skip_unreachable(self, time_us: int, route: MissionRoute, result: object) -> None:
-        """Skip the waypoints a detour bypassed, then any at the head of the route inside a safety volume."""
-        executor = self.executor
-        assert executor is not None
-        k = int(getattr(result, "rejoin_route_index", 0))
-        if 0 < k < len(route.seqs) and executor.skip_to(route.seqs[k], time_us):
-            return  # the route changes with the current item: checked again next step
-        obstacles = getattr(result, "obstacles", ())
-        if not obstacles:
-            return
+    def _skip_covered_target(self, time_us: int) -> bool:
+        """Skip the route's head while it lies inside a tracked obstacle's safety volume (CA_RSAFE_M; obstacles
+        of the planner's latest output) to the first route point outside, or the item the route stops at."""
+        obstacles = getattr(self._planner_output, "obstacles", ())
+        route = self._mission_route() if obstacles else None
+        if route is None:
+            return False
         checked = self._route_checked
         if checked is not None and checked[0] is route and checked[1] is obstacles:
-            return  # both unchanged since the last check (the executor and the map cache them)
+            return False  # both unchanged since the last check (the executor and the map cache them)
         self._route_checked = (route, obstacles)
         r_safe = self.params.get("CA_RSAFE_M")
         clear = np.full(len(route.seqs), np.inf)
         for obstacle in obstacles:
             np.minimum(clear, obstacle.signed_distance(route.pos_ned_m), out=clear)
         if clear[0] >= r_safe:
-            return
+            return False
         outside = np.flatnonzero(clear >= r_safe)
         seq = route.seqs[int(outside[0])] if len(outside) else route.next_seq
-        if seq >= 0 and executor.skip_to(seq, time_us):
-            self._say(
-                f"Skipped to item {seq}: item {route.seqs[0]} is inside an obstacle's safety volume", Severity.NOTICE
-            )
+        assert self.executor is not None
+        if seq < 0 or not self.executor.skip_to(seq, time_us):
+            return False
+        self._say(f"Skipped to item {seq}: item {route.seqs[0]} lies inside an obstacle's safety volume")
+        return True
 
     # ------------------------------------------------------------------ after the answer
     def drain_texts(self) -> list[StatusText]:

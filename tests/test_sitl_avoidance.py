@@ -2,7 +2,8 @@
 
 The autopilot knows only what the simulated stereo camera and ultrasonic range tell it. Each mission must
 be flown to the end with zero collisions and a minimum clearance (sim ground truth) of at least
-CA_RSAFE_M - CA_TRACK_TOL_M, the values read back from the autopilot.
+CA_RSAFE_M - CA_TRACK_TOL_M, the values read back from the autopilot, every item reached in order
+(waypoints a detour bypassed or inside an obstacle are skipped and reported reached), landed and disarmed.
 """
 
 from __future__ import annotations
@@ -24,20 +25,6 @@ MISSIONS = REPO_ROOT / "missions"
 #: Sim seconds without a new MISSION_ITEM_REACHED after which a flight is declared stuck (the longest
 #: item here, RTL from 130 m with a climb to MIS_RTL_ALT and the descent, takes about 60 s).
 PROGRESS_TIMEOUT_SIM_S = 90.0
-
-STORM_REASON = (
-    "missions/storm_obstacles.yaml puts route waypoints inside its spheres (seq 36 is 0.49 m inside the sphere at "
-    "N9.3 E-0.5 alt 6.6 r0.8, seq 35 1.5 m from its surface; seq 54 0.66 m inside the other): at 51.9 s sim the "
-    "planner says 'no safe detour, holding' 6.3 m from it (every side ruled out by that obstacle), 19 s later the "
-    "vehicle moves on, reaches seq 34-36 and flies into the sphere (sim end COLLISION at 71-73 s sim, clearance "
-    "0.37 m); an earlier planner revision instead held at seq 34 for 400 s sim"
-)
-LISSAJOUS_REASON = (
-    "missions/lissajous_obstacles.yaml seq 14 is 0.99 m inside sphere 1 (N10 E0.6 alt 8, r1; seq 38 is 0.94 m "
-    "inside the other): the planner sees the sphere at 6.6 m and goes LEFT, the executor meanwhile advances to "
-    "seq 14, the replan at 3.1 m finds 'no safe detour, holding' and the vehicle cannot stop in time (sim end "
-    "COLLISION at 18.5-37 s sim, clearance 0.37 m)"
-)
 
 
 def _fly(client: GcsClient, plan: MissionPlan, sim: subprocess.Popen[bytes]) -> tuple[VehicleStatus, list[str]]:
@@ -71,12 +58,8 @@ def _fly(client: GcsClient, plan: MissionPlan, sim: subprocess.Popen[bytes]) -> 
     "name",
     [
         pytest.param("city_block_delivery.yaml", id="city_block"),
-        pytest.param("storm_obstacles.yaml", id="storm", marks=pytest.mark.xfail(strict=True, reason=STORM_REASON)),
-        pytest.param(
-            "lissajous_obstacles.yaml",
-            id="lissajous",
-            marks=pytest.mark.xfail(strict=True, reason=LISSAJOUS_REASON),
-        ),
+        pytest.param("storm_obstacles.yaml", id="storm"),  # waypoints 36 and 54 lie inside the spheres
+        pytest.param("lissajous_obstacles.yaml", id="lissajous"),  # waypoints 14 and 38 lie inside the spheres
     ],
 )
 def test_mission_through_unknown_obstacles(tmp_path: Path, name: str) -> None:
