@@ -324,6 +324,8 @@ class GcsClient:
             def is_item(msg: Msg, seq: int = seq) -> Msg | None:
                 kind = msg.get_type()
                 if kind == "MISSION_ACK" and int(getattr(msg, "mission_type", 0)) == mtype:
+                    if msg.type == int(MissionResult.ACCEPTED):
+                        return None  # a late or duplicated ACK of an earlier upload: not about this download
                     raise MissionDownloadError(f"download refused at item {seq}: {_mission_result(msg.type).name}")
                 if kind == "MISSION_ITEM_INT" and int(msg.seq) == seq and int(msg.mission_type) == mtype:
                     return msg

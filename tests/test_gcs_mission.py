@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 import time
 from dataclasses import replace
 
@@ -226,3 +227,25 @@ def test_too_many_items_is_refused_with_no_space() -> None:
     finally:
         client.close()
         harness.stop()
+
+
+def test_late_accepted_ack_of_an_upload_does_not_abort_a_download(link) -> None:
+    """A duplicated or reordered MISSION_ACK(ACCEPTED) of the previous upload may arrive mid-download."""
+    harness, client = link
+    route = _route(20)
+    client.upload_mission(route)
+    stop = threading.Event()
+
+    def inject() -> None:  # the vehicle's own link repeats the upload's ACK, as a duplicating link would
+        while not stop.is_set():
+            with harness.locked():
+                harness.server.mav.mission_ack_send(255, 0, int(MissionResult.ACCEPTED), int(MissionType.MISSION))
+            time.sleep(0.002)
+
+    thread = threading.Thread(target=inject, daemon=True)
+    thread.start()
+    try:
+        assert client.download_mission() == route
+    finally:
+        stop.set()
+        thread.join()
