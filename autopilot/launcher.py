@@ -99,10 +99,15 @@ def commands(args: argparse.Namespace) -> tuple[list[str], list[str]]:
     return sim, ap
 
 
-def stop_process(proc: subprocess.Popen[bytes], timeout_s: float = STOP_TIMEOUT_S) -> int:
-    """SIGTERM (a clean stop: summaries are written), wait up to ``timeout_s``, then SIGKILL; the exit status."""
+def stop_process(proc: subprocess.Popen[bytes], timeout_s: float = STOP_TIMEOUT_S, *, signalled: bool = False) -> int:
+    """SIGTERM (a clean stop: summaries are written), wait up to ``timeout_s``, then SIGKILL; the exit status.
+
+    ``signalled``: the process was already sent its stop signal; only wait (a second SIGTERM could hit it
+    after it restored the default handler during its own shutdown and kill it mid-summary).
+    """
     if proc.poll() is None:
-        proc.send_signal(signal.SIGTERM)
+        if not signalled:
+            proc.send_signal(signal.SIGTERM)
         try:
             proc.wait(timeout=timeout_s)
         except subprocess.TimeoutExpired:
@@ -129,16 +134,19 @@ def main(argv: list[str] | None = None) -> int:
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     sim = subprocess.Popen(sim_cmd, env=env)
     autopilot = subprocess.Popen(ap_cmd, env=env)
+    ended_first: subprocess.Popen[bytes] | None = None
     try:
         while stop["signal"] == 0 and sim.poll() is None and autopilot.poll() is None:
             time.sleep(0.05)
-        if stop["signal"]:
+        ended_first = next((proc for proc in (sim, autopilot) if proc.poll() is not None), None)
+        signalled = stop["signal"] != 0
+        if signalled:
             for proc in (autopilot, sim):
                 if proc.poll() is None:
                     proc.send_signal(stop["signal"])
         # whoever is still running follows the one that ended (the autopilot first: the sim then sums up)
-        stop_process(autopilot)
-        stop_process(sim)
+        stop_process(autopilot, signalled=signalled)
+        stop_process(sim, signalled=signalled)
     finally:
         for proc in (autopilot, sim):
             if proc.poll() is None:
@@ -148,5 +156,8 @@ def main(argv: list[str] | None = None) -> int:
             signal.signal(sig, handler)
     sim_rc, ap_rc = sim.returncode, autopilot.returncode
     print(f"quadsitl up: sim exited {sim_rc}, autopilot exited {ap_rc}", file=sys.stderr)
-    rc = sim_rc if sim_rc != 0 else ap_rc
+    if ended_first is not None and ended_first.returncode != 0:
+        rc = ended_first.returncode  # the failure that ended the run, not the stop we sent the other one
+    else:
+        rc = sim_rc if sim_rc != 0 else ap_rc
     return 128 - rc if rc < 0 else rc  # killed by signal N -> 128 + N, as a shell reports it
