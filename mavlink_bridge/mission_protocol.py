@@ -158,10 +158,8 @@ class MissionProtocol:
     # ---- upload ------------------------------------------------------------------------------------------
     def _on_count(self, msg: mavlink2.MAVLink_message, wall_time_s: float) -> None:
         partner = _partner(msg)
-        raw_type = int(getattr(msg, "mission_type", 0))
-        mission_type = _upload_type(raw_type)
+        mission_type = self._stored_type_or_refuse(msg, partner)
         if mission_type is None:
-            self._ack(partner, MissionResult.UNSUPPORTED, raw_type)
             return
         count = int(msg.count)
         up = self._upload
@@ -240,10 +238,8 @@ class MissionProtocol:
     # ---- download ----------------------------------------------------------------------------------------
     def _on_request_list(self, msg: mavlink2.MAVLink_message) -> None:
         partner = _partner(msg)
-        raw_type = int(getattr(msg, "mission_type", 0))
-        mission_type = _upload_type(raw_type)
+        mission_type = self._stored_type_or_refuse(msg, partner)
         if mission_type is None:
-            self._ack(partner, MissionResult.UNSUPPORTED, raw_type)
             return
         items = list(self._vehicle.mission_items(mission_type))
         self._download[mission_type] = items
@@ -252,10 +248,8 @@ class MissionProtocol:
 
     def _on_request(self, msg: mavlink2.MAVLink_message) -> None:
         partner = _partner(msg)
-        raw_type = int(getattr(msg, "mission_type", 0))
-        mission_type = _upload_type(raw_type)
+        mission_type = self._stored_type_or_refuse(msg, partner)
         if mission_type is None:
-            self._ack(partner, MissionResult.UNSUPPORTED, raw_type)
             return
         items = self._download.get(mission_type)
         if items is None:
@@ -309,6 +303,14 @@ class MissionProtocol:
             self._mav.mission_current_send(seq, total)
         else:
             self._statustext(Severity.WARNING, f"mission item {seq} cannot be made current")
+
+    def _stored_type_or_refuse(self, msg: mavlink2.MAVLink_message, partner: tuple[int, int]) -> MissionType | None:
+        """The message's mission type if it is one we store; otherwise answer UNSUPPORTED and return None."""
+        raw_type = int(getattr(msg, "mission_type", 0))
+        mission_type = _upload_type(raw_type)
+        if mission_type is None:
+            self._ack(partner, MissionResult.UNSUPPORTED, raw_type)
+        return mission_type
 
     def _ack(self, partner: tuple[int, int], result: MissionResult, mission_type: int) -> None:
         self._mav.mission_ack_send(partner[0], partner[1], int(result), int(mission_type))
