@@ -169,9 +169,17 @@ class LockstepServer:
         The caller may do work that does not change the frame's state (logging, hashing) while
         the autopilot computes, then call ``wait_answer``.
         """
-        self._frame_time_us = frame.sensor.time_us
-        self._datagram = encode_frame(self._encoder, frame)
-        self._link.send(self._datagram)
+        self.send_datagram(frame.sensor.time_us, encode_frame(self._encoder, frame))
+
+    def send_datagram(self, frame_time_us: int, datagram: bytes) -> None:
+        """``send`` for a frame already encoded (HIL_SENSOR with ``time_usec = frame_time_us`` last).
+
+        For a sim that writes its frames with its own encoder; the bytes must be what ``encode_frame``
+        would produce for that frame (``wait_answer`` matches answers on ``frame_time_us``).
+        """
+        self._frame_time_us = frame_time_us
+        self._datagram = datagram
+        self._link.send(datagram)
         self._sent_at_s = time.monotonic()
 
     def wait_answer(self) -> ActuatorCommand:
