@@ -5,13 +5,13 @@ Per lockstep frame (``Autopilot.step``), in sim time only:
     estimator → failsafes → mission executor (AUTO_MISSION) → commander → [planner override]
     → setpoint generator → NLVG-PID cascade → ActuatorCommand (armed flag, gripper channel)
 
-The command is answered *before* the bookkeeping of ``Autopilot.after_step`` (telemetry
-snapshot, GCS/API polling, the telemetry listener), so the simulator integrates the next
-step while the autopilot does the rest. GCS and API links are polled between frames and
-never block the lockstep. Positions inside are local NED about the estimator's origin (the
-first fix); the mission executor, the geofence and the planner work about home, so the
-runner converts at their edge. :class:`VehicleAdapter` is the ``VehicleInterface`` the
-GCS servers call (commands, missions, parameters).
+The command is answered *before* the bookkeeping (``Autopilot.after_answer``: truth hash,
+battery model, tracking statistics; then the telemetry snapshot, GCS/API polling, the telemetry
+listener), so the simulator integrates the next step while the autopilot does the rest. GCS and
+API links are polled between frames and never block the lockstep. Positions inside are local NED
+about the estimator's origin (the first fix); the mission executor, the geofence and the planner
+work about home, so the runner converts at their edge. :class:`VehicleAdapter` is the
+``VehicleInterface`` the GCS servers call (commands, missions, parameters).
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ import numpy as np
 
 from autopilot.commander import CMD_MISSION_START, Commander
 from autopilot.control.airframe import Airframe, load_airframe
-from autopilot.control.cascade import GRAVITY_M_S2, CascadeController
+from autopilot.control.cascade import GRAVITY_M_S2, CascadeController, SingleStep
 from autopilot.control.param_decls import gains_from_params, limits_from_params
 from autopilot.estimator import Estimator, FrameLike, VehicleState, make_estimator
 from autopilot.failsafe import BatteryModel, FailsafeInputs, FailsafeKind, FailsafeMonitor
@@ -290,6 +290,8 @@ class Autopilot:
         self._planner_output: object | None = None
         self._route_checked: tuple[object, object] | None = None  # (route, obstacles) last safety-checked
         self._hash = hashlib.sha256()
+        self._pending_truth: object | None = None  # this step's truth, hashed by after_answer
+        self._pending_control: SingleStep | None = None  # this step's cascade output, booked by after_answer
         self._pack = struct.Struct("<q10d").pack
         self._motor = (0.0, 0.0, 0.0, 0.0)
         self._gcs_heartbeat_age: Callable[[], float | None] = lambda: None
@@ -507,6 +509,8 @@ class Autopilot:
     # ------------------------------------------------------------------ the step
     def step(self, frame: FrameLike) -> ActuatorCommand:
         """Answer one lockstep frame (everything here is a function of the frames and commands so far)."""
+        if self._pending_truth is not None or self._pending_control is not None:
+            self.after_answer()  # the caller did not: the previous step's bookkeeping first
         t_us = frame.sensor.time_us
         if self._prev_time_us is not None and t_us > self._prev_time_us:
             self._dt_s = (t_us - self._prev_time_us) * 1e-6
@@ -514,10 +518,7 @@ class Autopilot:
         self.frames += 1
         self.frame_detections = getattr(frame, "detections", ())
         state = self.estimator.update(frame)
-        truth = frame.truth
-        if truth is not None:
-            self._hash.update(self._pack(truth.time_us, *truth.q_ned_frd, *truth.vel_ned_m_s, truth.lat_deg,
-                                         truth.lon_deg, truth.alt_amsl_m))  # fmt: skip
+        self._pending_truth = frame.truth
         if state is None:
             return ActuatorCommand(t_us, (0.0, 0.0, 0.0, 0.0), False, self.commander.gripper_release)
         self.state = state
@@ -674,13 +675,30 @@ class Autopilot:
             tuple(gen.acc_ned),  # type: ignore[arg-type]
             gen.yaw_rad,
         )
-        u0, u1, u2, u3, thrust_n, ex, ey, ez, eroll, epitch = out
-        self.thrust_ratio = thrust_ratio = thrust_n / self._hover_thrust_n
-        self.battery.update(thrust_ratio, self._dt_s)
-        q = state.q_ned_frd
-        tilt = math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (q[1] * q[1] + q[2] * q[2]))))
-        self.tracking.add(math.sqrt(ex * ex + ey * ey + ez * ez), math.sqrt(eroll * eroll + epitch * epitch), tilt)
-        return (u0, u1, u2, u3)
+        self.thrust_ratio = out[4] / self._hover_thrust_n
+        self._pending_control = out
+        return (out[0], out[1], out[2], out[3])
+
+    def after_answer(self) -> None:
+        """The latest step's bookkeeping that its command does not depend on (``run_loop`` calls it right after
+        the answer, while the sim integrates): the truth hash, the battery model and the tracking statistics.
+
+        Idempotent; :meth:`step`, :meth:`snapshot`, :meth:`record` and :meth:`summary` call it first when the
+        caller did not, so the numbers are the same either way (the next step reads the battery only after it).
+        """
+        truth = self._pending_truth
+        if truth is not None:
+            self._pending_truth = None
+            self._hash.update(self._pack(truth.time_us, *truth.q_ned_frd, *truth.vel_ned_m_s, truth.lat_deg,
+                                         truth.lon_deg, truth.alt_amsl_m))  # fmt: skip
+        out = self._pending_control
+        if out is not None:
+            self._pending_control = None
+            _, _, _, _, _, ex, ey, ez, eroll, epitch = out
+            self.battery.update(self.thrust_ratio, self._dt_s)
+            q = self.state.q_ned_frd  # type: ignore[union-attr]  # a control step had a state
+            tilt = math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (q[1] * q[1] + q[2] * q[2]))))
+            self.tracking.add(math.sqrt(ex * ex + ey * ey + ez * ez), math.sqrt(eroll * eroll + epitch * epitch), tilt)
 
     def _apply_planner(self, state: VehicleState, target: NavTarget) -> None:
         """Let the avoidance planner override the reference (about home at its edge) in the setpoint generator.
@@ -692,6 +710,12 @@ class Autopilot:
         """
         planner = self.planner
         assert planner is not None
+        idle_output = getattr(planner, "idle_output", None)
+        if idle_output is not None:  # nothing to avoid: the output update() would give, without the route
+            idle = idle_output(state.time_us, self.frame_detections)
+            if idle is not None:
+                self._planner_output = idle
+                return
         home = self.home_ned
         rel = (state.pos_ned_m[0] - home[0], state.pos_ned_m[1] - home[1], state.pos_ned_m[2] - home[2])
         goal = (target.pos_ned_m[0] - home[0], target.pos_ned_m[1] - home[1], target.pos_ned_m[2] - home[2])
@@ -767,6 +791,7 @@ class Autopilot:
 
     def snapshot(self) -> TelemetrySnapshot | None:
         """The telemetry snapshot of the latest step (None before the first state)."""
+        self.after_answer()
         state = self.state
         if state is None:
             return None
@@ -826,6 +851,7 @@ class Autopilot:
 
     def record(self, texts: Sequence[StatusText]) -> StepRecord | None:
         """The step record for a listener (None before the first state)."""
+        self.after_answer()
         state = self.state
         if state is None:
             return None
@@ -858,6 +884,7 @@ class Autopilot:
     # ------------------------------------------------------------------ summary
     def summary(self, wall_time_s: float) -> dict[str, object]:
         """``autopilot_summary.json`` (SPEC §12): mission progress, modes, landing, tracking errors."""
+        self.after_answer()
         commander = self.commander
         tr = self.tracking
         sim_time_s = (self.state.time_us * 1e-6) if self.state is not None else 0.0
@@ -964,6 +991,7 @@ def run_loop(
         now = time.monotonic()
         if frame is not None:
             client.answer(autopilot.step(frame))  # type: ignore[attr-defined]
+            autopilot.after_answer()  # while the sim integrates the next step
             steps += 1
         elif client.sim_lost:  # type: ignore[attr-defined]
             reason = AutopilotEndReason.SIM_LOST

@@ -160,6 +160,11 @@ class ObstacleMap:
         return self._snapshot
 
     @property
+    def empty(self) -> bool:
+        """No obstacle is tracked (an update without detections then changes nothing)."""
+        return not self._tracks
+
+    @property
     def arrays(self) -> ObstacleArrays:
         """The snapshot as arrays (rebuilt with it)."""
         return self._arrays

@@ -272,6 +272,18 @@ class AvoidancePlanner:
             self._route_skip(full_route),  # after this update's decisions: a new detour counts at once
         )
 
+    def idle_output(self, time_us: int, detections: Sequence[ObstacleDetection]) -> PlannerOutput | None:
+        """What :meth:`update` would return at ``time_us`` when it has nothing to do, without the route or numpy;
+        None when it may have something to do (then call ``update``).
+
+        Nothing to do: no detection this step, no tracked obstacle (so nothing to forget, no threat, clearance
+        inf), no detour or braking path, no pending rejoin. ``update`` then changes no state and returns this
+        (``tests/test_planner_idle.py`` checks they are equal), so the runner skips building the route.
+        """
+        if detections or self._path is not None or self._rejoin_wp is not None or not self.map.empty:
+            return None
+        return PlannerOutput(time_us, self._state, None, self._plan, None, (), self.map.obstacles, None, math.inf)
+
     def _route_skip(self, route: np.ndarray) -> int:
         """Index in ``route`` of the waypoint the last detour resumes toward (0 once the caller advanced)."""
         wp = self._rejoin_wp
