@@ -290,6 +290,9 @@ class Autopilot:
         self._planner_output: object | None = None
         self._route_checked: tuple[object, object] | None = None  # (route, obstacles) last safety-checked
         self._hash = hashlib.sha256()
+        self._param_version = 0  # counts parameter changes (invalidates what is cached from parameters)
+        self._mission_nav_key: tuple[object, ...] = ()
+        self._mission_nav: NavTarget | None = None
         self._pending_truth: object | None = None  # this step's truth, hashed by after_answer
         self._pending_control: SingleStep | None = None  # this step's cascade output, booked by after_answer
         self._pack = struct.Struct("<q10d").pack
@@ -323,6 +326,7 @@ class Autopilot:
 
     def _on_param(self, name: str, value: float) -> None:
         """Parameter changes take effect at once (in flight too)."""
+        self._param_version += 1  # values cached per step (the mission target) are rebuilt
         if name.startswith(("MPC_ACC", "MPC_JERK", "MPC_YAWRAUTO")):
             self.setpoints.limits = self._setpoint_limits()
         if name.startswith("NV_") or name in _CONTROL_LIMIT_PARAMS:
@@ -524,15 +528,21 @@ class Autopilot:
         self.state = state
         commander = self.commander
         commander.local_frame = self.estimator.local_frame
-        self._track_home()
-        if self.script is not None:
+        # each stage's own "nothing to do" test inline: the calls are a good part of a step's cost
+        if commander.home is not self._last_home:
+            self._track_home()
+        script = self.script
+        if script is not None and script.next_at_us <= state.time_us:
             self._run_script(state)
-        self._run_failsafes(state)
-        self._run_mission(state)
+        if state.time_us >= self._next_failsafe_us:
+            self._run_failsafes(state)
+        if self.executor is not None and commander.mode is FlightMode.AUTO_MISSION:
+            self._run_mission(state)
         target = commander.update(state, self.thrust_ratio)
         if commander.gripper_release is not self._payload_released:
             self._apply_payload_mass()
-        self._follow_mode_changes(state)
+        if commander.mode is not self._last_mode:
+            self._follow_mode_changes(state)
         self._target = target
         motor = self._control(state, target)
         self._motor = motor
@@ -612,8 +622,16 @@ class Autopilot:
         for action in out.actions:
             commander.set_gripper(release=action.kind is ActionKind.GRIPPER_RELEASE)
         target = out.target
-        face = self._face_along_path(pos, target) if target is not None else math.nan
-        commander.set_mission_target(None if target is None else _mission_to_nav(target, home, commander, face))
+        if target is None:
+            commander.set_mission_target(None)
+            return
+        face = self._face_along_path(pos, target)
+        # the same target while nothing it is made of changed (LAND reads the altitude: built every step)
+        key = (target, home, face, self._param_version)
+        if key != self._mission_nav_key or target.kind is NavKind.LAND:
+            self._mission_nav_key = key
+            self._mission_nav = _mission_to_nav(target, home, commander, face)
+        commander.set_mission_target(self._mission_nav)
 
     def _face_along_path(self, pos: Vec3, target: MissionTarget) -> float:
         """Heading (rad) toward where the vehicle is going, about home: the detour's look-ahead point while
@@ -665,14 +683,15 @@ class Autopilot:
         avoiding = commander.mode is FlightMode.AUTO_MISSION and target.kind is TargetKind.POSITION
         if avoiding and self.planner is not None:
             self._apply_planner(state, target)
+        p, v, a = gen.pos_ned, gen.vel_ned, gen.acc_ned
         out = controller.update_position_single(
             state.pos_ned_m,
             state.vel_ned_m_s,
             state.q_ned_frd,
             state.rate_frd_rad_s,
-            tuple(gen.pos_ned),  # type: ignore[arg-type]
-            tuple(gen.vel_ned),  # type: ignore[arg-type]
-            tuple(gen.acc_ned),  # type: ignore[arg-type]
+            (p[0], p[1], p[2]),
+            (v[0], v[1], v[2]),
+            (a[0], a[1], a[2]),
             gen.yaw_rad,
         )
         self.thrust_ratio = out[4] / self._hover_thrust_n

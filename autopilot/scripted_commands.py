@@ -121,5 +121,10 @@ class CommandScript:
         return out
 
     @property
+    def next_at_us(self) -> int | float:
+        """Sim time (µs) of the next step not handed out yet (inf when finished): nothing is due before."""
+        return self._steps[self._next].at_us if self._next < len(self._steps) else math.inf
+
+    @property
     def finished(self) -> bool:
         return self._next >= len(self._steps)

@@ -85,3 +85,23 @@ def test_make_estimator_names_the_choices() -> None:
     assert isinstance(make_estimator("truth"), TruthEstimator)
     with pytest.raises(ValueError, match="truth"):
         make_estimator("ekf9000")
+
+
+def test_fast_built_state_is_the_frozen_dataclass_with_the_reference_values() -> None:
+    """``TruthEstimator`` builds ``VehicleState`` through a plain twin (speed): same type, values, frozen."""
+    import dataclasses
+
+    from autopilot.estimator import VehicleState, _euler_zyx
+
+    est = TruthEstimator()
+    gps = GpsSample(4000, 30.2635, 120.1233, 12.0, (0.0, 0.0, 0.0), 0.8, 1.2, 3, 11)
+    q = quat_from_euler(0.1, -0.2, 2.5)
+    state = est.update(Frame(_sensor(4000), gps, _truth(4000, (1.0, 2.0, -3.0), tuple(q))))  # type: ignore[arg-type]
+    assert type(state) is VehicleState
+    reference = VehicleState(*(getattr(state, f.name) for f in dataclasses.fields(VehicleState)))
+    assert state == reference and hash(state) == hash(reference) and repr(state) == repr(reference)
+    assert (state.roll_rad, state.pitch_rad, state.yaw_rad) == _euler_zyx(state.q_ned_frd)
+    assert (state.gps_fix_type, state.gps_satellites, state.gps_eph_m, state.gps_epv_m) == (3, 11, 0.8, 1.2)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        state.valid = False  # type: ignore[misc]
+    assert dataclasses.replace(state, valid=False).valid is False
