@@ -122,7 +122,7 @@ class SetpointGenerator:
         tn, te, td = target.pos_ned_m
         sqrt = math.sqrt
         # horizontal: desired velocity along the line to the target (_approach_speed and _accel_toward inline,
-        # min(a, b, c) as comparisons in min's order: the same floats, no calls; test_autopilot_setpoints checks)
+        # min(a, b, c) as comparisons in min's order: the same floats, no calls; the golden flight test checks)
         dn, de = tn - pos[0], te - pos[1]
         d_xy = math.hypot(dn, de)
         if d_xy > 1e-9:
