@@ -64,6 +64,11 @@ def isa_altitude_m(pressure_pa: float) -> float:
     return (1.0 - (pressure_pa / _SEA_LEVEL_PA) ** (1.0 / 5.25588)) / 2.25577e-5
 
 
+def _quantize_deg_e7(angle_deg: float) -> float:
+    """``angle_deg`` on the 1e-7° grid of the MAVLink degE7 encoding (non-finite values pass through)."""
+    return round(angle_deg * DEG_E7) / DEG_E7 if math.isfinite(angle_deg) else angle_deg
+
+
 class SensorModel:
     """Measurements of one vehicle for the autopilot, deterministic for a seed.
 
@@ -95,35 +100,42 @@ class SensorModel:
         self.baro_bias_m = s * nm.baro_bias_m * float(self._rng.standard_normal())
         gps_sigma_ned_m = s * np.array([nm.gps_pos_horizontal_m, nm.gps_pos_horizontal_m, nm.gps_pos_vertical_m])
         self._gps_decay = math.exp(-GPS_PERIOD_US * 1e-6 / nm.gps_error_time_constant_s)
-        self._gps_error_ned_m: list[float] = (gps_sigma_ned_m * self._rng.standard_normal(3)).tolist()
+        #: Gauss–Markov GPS position error (m, NED); an array shared with the fused frame kernel
+        self._gps_error_ned_m: np.ndarray = gps_sigma_ned_m * self._rng.standard_normal(3)
         self._gps_innovation_ned_m: list[float] = (gps_sigma_ned_m * math.sqrt(1.0 - self._gps_decay**2)).tolist()
         self._gps_vel_sigma_m_s = s * nm.gps_vel_noise_m_s
         self._gps_eph_m = max(2.0 * nm.gps_pos_horizontal_m * s, 0.01)
         self._gps_epv_m = max(2.0 * nm.gps_pos_vertical_m * s, 0.01)
-        self._next_gps_us = 0
         # per-step constants as Python floats (scalar math is several times faster than numpy on 3-vectors)
         self._accel_bias: list[float] = self.accel_bias_frd_m_s2.tolist()
         self._gyro_bias: list[float] = self.gyro_bias_frd_rad_s.tolist()
         self._mag_bias: list[float] = self.mag_bias_frd_gauss.tolist()
-        self._noise: list[float] = []  # scaled standard normals not yet used
-        self._noise_pos = 0
+        #: scaled standard normals (those before ``_counters[0]`` are used); refilled by blocks
+        self._noise = np.zeros(0)
+        #: [next noise index, sim time of the next GPS fix (µs)]: an array so that the fused
+        #: frame kernel (``sim.frame_kernel``) advances the same state as these methods
+        self._counters = np.zeros(2, dtype=np.int64)
 
-    def _take_noise(self, count: int) -> int:
-        """Index in ``self._noise`` of the next ``count`` scaled standard normals (refilled by blocks)."""
-        pos = self._noise_pos
-        if pos + count > len(self._noise):
+    def _reserve_noise(self, count: int) -> None:
+        """Make the next ``count`` noise values available (refill keeps the unused ones: same stream)."""
+        pos = int(self._counters[0])
+        if pos + count > self._noise.shape[0]:
             block = self._rng.standard_normal(NOISE_BLOCK)
             block *= self._scale
-            self._noise = self._noise[pos:] + block.tolist()
-            pos = 0
-        self._noise_pos = pos + count
-        return pos
+            self._noise = np.concatenate((self._noise[pos:], block))
+            self._counters[0] = 0
+
+    def _take_noise(self, count: int) -> list[float]:
+        """The next ``count`` scaled standard normals."""
+        self._reserve_noise(count)
+        pos = int(self._counters[0])
+        self._counters[0] = pos + count
+        return self._noise[pos : pos + count].tolist()
 
     def imu_baro_mag(self, sim: VehicleSim) -> SensorSample:
         """IMU, magnetometer and barometer at the current sim time (call once per control step)."""
         nm = self.noise_model
-        i = self._take_noise(10)
-        n = self._noise
+        n = self._take_noise(10)
         batch = sim.batch
         x = batch.state[0].tolist()
         sf = batch.specific_force_frd[0].tolist()
@@ -135,12 +147,12 @@ class SensorModel:
         mag_z = 2 * (a * c + w * b) * mn + 2 * (b * c - w * a) * me + (1 - 2 * (a * a + b * b)) * md
         ab, gb, mb = self._accel_bias, self._gyro_bias, self._mag_bias
         an, gn, mgn = nm.accel_noise_m_s2, nm.gyro_noise_rad_s, nm.mag_noise_gauss
-        alt_amsl = self.home.alt_amsl_m - x[2] + self.baro_bias_m + nm.baro_noise_m * n[i + 9]
+        alt_amsl = self.home.alt_amsl_m - x[2] + self.baro_bias_m + nm.baro_noise_m * n[9]
         return SensorSample(
             batch.t_us,
-            (sf[0] + ab[0] + an * n[i], sf[1] + ab[1] + an * n[i + 1], sf[2] + ab[2] + an * n[i + 2]),
-            (x[10] + gb[0] + gn * n[i + 3], x[11] + gb[1] + gn * n[i + 4], x[12] + gb[2] + gn * n[i + 5]),
-            (mag_x + mb[0] + mgn * n[i + 6], mag_y + mb[1] + mgn * n[i + 7], mag_z + mb[2] + mgn * n[i + 8]),
+            (sf[0] + ab[0] + an * n[0], sf[1] + ab[1] + an * n[1], sf[2] + ab[2] + an * n[2]),
+            (x[10] + gb[0] + gn * n[3], x[11] + gb[1] + gn * n[4], x[12] + gb[2] + gn * n[5]),
+            (mag_x + mb[0] + mgn * n[6], mag_y + mb[1] + mgn * n[7], mag_z + mb[2] + mgn * n[8]),
             isa_pressure_pa(alt_amsl) / 100.0,
             alt_amsl,
             15.0 - 0.0065 * alt_amsl,
@@ -149,24 +161,23 @@ class SensorModel:
     def gps(self, sim: VehicleSim) -> GpsSample | None:
         """A GPS fix when one is due (every 100 ms of sim time, the first at t = 0), else None."""
         t_us = sim.batch.t_us
-        if t_us < self._next_gps_us:
+        next_gps_us = int(self._counters[1])
+        if t_us < next_gps_us:
             return None
-        self._next_gps_us += GPS_PERIOD_US * (1 + (t_us - self._next_gps_us) // GPS_PERIOD_US)
-        i = self._take_noise(6)
-        n = self._noise
-        err, g, decay = self._gps_error_ned_m, self._gps_innovation_ned_m, self._gps_decay
-        err[0] = err[0] * decay + g[0] * n[i]
-        err[1] = err[1] * decay + g[1] * n[i + 1]
-        err[2] = err[2] * decay + g[2] * n[i + 2]
+        self._counters[1] = next_gps_us + GPS_PERIOD_US * (1 + (t_us - next_gps_us) // GPS_PERIOD_US)
+        n = self._take_noise(6)
+        e, g, decay = self._gps_error_ned_m.tolist(), self._gps_innovation_ned_m, self._gps_decay
+        err = (e[0] * decay + g[0] * n[0], e[1] * decay + g[1] * n[1], e[2] * decay + g[2] * n[2])
+        self._gps_error_ned_m[:] = err
         x = sim.batch.state[0].tolist()
         geo = self._frame.geodetic_from_ned(x[0] + err[0], x[1] + err[1], x[2] + err[2])
         vs = self._gps_vel_sigma_m_s
         return GpsSample(
             t_us,
-            round(geo.lat_deg * DEG_E7) / DEG_E7,
-            round(geo.lon_deg * DEG_E7) / DEG_E7,
+            _quantize_deg_e7(geo.lat_deg),
+            _quantize_deg_e7(geo.lon_deg),
             round(geo.alt_amsl_m, 3),
-            (x[3] + vs * n[i + 3], x[4] + vs * n[i + 4], x[5] + vs * n[i + 5]),
+            (x[3] + vs * n[3], x[4] + vs * n[4], x[5] + vs * n[5]),
             self._gps_eph_m,
             self._gps_epv_m,
             3,
