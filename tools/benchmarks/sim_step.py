@@ -1,8 +1,11 @@
 """The simulator's own cost per lockstep step, by part (issue 4: what the sim adds to the messaging floor).
 
 In-process, no sockets: a hovering x500 in gusty wind, the sim side of one control step as
-``sim.server`` does it — IMU/baro/mag, GPS (10 Hz), ground truth, the frame's datagram, the
-answer's decoding, physics (4 RK4 substeps). Times are CPU time of this thread (``time.thread_time``),
+``sim.server`` does it — the frame's datagram (IMU/baro/mag, GPS at 10 Hz, ground truth and the
+MAVLink bytes in one numba call, ``sim.frame_kernel.FusedFrame``), the answer's decoding, physics
+(4 RK4 substeps). The reference path it replaced (``SensorModel``/``ground_truth`` dataclasses +
+``encode_frame``, byte-identical) is measured too, part by part and as a whole step, in the same run.
+Times are CPU time of this thread (``time.thread_time``),
 the minimum over several rounds, so that other processes on a shared machine inflate them less
 than wall time; the lockstep's wall time per step is in ``lockstep_flight`` / ``sim_summary.json``.
 """
@@ -15,6 +18,7 @@ from collections.abc import Callable
 from mavlink_bridge.codec import SIM_COMPONENT_ID, SIM_SYSTEM_ID, Decoder, Encoder
 from mavlink_bridge.lockstep import LockstepFrame, encode_frame
 from mavlink_bridge.wire import ActuatorCommand
+from sim.frame_kernel import FusedFrame
 from sim.sensors import SensorModel
 from sim.vehicle import VehicleSim
 from sim.vehicle_config import load_vehicle
@@ -52,33 +56,44 @@ def measure(rounds: int) -> dict[str, float]:
     answers = [answer_enc.actuators(ActuatorCommand(k, (hover,) * 4, True)) for k in range(STEPS_PER_ROUND)]
     frame = LockstepFrame(sensors.imu_baro_mag(sim), None, sim.ground_truth())
     cmd = (hover, hover, hover, hover)
+    fused = FusedFrame(sim, SensorModel(sim.vehicle, sim.world.home, 0))
 
     def whole_step(k: int) -> None:
+        fused.datagram()
+        (answer,) = dec.decode(answers[k])
+        sim.step(answer.motor_cmd)  # type: ignore[union-attr]
+
+    def whole_step_reference(k: int) -> None:
         f = LockstepFrame(sensors.imu_baro_mag(sim), sensors.gps(sim), sim.ground_truth())
         encode_frame(enc, f)
         (answer,) = dec.decode(answers[k])
         sim.step(answer.motor_cmd)  # type: ignore[union-attr]
 
     parts: dict[str, Callable[[int], object]] = {
+        "sim_frame_fused_us": lambda k: fused.datagram(),
         "sim_sensors_us": lambda k: sensors.imu_baro_mag(sim),
         "sim_ground_truth_us": lambda k: sim.ground_truth(),
         "lockstep_frame_encode_us": lambda k: encode_frame(enc, frame),
         "lockstep_answer_decode_us": lambda k: dec.decode(answers[k]),
         "sim_physics_us": lambda k: sim.step(cmd),
         "sim_step_cpu_us": whole_step,
+        "sim_step_reference_cpu_us": whole_step_reference,
     }
     _cpu_us(whole_step, 2)  # warm-up (JIT, caches)
+    _cpu_us(whole_step_reference, 2)
     return {key: _cpu_us(fn, rounds) for key, fn in parts.items()}
 
 
 def run(quick: bool) -> list[BenchResult]:
     us = measure(rounds=5 if quick else 20)
     notes = {
-        "sim_sensors_us": "IMU + baro + mag sample (SensorModel.imu_baro_mag)",
-        "sim_ground_truth_us": "VehicleSim.ground_truth (geodetic)",
-        "lockstep_frame_encode_us": "HIL_STATE_QUATERNION + HIL_SENSOR datagram",
+        "sim_frame_fused_us": "sensors + GPS (10 Hz) + truth + datagram in one numba call (FusedFrame), as sent",
+        "sim_sensors_us": "reference path: IMU + baro + mag sample (SensorModel.imu_baro_mag)",
+        "sim_ground_truth_us": "reference path: VehicleSim.ground_truth (geodetic)",
+        "lockstep_frame_encode_us": "reference path: HIL_STATE_QUATERNION + HIL_SENSOR datagram (encode_frame)",
         "lockstep_answer_decode_us": "HIL_ACTUATOR_CONTROLS datagram -> ActuatorCommand",
         "sim_physics_us": "one 250 Hz control step: 4 RK4 substeps at 1 kHz",
-        "sim_step_cpu_us": "the sim side of a lockstep step (all of the above + GPS at 10 Hz), CPU time",
+        "sim_step_cpu_us": "the sim side of a lockstep step (fused frame + answer decode + physics), CPU time",
+        "sim_step_reference_cpu_us": "the same step with the reference frame path (sensors, gps, truth, encode_frame)",
     }
     return [BenchResult(key, value, note=notes[key]) for key, value in us.items()]
