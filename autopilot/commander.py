@@ -120,6 +120,10 @@ class Commander:
         self._rtl_down_m = 0.0
         self._rtl_loiter_until_us = 0
         self._speed_xy_m_s: float | None = None  # DO_CHANGE_SPEED override
+        self._speeds_key: tuple[int, float | None] = (-1, None)  # _speeds() cache
+        self._speeds_m_s = (0.0, 0.0, 0.0)
+        self._lndmc_version = -1  # _land_detector_limits() cache
+        self._lndmc = (0.0, 0.0, 0.0, 0.0)
         self._mission_target: NavTarget | None = None
         self._offboard_target: NavTarget | None = None
         self._landed_since_us: int | None = None
@@ -456,8 +460,23 @@ class Commander:
 
     # ------------------------------------------------------------------ per step
     def _speeds(self) -> tuple[float, float, float]:
-        p = self.params.get
-        return self.speed_xy_m_s, p("MPC_Z_VEL_MAX_UP"), p("MPC_Z_VEL_MAX_DN")
+        """(xy cruise, climb, descent) speeds in force; cached while the parameters and the override are unchanged."""
+        key = (self.params.version, self._speed_xy_m_s)
+        if key != self._speeds_key:
+            p = self.params.get
+            self._speeds_key = key
+            self._speeds_m_s = (self.speed_xy_m_s, p("MPC_Z_VEL_MAX_UP"), p("MPC_Z_VEL_MAX_DN"))
+        return self._speeds_m_s
+
+    def _land_detector_limits(self) -> tuple[float, float, float, float]:
+        """LNDMC_Z_VEL_MAX, LNDMC_XY_VEL_MAX, LNDMC_LOW_T_THR, LNDMC_TRIG_TIME (µs), cached per parameter version."""
+        version = self.params.version
+        if version != self._lndmc_version:
+            p = self.params.get
+            self._lndmc_version = version
+            trig_us = p("LNDMC_TRIG_TIME") * 1e6
+            self._lndmc = (p("LNDMC_Z_VEL_MAX"), p("LNDMC_XY_VEL_MAX"), p("LNDMC_LOW_T_THR"), trig_us)
+        return self._lndmc
 
     def _land_target(self, state: VehicleState) -> NavTarget:
         p = self.params.get
@@ -519,19 +538,15 @@ class Commander:
 
     def _detect_landing(self, state: VehicleState, thrust_ratio: float) -> bool:
         """Touchdown: slow and low thrust for LNDMC_TRIG_TIME (sim time)."""
-        p = self.params.get
+        z_vel_max, xy_vel_max, low_thrust, trig_us = self._land_detector_limits()
         vn, ve, vd = state.vel_ned_m_s
-        quiet = (
-            abs(vd) < p("LNDMC_Z_VEL_MAX")
-            and math.hypot(vn, ve) < p("LNDMC_XY_VEL_MAX")
-            and thrust_ratio < p("LNDMC_LOW_T_THR")
-        )
+        quiet = abs(vd) < z_vel_max and math.hypot(vn, ve) < xy_vel_max and thrust_ratio < low_thrust
         if not quiet:
             self._landed_since_us = None
             return False
         if self._landed_since_us is None:
             self._landed_since_us = state.time_us
-        return state.time_us - self._landed_since_us >= p("LNDMC_TRIG_TIME") * 1e6
+        return state.time_us - self._landed_since_us >= trig_us
 
     def _auto_disarm_on_ground(self, state: VehicleState) -> None:
         """COM_DISARM_LAND after a touchdown, COM_DISARM_PRFLT after arming without takeoff."""

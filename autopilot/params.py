@@ -63,6 +63,8 @@ class ParamStore:
             self._specs[spec.name] = spec
         self._values: dict[str, float] = {name: spec.default for name, spec in self._specs.items()}
         self._listeners: list[Listener] = []
+        #: Counts accepted changes: a reader may cache values derived from parameters while it is unchanged.
+        self.version = 0
 
     @property
     def specs(self) -> Mapping[str, ParamSpec]:
@@ -91,6 +93,7 @@ class ParamStore:
         v = spec.check(value)
         if v != self._values[name]:
             self._values[name] = v
+            self.version += 1
             for listener in self._listeners:
                 listener(name, v)
         return v

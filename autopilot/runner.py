@@ -684,7 +684,7 @@ class Autopilot:
         if avoiding and self.planner is not None:
             self._apply_planner(state, target)
         p, v, a = gen.pos_ned, gen.vel_ned, gen.acc_ned
-        out = controller.update_position_single(
+        out = controller.update_single(  # update_position_single without its Python frame
             state.pos_ned_m,
             state.vel_ned_m_s,
             state.q_ned_frd,

@@ -245,3 +245,24 @@ def test_home_is_set_at_the_first_3d_fix_and_moved_at_arming() -> None:
     assert commander.home.pos_ned_m == (1.0, 2.0, 0.0)
     assert commander.handle_command(command(*ARM)) is CommandResult.ACCEPTED
     assert commander.home.pos_ned_m == (3.0, 4.0, 0.0)
+
+
+def test_cached_speeds_and_land_detector_follow_parameter_changes_in_flight() -> None:
+    """The commander caches parameter-derived values per ``ParamStore.version``: a change applies next step."""
+    loop = KinematicLoop(make_commander())
+    commander = loop.commander
+    _takeoff(loop, 3.0)
+    loop.run_s(6.0)
+    assert commander.mode is FlightMode.AUTO_LOITER
+    target = commander.update(loop.state(), loop.thrust_ratio)
+    assert target.speed_up_m_s == commander.params.get("MPC_Z_VEL_MAX_UP")
+    commander.params.set("MPC_Z_VEL_MAX_UP", 2.5)
+    commander.params.set("MPC_XY_VEL_MAX", 1.5)
+    target = commander.update(loop.state(), loop.thrust_ratio)
+    assert (target.speed_xy_m_s, target.speed_up_m_s) == (1.5, 2.5)
+    assert commander.handle_command(command(CMD_NAV_LAND)) is CommandResult.ACCEPTED
+    commander.params.set("LNDMC_TRIG_TIME", 1.5)  # a longer confirmation before "Landing detected"
+    assert loop.run_until(lambda: commander.landed_state is LandedState.ON_GROUND, 60.0)
+    quiet_since_us = commander._landed_since_us
+    assert quiet_since_us is not None
+    assert loop.time_us - round(loop.dt_s * 1e6) - quiet_since_us >= 1.5e6

@@ -28,7 +28,9 @@ One implementation serves n = 1 and n = 1000: numba kernels loop over vehicles, 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 from numba import njit
@@ -237,12 +239,22 @@ def _position_single(pos, vel, q4, rate3, pos_sp, vel_sp, acc_ff, yaw_sp, gains,
     work[0, W_OK] = 1.0 if ok else 0.0
 
 
+# n = 1: gains, mass, parameters, work row and the input rows are views of one flat buffer (one array argument
+# is cheaper for numba's dispatcher than five): offsets of each in it
+B_GAINS = 0
+B_MASS = B_GAINS + 6 * N_GAIN_COLS
+B_PRM = B_MASS + 1
+B_WORK = B_PRM + N_PARAMS
+B_ONE = B_WORK + N_WORK
+N_BUF = B_ONE + 28
+
+
 @njit(cache=True)
-def _position_tuples(
-    pos, vel, q4, rate3, pos_sp, vel_sp, acc_ff, yaw_sp, gains, mass, prm, work, one
-):  # pragma: no cover
+def _position_flat(buf, pos, vel, q4, rate3, pos_sp, vel_sp, acc_ff, yaw_sp):  # pragma: no cover - numba kernel
     """n = 1 entry on tuples (numba unboxes them faster than arrays are filled from Python), copied into the
-    (7, 4) scratch ``one``; returns ``(u0, u1, u2, u3, thrust_n, e_n, e_e, e_d, e_roll, e_pitch)``."""
+    (7, 4) input rows of the flat buffer (``B_*`` offsets); the same per-vehicle code. Returns
+    ``(u0, u1, u2, u3, thrust_n, e_n, e_e, e_d, e_roll, e_pitch)``."""
+    one = buf[B_ONE:N_BUF].reshape((7, 4))
     for k in range(3):
         one[0, k] = pos[k]
         one[1, k] = vel[k]
@@ -252,7 +264,7 @@ def _position_tuples(
         one[6, k] = acc_ff[k]
     for k in range(4):
         one[2, k] = q4[k]
-    wf = work.reshape(-1)
+    wf = buf[B_WORK:B_ONE]
     ok = _position_one(
         one[0:1, 0:3],
         one[1:2, 0:3],
@@ -262,10 +274,10 @@ def _position_tuples(
         one[5:6, 0:3],
         one[6:7, 0:3],
         yaw_sp,
-        mass[0],
+        buf[B_MASS],
         0,
-        gains.reshape(-1),
-        prm,
+        buf[B_GAINS:B_MASS],
+        buf[B_PRM:B_WORK],
         wf,
     )
     wf[W_OK] = 1.0 if ok else 0.0
@@ -363,12 +375,27 @@ class CascadeController:
         prm[P_IX : P_IZ + 1] = airframe.inertia_kg_m2
         prm[P_TAN_TILT] = math.tan(self.limits.tilt_max_rad)
         prm[P_AINV:] = mixer.a_inv.ravel()
-        self._prm = prm
-        self._mass = np.full(n, airframe.mass_kg)
-        self._work = np.zeros((n, N_WORK))
-        self._one = np.zeros((7, 4))  # update_position_single's inputs as rows
+        table = gains.table(n)
+        if n == 1:  # one flat buffer, the arrays are views of it (_position_flat)
+            buf = np.zeros(N_BUF)
+            self._gains = buf[B_GAINS:B_MASS].reshape(table.shape)
+            self._mass = buf[B_MASS:B_PRM]
+            self._prm = buf[B_PRM:B_WORK]
+            self._work = buf[B_WORK:B_ONE].reshape((1, N_WORK))
+            self._one = buf[B_ONE:N_BUF].reshape((7, 4))  # update_position_single's inputs as rows
+            self._gains[:] = table
+            self._mass[:] = airframe.mass_kg
+            self._prm[:] = prm
+            #: ``update_single(pos, vel, q, rate, pos_sp, vel_sp, acc_ff, yaw_sp)``: :meth:`update_position_single`
+            #: without its Python frame (the per-step call of one autopilot; n = 1 only).
+            self.update_single: Callable[..., SingleStep] = partial(_position_flat, buf)
+        else:
+            self._prm = prm
+            self._mass = np.full(n, airframe.mass_kg)
+            self._work = np.zeros((n, N_WORK))
+            self._one = np.zeros((7, 4))
+            self._gains = table
         self.gains = gains
-        self._gains = gains.table(n)
         wk = self._work
         self.diagnostics = CascadeDiagnostics(
             pos_err_ned=wk[:, W_ERR : W_ERR + 3],
@@ -473,21 +500,7 @@ class CascadeController:
         """
         if self.n != 1:
             raise ValueError(f"update_position_single needs n = 1, this cascade has n = {self.n}")
-        return _position_tuples(
-            pos_ned,
-            vel_ned,
-            q_ned_frd,
-            rate_frd,
-            pos_sp_ned,
-            vel_sp_ned,
-            acc_ff_ned,
-            yaw_sp_rad,
-            self._gains,
-            self._mass,
-            self._prm,
-            self._work,
-            self._one,
-        )
+        return self.update_single(pos_ned, vel_ned, q_ned_frd, rate_frd, pos_sp_ned, vel_sp_ned, acc_ff_ned, yaw_sp_rad)
 
     def update_attitude(
         self,
