@@ -14,8 +14,10 @@ socket errors caused by a vanished peer (ICMP port unreachable) are swallowed an
 from __future__ import annotations
 
 import errno
+import os
 import select
 import socket
+import time
 from dataclasses import dataclass
 from enum import Enum
 
@@ -23,6 +25,14 @@ Address = tuple[str, int]
 
 _MAX_DATAGRAM_BYTES = 65535
 _TRANSIENT_ERRNOS = frozenset({errno.EAGAIN, errno.EWOULDBLOCK, errno.ECONNREFUSED, errno.EINTR, errno.ENOBUFS})
+
+
+def spin_allowed() -> bool:
+    """True when this process may run on at least two CPUs: spinning on one CPU would starve the peer."""
+    try:
+        return len(os.sched_getaffinity(0)) >= 2
+    except AttributeError:  # not Linux
+        return (os.cpu_count() or 1) >= 2
 
 
 class LinkUrlError(ValueError):
@@ -87,12 +97,14 @@ class UdpLink:
         "last_sender",
         "peer",
         "send_errors",
+        "spin_s",
         "url",
     )
 
-    def __init__(self, url: LinkUrl, *, follow_sender: bool = True) -> None:
+    def __init__(self, url: LinkUrl, *, follow_sender: bool = True, spin_s: float = 0.0) -> None:
         self.url = url
         self.follow_sender = follow_sender
+        self.spin_s = spin_s if spin_s > 0.0 and spin_allowed() else 0.0
         self._listening = url.mode is LinkMode.LISTEN
         self.send_errors = 0
         self.last_sender: Address | None = None
@@ -117,9 +129,9 @@ class UdpLink:
         self._view = memoryview(self._buf)
 
     @classmethod
-    def from_url(cls, url: str, *, follow_sender: bool = True) -> UdpLink:
+    def from_url(cls, url: str, *, follow_sender: bool = True, spin_s: float = 0.0) -> UdpLink:
         """Open a link from a pymavlink connection string (see module docstring)."""
-        return cls(LinkUrl.parse(url), follow_sender=follow_sender)
+        return cls(LinkUrl.parse(url), follow_sender=follow_sender, spin_s=spin_s)
 
     @property
     def local_address(self) -> Address:
@@ -139,12 +151,31 @@ class UdpLink:
         """The next whole datagram, waiting at most ``timeout_s`` (0 = poll); None on timeout.
 
         ``last_sender`` is set to its source; in LISTEN mode with ``follow_sender`` the
-        peer follows it. With a timeout the socket is polled first (a lockstep peer is
-        usually still computing when its partner starts to wait, so a non-blocking attempt
-        first would mostly fail with an exception).
+        peer follows it. With ``spin_s`` > 0 the socket is first polled without sleeping for up to
+        ``spin_s`` (a lockstep peer answers within tens of µs; waking a sleeping process costs about
+        as much again), then the process sleeps in ``poll`` for the rest of ``timeout_s``.
         """
-        if timeout_s > 0.0 and not self._poll.poll(timeout_s * 1000.0):
-            return None
+        if timeout_s > 0.0:
+            if self.spin_s > 0.0:
+                data = self._spin(min(self.spin_s, timeout_s))
+                if data is not None:
+                    return data
+                timeout_s -= self.spin_s
+            if timeout_s > 0.0 and not self._poll.poll(timeout_s * 1000.0):
+                return None
+        return self._take()
+
+    def _spin(self, spin_s: float) -> bytes | None:
+        """Busy-poll the socket for up to ``spin_s`` (wall); the datagram or None."""
+        take, clock = self._take, time.perf_counter
+        end = clock() + spin_s
+        while True:
+            data = take()
+            if data is not None or clock() >= end:
+                return data
+
+    def _take(self) -> bytes | None:
+        """One datagram if the socket has one (never blocks)."""
         try:
             n, address = self._sock.recvfrom_into(self._buf)
         except OSError as exc:

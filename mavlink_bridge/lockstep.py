@@ -33,6 +33,10 @@ from mavlink_bridge.wire import ActuatorCommand, GpsSample, GroundTruth, Obstacl
 DEFAULT_SIM_PORT = 14560
 DEFAULT_LISTEN_URL = f"udpin:127.0.0.1:{DEFAULT_SIM_PORT}"
 DEFAULT_SIM_URL = f"udpout:127.0.0.1:{DEFAULT_SIM_PORT}"
+#: Wall time each end busy-polls for the peer's datagram before it sleeps in ``poll`` (both ends of a
+#: lockstep mostly wait for each other for tens of µs; a sleep and wake-up costs ~20-30 µs per
+#: exchange on a VM). 0 on a single CPU, where spinning would starve the peer (``link.spin_allowed``).
+DEFAULT_SPIN_S = 0.0001
 
 
 @dataclass(frozen=True, slots=True)
@@ -101,13 +105,14 @@ class LockstepServer:
         *,
         resend_timeout_s: float = 0.02,
         peer_lost_timeout_s: float = 3.0,
+        spin_s: float = DEFAULT_SPIN_S,
     ) -> None:
         url = LinkUrl.parse(listen_url)
         if url.mode is not LinkMode.LISTEN:
             raise LinkUrlError(f"the simulator listens: use udpin:HOST:PORT or udp:HOST:PORT, got {listen_url!r}")
         self.resend_timeout_s = resend_timeout_s
         self.peer_lost_timeout_s = peer_lost_timeout_s
-        self._link = UdpLink(url, follow_sender=False)
+        self._link = UdpLink(url, follow_sender=False, spin_s=spin_s)
         self._encoder = Encoder(SIM_SYSTEM_ID, SIM_COMPONENT_ID)
         self._decoder = Decoder()
         self._frames = 0
@@ -247,10 +252,11 @@ class LockstepClient:
         heartbeat_period_s: float = 0.5,
         sim_lost_timeout_s: float = 3.0,
         heartbeat: Heartbeat | None = None,
+        spin_s: float = DEFAULT_SPIN_S,
     ) -> None:
         self.heartbeat_period_s = heartbeat_period_s
         self.sim_lost_timeout_s = sim_lost_timeout_s
-        self._link = UdpLink(_client_url(sim_url))
+        self._link = UdpLink(_client_url(sim_url), spin_s=spin_s)
         self._encoder = Encoder(AUTOPILOT_SYSTEM_ID, AUTOPILOT_COMPONENT_ID)
         self._decoder = Decoder()
         self._heartbeat_bytes = self._encoder.heartbeat(heartbeat or Heartbeat())

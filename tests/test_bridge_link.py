@@ -6,7 +6,7 @@ import threading
 
 import pytest
 
-from mavlink_bridge.link import LinkMode, LinkUrl, LinkUrlError, UdpLink
+from mavlink_bridge.link import LinkMode, LinkUrl, LinkUrlError, UdpLink, spin_allowed
 from mavlink_bridge.lockstep import LockstepClient, LockstepInterrupted, LockstepServer
 from tests.test_bridge_lockstep import make_frame
 
@@ -69,3 +69,23 @@ def test_interrupt_ends_a_waiting_exchange_promptly() -> None:
     finally:
         client.close()
         server.close()
+
+
+def test_spinning_recv_gets_datagrams_and_still_times_out() -> None:
+    with UdpLink.from_url("udpin:127.0.0.1:0", spin_s=0.002) as server:
+        port = server.local_address[1]
+        assert server.spin_s == (0.002 if spin_allowed() else 0.0)
+        with UdpLink.from_url(f"udpout:127.0.0.1:{port}", spin_s=0.002) as a:
+            assert server.recv(0.05) is None  # nothing sent: spins, then sleeps out the rest, then None
+            assert a.send(b"ping")
+            assert server.recv(1.0) == b"ping"
+            threading.Timer(0.01, lambda: server.send(b"pong")).start()  # arrives after the spin: from poll
+            assert a.recv(1.0) == b"pong"
+            assert a.recv(0.0) is None
+
+
+def test_no_spin_on_one_cpu(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr("mavlink_bridge.link.os.sched_getaffinity", lambda _pid: {0})
+    assert not spin_allowed()
+    with UdpLink.from_url("udpin:127.0.0.1:0", spin_s=0.001) as link:
+        assert link.spin_s == 0.0

@@ -64,6 +64,12 @@ def warm() -> dict[str, float]:
     batch.update_position(z3, z3, q3, z3, z3, z3, z3, np.zeros(3))
     batch.update_attitude(q3, z3, z3, np.full(3, 10.0))
     timings["autopilot_s"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    from mavlink_bridge.frame_reader import new_out, read_values
+
+    read_values(b"", new_out())  # the lockstep reader both processes use (codec.Decoder)
+    timings["bridge_s"] = time.perf_counter() - t0
     return timings
 
 

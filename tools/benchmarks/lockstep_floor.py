@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from multiprocessing.connection import Connection
 
 from mavlink_bridge.codec import Decoder, Encoder
-from mavlink_bridge.lockstep import LockstepClient, LockstepFrame, LockstepServer, encode_frame
+from mavlink_bridge.lockstep import DEFAULT_SPIN_S, LockstepClient, LockstepFrame, LockstepServer, encode_frame
 from mavlink_bridge.wire import ActuatorCommand, GpsSample, GroundTruth, SensorSample
 from tools.benchmarks import BenchResult
 
@@ -44,14 +44,16 @@ def null_frame(k: int) -> LockstepFrame:
     return LockstepFrame(sensor, gps, truth, ())
 
 
-def _null_autopilot(sim_url: str, idle_exit_s: float, warmup_frames: int, report: Connection) -> None:
+def _null_autopilot(
+    sim_url: str, idle_exit_s: float, warmup_frames: int, report: Connection, spin_s: float = DEFAULT_SPIN_S
+) -> None:
     """Answer every frame with the same hover command until the sim has been silent for ``idle_exit_s``.
 
     Sends ``(CPU seconds, frames)`` after the warm-up through ``report`` when it exits.
     """
     frames = 0
     cpu0 = cpu_last = 0.0
-    with LockstepClient(sim_url, heartbeat_period_s=0.05) as client:
+    with LockstepClient(sim_url, heartbeat_period_s=0.05, spin_s=spin_s) as client:
         last_frame_s = time.monotonic()
         while time.monotonic() - last_frame_s < idle_exit_s:
             frame = client.next_frame(0.1)
@@ -76,14 +78,17 @@ class FloorRun:
     autopilot_cpu_us: float  # null autopilot process CPU per frame
 
 
-def measure_floor_run(n_frames: int, warmup_frames: int = 200) -> FloorRun:
-    """``n_frames`` exchanges after a warm-up, null sim here and null autopilot in a spawned process."""
-    server = LockstepServer("udpin:127.0.0.1:0", resend_timeout_s=0.02, peer_lost_timeout_s=5.0)
+def measure_floor_run(n_frames: int, warmup_frames: int = 200, spin_s: float = DEFAULT_SPIN_S) -> FloorRun:
+    """``n_frames`` exchanges after a warm-up, null sim here and null autopilot in a spawned process.
+
+    ``spin_s`` is both ends' busy-poll before sleeping (``LockstepServer``/``LockstepClient`` option).
+    """
+    server = LockstepServer("udpin:127.0.0.1:0", resend_timeout_s=0.02, peer_lost_timeout_s=5.0, spin_s=spin_s)
     host, port = server.local_address
     ctx = mp.get_context("spawn")
     report_rx, report_tx = ctx.Pipe(duplex=False)
     proc = ctx.Process(
-        target=_null_autopilot, args=(f"udpout:{host}:{port}", 0.5, warmup_frames, report_tx), daemon=True
+        target=_null_autopilot, args=(f"udpout:{host}:{port}", 0.5, warmup_frames, report_tx, spin_s), daemon=True
     )
     proc.start()
     try:
