@@ -24,6 +24,7 @@ from enum import Enum
 Address = tuple[str, int]
 
 _MAX_DATAGRAM_BYTES = 65535
+_SPIN_BACKOFF_MAX = 256
 _TRANSIENT_ERRNOS = frozenset({errno.EAGAIN, errno.EWOULDBLOCK, errno.ECONNREFUSED, errno.EINTR, errno.ENOBUFS})
 
 
@@ -92,6 +93,8 @@ class UdpLink:
         "_listening",
         "_poll",
         "_sock",
+        "_spin_backoff",
+        "_spin_skip",
         "_view",
         "follow_sender",
         "last_sender",
@@ -105,6 +108,8 @@ class UdpLink:
         self.url = url
         self.follow_sender = follow_sender
         self.spin_s = spin_s if spin_s > 0.0 and spin_allowed() else 0.0
+        self._spin_backoff = 1  # waits to skip spinning after the next miss (doubles per miss, up to 256)
+        self._spin_skip = 0  # waits left to do without spinning
         self._listening = url.mode is LinkMode.LISTEN
         self.send_errors = 0
         self.last_sender: Address | None = None
@@ -153,14 +158,22 @@ class UdpLink:
         ``last_sender`` is set to its source; in LISTEN mode with ``follow_sender`` the
         peer follows it. With ``spin_s`` > 0 the socket is first polled without sleeping for up to
         ``spin_s`` (a lockstep peer answers within tens of µs; waking a sleeping process costs about
-        as much again), then the process sleeps in ``poll`` for the rest of ``timeout_s``.
+        as much again), then the process sleeps in ``poll`` for the rest of ``timeout_s``. A spin that
+        ends empty-handed (slow peer, or a machine too busy to give both ends a CPU) is skipped for the
+        next 1, 2, 4 … 256 waits, so spinning only continues while it pays.
         """
         if timeout_s > 0.0:
             if self.spin_s > 0.0:
-                data = self._spin(min(self.spin_s, timeout_s))
-                if data is not None:
-                    return data
-                timeout_s -= self.spin_s
+                if self._spin_skip == 0:
+                    data = self._spin(min(self.spin_s, timeout_s))
+                    if data is not None:
+                        self._spin_backoff = 1
+                        return data
+                    timeout_s -= self.spin_s
+                    self._spin_skip = self._spin_backoff  # the peer is slower than the spin (or busy): back off
+                    self._spin_backoff = min(2 * self._spin_backoff, _SPIN_BACKOFF_MAX)
+                else:
+                    self._spin_skip -= 1
             if timeout_s > 0.0 and not self._poll.poll(timeout_s * 1000.0):
                 return None
         return self._take()

@@ -89,3 +89,19 @@ def test_no_spin_on_one_cpu(monkeypatch: pytest.MonkeyPatch) -> None:
     assert not spin_allowed()
     with UdpLink.from_url("udpin:127.0.0.1:0", spin_s=0.001) as link:
         assert link.spin_s == 0.0
+
+
+def test_spinning_backs_off_while_the_peer_is_slow(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr("mavlink_bridge.link.spin_allowed", lambda: True)
+    with UdpLink.from_url("udpin:127.0.0.1:0", spin_s=0.001) as server:
+        spins: list[float] = []
+        real_spin = UdpLink._spin
+        monkeypatch.setattr(UdpLink, "_spin", lambda link, s: spins.append(s) or real_spin(link, s))
+        for _ in range(8):  # nothing arrives: spin, skip 1, spin, skip 2, spin (skip 4 ...)
+            assert server.recv(0.002) is None
+        assert len(spins) == 3
+        with UdpLink.from_url(f"udpout:127.0.0.1:{server.local_address[1]}") as a:
+            for _ in range(8):  # data waiting: after the 2 skips left, every wait spins (and hits) again
+                a.send(b"x")
+                assert server.recv(0.5) == b"x"
+        assert len(spins) == 3 + 8 - 2

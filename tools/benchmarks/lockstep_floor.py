@@ -6,10 +6,11 @@ each with a constant HIL_ACTUATOR_CONTROLS through ``LockstepClient``. No physic
 the real-time factor measured here bounds any whole-flight ``lockstep_rtf``.
 
 Both sides run the real processes' messaging code path per frame and nothing else: the null sim
-builds the wire dataclasses of frame k (as ``sim.server`` does from its state), encodes, sends and
-waits for the answer; the null autopilot receives, decodes, builds its ``ActuatorCommand``, encodes
-and sends. On a shared machine the floor varies run to run: it is measured ``FLOOR_RUNS`` times
-and reported as the median with the range.
+writes frame k with the simulator's own frame writer (``sim.frame_kernel.FusedFrame``, on a vehicle
+at rest whose clock is moved on instead of integrated), sends it and waits for the answer, which it
+decodes; the null autopilot receives, decodes, builds its ``ActuatorCommand``, encodes and sends,
+with the same busy-poll (``spin_s``) as the real processes. On a shared machine the floor varies run
+to run: it is measured ``FLOOR_RUNS`` times and reported as the median with the range.
 """
 
 from __future__ import annotations
@@ -23,6 +24,12 @@ from multiprocessing.connection import Connection
 from mavlink_bridge.codec import Decoder, Encoder
 from mavlink_bridge.lockstep import DEFAULT_SPIN_S, LockstepClient, LockstepFrame, LockstepServer, encode_frame
 from mavlink_bridge.wire import ActuatorCommand, GpsSample, GroundTruth, SensorSample
+from sim.frame_kernel import FusedFrame
+from sim.sensors import SensorModel
+from sim.server import DEFAULT_VEHICLE
+from sim.vehicle import VehicleSim
+from sim.vehicle_config import load_vehicle
+from sim.world import empty_world
 from tools.benchmarks import BenchResult
 
 CONTROL_HZ = 250
@@ -30,8 +37,24 @@ GPS_EVERY = CONTROL_HZ // 10
 FLOOR_RUNS = 3
 
 
+class NullSimFrames:
+    """Frame ``k`` of a vehicle at rest, written by the simulator's frame writer (no physics in between)."""
+
+    def __init__(self) -> None:
+        vehicle = load_vehicle(DEFAULT_VEHICLE)
+        world = empty_world()
+        self._vehicle = VehicleSim(vehicle, control_hz=CONTROL_HZ, world=world, seed=0)
+        self._frames = FusedFrame(self._vehicle, SensorModel(vehicle, world.home, 0))
+
+    def datagram(self, k: int) -> tuple[int, bytes]:
+        """(frame time µs, datagram) of control step ``k``: the clock moves, the state stays."""
+        batch = self._vehicle.batch
+        batch._steps = k  # the null sim only advances time (BatchSim keeps time as a step count)
+        return batch.t_us, self._frames.datagram()
+
+
 def null_frame(k: int) -> LockstepFrame:
-    """Frame ``k`` of a vehicle hovering at 10 m: the same message set and sizes as the real sim."""
+    """Frame ``k`` of a vehicle hovering at 10 m as wire dataclasses (for the in-process codec measurement)."""
     t_us = k * 1_000_000 // CONTROL_HZ
     z = 1e-4 * k
     sensor = SensorSample(t_us, (0.01, -0.02, -9.81), (0.001, 0.002, z), (0.21, 0.01, 0.43), 1012.1, 10.0 + z, 20.0)
@@ -83,6 +106,7 @@ def measure_floor_run(n_frames: int, warmup_frames: int = 200, spin_s: float = D
 
     ``spin_s`` is both ends' busy-poll before sleeping (``LockstepServer``/``LockstepClient`` option).
     """
+    frames = NullSimFrames()  # before the null autopilot starts: it gives up after idle_exit_s without frames
     server = LockstepServer("udpin:127.0.0.1:0", resend_timeout_s=0.02, peer_lost_timeout_s=5.0, spin_s=spin_s)
     host, port = server.local_address
     ctx = mp.get_context("spawn")
@@ -95,10 +119,12 @@ def measure_floor_run(n_frames: int, warmup_frames: int = 200, spin_s: float = D
         if not server.wait_for_autopilot(30.0):
             raise RuntimeError("null autopilot did not start")
         for k in range(warmup_frames):
-            server.exchange(null_frame(k))
+            server.send_datagram(*frames.datagram(k))
+            server.wait_answer()
         t0, cpu0 = time.perf_counter(), time.process_time()
         for k in range(warmup_frames, warmup_frames + n_frames):
-            server.exchange(null_frame(k))
+            server.send_datagram(*frames.datagram(k))
+            server.wait_answer()
         wall_s, cpu_s = time.perf_counter() - t0, time.process_time() - cpu0
         resends = server.stats.resends
         ap_cpu_s, ap_frames = report_rx.recv() if report_rx.poll(10.0) else (math.nan, 1)
