@@ -293,6 +293,7 @@ class Autopilot:
         self._param_version = 0  # counts parameter changes (invalidates what is cached from parameters)
         self._mission_nav_key: tuple[object, ...] = ()
         self._mission_nav: NavTarget | None = None
+        self._mission_nav_faces = False  # the cached mission target's yaw is the per-step heading along the path
         self._pending_truth: object | None = None  # this step's truth, hashed by after_answer
         self._pending_control: SingleStep | None = None  # this step's cascade output, booked by after_answer
         self._pack = struct.Struct("<q10d").pack
@@ -626,12 +627,18 @@ class Autopilot:
             commander.set_mission_target(None)
             return
         face = self._face_along_path(pos, target)
-        # the same target while nothing it is made of changed (LAND reads the altitude: built every step)
-        key = (target, home, face, self._param_version)
-        if key != self._mission_nav_key or target.kind is NavKind.LAND:
+        # built once per executor target, home and parameter set (LAND reads the altitude: every step); a target
+        # that faces along the path gets this step's heading (the only field that changes)
+        key = (target, home, self._param_version)
+        nav = self._mission_nav
+        if key != self._mission_nav_key or target.kind is NavKind.LAND or nav is None:
             self._mission_nav_key = key
-            self._mission_nav = _mission_to_nav(target, home, commander, face)
-        commander.set_mission_target(self._mission_nav)
+            nav = _mission_to_nav(target, home, commander, face)
+            self._mission_nav_faces = math.isnan(target.yaw_deg) and target.kind in (NavKind.WAYPOINT, NavKind.RETURN)
+        elif self._mission_nav_faces:
+            nav = NavTarget(nav.kind, nav.pos_ned_m, face, nav.speed_xy_m_s, nav.speed_up_m_s, nav.speed_down_m_s)
+        self._mission_nav = nav
+        commander.set_mission_target(nav)
 
     def _face_along_path(self, pos: Vec3, target: MissionTarget) -> float:
         """Heading (rad) toward where the vehicle is going, about home: the detour's look-ahead point while
@@ -700,7 +707,8 @@ class Autopilot:
 
     def after_answer(self) -> None:
         """The latest step's bookkeeping that its command does not depend on (``run_loop`` calls it right after
-        the answer, while the sim integrates): the truth hash, the battery model and the tracking statistics.
+        the answer, while the sim integrates): the truth hash, the battery model and the tracking statistics;
+        and the next step's setpoint reference ahead of time (``SetpointGenerator.prepare``).
 
         Idempotent; :meth:`step`, :meth:`snapshot`, :meth:`record` and :meth:`summary` call it first when the
         caller did not, so the numbers are the same either way (the next step reads the battery only after it).
@@ -713,6 +721,7 @@ class Autopilot:
         out = self._pending_control
         if out is not None:
             self._pending_control = None
+            self.setpoints.prepare(self._target, self._dt_s)  # the next step's reference, if the target stays
             _, _, _, _, _, ex, ey, ez, eroll, epitch = out
             self.battery.update(self.thrust_ratio, self._dt_s)
             q = self.state.q_ned_frd  # type: ignore[union-attr]  # a control step had a state
@@ -759,10 +768,11 @@ class Autopilot:
             self._say(str(decision.text), Severity.NOTICE)
         if setpoint is not None:
             p, v, a = setpoint.pos_ned_m, setpoint.vel_ned_m_s, setpoint.acc_ned_m_s2
-            gen = self.setpoints
-            gen.pos_ned[:] = (float(p[0]) + home[0], float(p[1]) + home[1], float(p[2]) + home[2])
-            gen.vel_ned[:] = (float(v[0]), float(v[1]), float(v[2]))
-            gen.acc_ned[:] = (float(a[0]), float(a[1]), float(a[2]))
+            self.setpoints.set_reference(
+                (float(p[0]) + home[0], float(p[1]) + home[1], float(p[2]) + home[2]),
+                (float(v[0]), float(v[1]), float(v[2])),
+                (float(a[0]), float(a[1]), float(a[2])),
+            )
 
     def _mission_route(self) -> MissionRoute | None:
         """The executor's route when the flown target is its current positional item (None otherwise)."""

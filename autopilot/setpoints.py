@@ -103,6 +103,8 @@ class SetpointGenerator:
         self.vel_ned = [0.0, 0.0, 0.0]
         self.acc_ned = [0.0, 0.0, 0.0]
         self.yaw_rad = 0.0
+        self._version = 0  # counts changes of the reference (update, reset, set_reference)
+        self._prepared: tuple[object, ...] | None = None  # prepare()'s inputs and result
 
     def reset(self, pos_ned: Vec3, vel_ned: Vec3, yaw_rad: float) -> None:
         """Restart the reference at the vehicle's state (at takeoff, or after the controller was off)."""
@@ -110,12 +112,76 @@ class SetpointGenerator:
         self.vel_ned[:] = vel_ned
         self.acc_ned[:] = (0.0, 0.0, 0.0)
         self.yaw_rad = yaw_rad
+        self._version += 1
+
+    def set_reference(self, pos_ned: Vec3, vel_ned: Vec3, acc_ned: Vec3) -> None:
+        """Override position, velocity and acceleration (e.g. the avoidance detour); use this, not the lists."""
+        self.pos_ned[:] = pos_ned
+        self.vel_ned[:] = vel_ned
+        self.acc_ned[:] = acc_ned
+        self._version += 1
+
+    def prepare(self, target: NavTarget, dt_s: float) -> None:
+        """Compute the next :meth:`update`'s position, velocity and acceleration ahead of time (the runner calls
+        this after answering the sim); ``update`` uses them when its target has the same kind, position and
+        speed objects, ``dt_s`` and limits are the same and the reference did not change since: the same floats
+        as computing them then (they depend on nothing else), so a step with the same target costs less."""
+        if target.kind is TargetKind.IDLE:
+            self._prepared = None
+            return
+        self._prepared = (
+            self._version,
+            target.kind,
+            target.pos_ned_m,
+            target.speed_xy_m_s,
+            target.speed_up_m_s,
+            target.speed_down_m_s,
+            dt_s,
+            self.limits,
+            self._next_reference(target, dt_s),
+        )
 
     def update(self, target: NavTarget, dt_s: float, vehicle_pos_ned: Vec3) -> None:
         """Advance the reference by ``dt_s`` toward ``target``."""
-        if target.kind is TargetKind.IDLE:
+        kind = target.kind
+        if kind is TargetKind.IDLE:
             self.reset(vehicle_pos_ned, (0.0, 0.0, 0.0), self.yaw_rad)
             return
+        prep = self._prepared
+        if (
+            prep is not None
+            and prep[0] == self._version
+            and prep[1] is kind
+            and prep[2] is target.pos_ned_m
+            and prep[3] is target.speed_xy_m_s
+            and prep[4] is target.speed_up_m_s
+            and prep[5] is target.speed_down_m_s
+            and prep[6] == dt_s
+            and prep[7] is self.limits
+        ):
+            a0, a1, a2, v0, v1, v2, p0, p1, p2 = prep[8]  # type: ignore[misc]
+        else:
+            a0, a1, a2, v0, v1, v2, p0, p1, p2 = self._next_reference(target, dt_s)
+        self._prepared = None
+        self._version += 1
+        pos = self.pos_ned
+        self.acc_ned[0], self.acc_ned[1], self.acc_ned[2] = a0, a1, a2
+        self.vel_ned[0], self.vel_ned[1], self.vel_ned[2] = v0, v1, v2
+        pos[0], pos[1], pos[2] = p0, p1, p2
+        if kind is TargetKind.LAND and p2 > vehicle_pos_ned[2] + LAND_MAX_LEAD_M:
+            pos[2] = vehicle_pos_ned[2] + LAND_MAX_LEAD_M
+        # yaw: rate-limited turn toward the target heading along the shorter way
+        if not math.isnan(target.yaw_rad):
+            err = (target.yaw_rad - self.yaw_rad + math.pi) % (2.0 * math.pi) - math.pi
+            step = self.limits.yaw_rate_rad_s * dt_s
+            self.yaw_rad += max(-step, min(step, err))
+            self.yaw_rad = (self.yaw_rad + math.pi) % (2.0 * math.pi) - math.pi
+
+    def _next_reference(
+        self, target: NavTarget, dt_s: float
+    ) -> tuple[float, float, float, float, float, float, float, float, float]:
+        """Acceleration, velocity and position (NED) one step of ``dt_s`` toward ``target`` (not IDLE), before
+        the LAND lead clamp; from the current reference, which it does not change."""
         lim = self.limits
         pos, vel, acc = self.pos_ned, self.vel_ned, self.acc_ned
         acc_xy, jerk = lim.acc_xy_m_s2, lim.jerk_m_s3
@@ -180,15 +246,5 @@ class SetpointGenerator:
         a0 = a0 + dj if an_des > a0 + dj else (a0 - dj if an_des < a0 - dj else an_des)
         a1 = a1 + dj if ae_des > a1 + dj else (a1 - dj if ae_des < a1 - dj else ae_des)
         a2 = a2 + dj if ad_des > a2 + dj else (a2 - dj if ad_des < a2 - dj else ad_des)
-        acc[0], acc[1], acc[2] = a0, a1, a2
         v0, v1, v2 = vel[0] + a0 * dt_s, vel[1] + a1 * dt_s, vel[2] + a2 * dt_s
-        vel[0], vel[1], vel[2] = v0, v1, v2
-        pos[0], pos[1], pos[2] = pos[0] + v0 * dt_s, pos[1] + v1 * dt_s, pos[2] + v2 * dt_s
-        if target.kind is TargetKind.LAND and pos[2] > vehicle_pos_ned[2] + LAND_MAX_LEAD_M:
-            pos[2] = vehicle_pos_ned[2] + LAND_MAX_LEAD_M
-        # yaw: rate-limited turn toward the target heading along the shorter way
-        if not math.isnan(target.yaw_rad):
-            err = (target.yaw_rad - self.yaw_rad + math.pi) % (2.0 * math.pi) - math.pi
-            step = lim.yaw_rate_rad_s * dt_s
-            self.yaw_rad += max(-step, min(step, err))
-            self.yaw_rad = (self.yaw_rad + math.pi) % (2.0 * math.pi) - math.pi
+        return a0, a1, a2, v0, v1, v2, pos[0] + v0 * dt_s, pos[1] + v1 * dt_s, pos[2] + v2 * dt_s

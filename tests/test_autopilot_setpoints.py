@@ -89,3 +89,34 @@ def test_idle_follows_the_vehicle() -> None:
     gen = SetpointGenerator(LIMITS)
     gen.update(NavTarget(TargetKind.IDLE), DT, (1.0, 2.0, 3.0))
     assert gen.pos_ned == [1.0, 2.0, 3.0] and gen.vel_ned == [0.0, 0.0, 0.0]
+
+
+def test_prepared_reference_is_bit_identical_and_never_stale() -> None:
+    """``prepare`` (run after the answer) gives the same floats as ``update`` alone, and is dropped when the
+    target, dt, limits or the reference changed in between (reset, set_reference, another update)."""
+    plain, ahead = SetpointGenerator(), SetpointGenerator()
+    hold = NavTarget(TargetKind.POSITION, (20.0, -5.0, -10.0), 1.0, 5.0, 3.0, 1.5)
+    other = NavTarget(TargetKind.POSITION, (20.0, -5.0, -10.0), -1.0, 4.0, 3.0, 1.5)
+    land = NavTarget(TargetKind.LAND, (20.0, -5.0, 0.0), math.nan, 5.0, 3.0, 0.7)
+    vehicle = (0.0, 0.0, -2.0)
+    plan: list[tuple[NavTarget, float]] = [(hold, DT)] * 300 + [(other, DT)] * 50 + [(other, 2 * DT)] * 20
+    plan += [(land, DT)] * 50 + [(hold, DT)] * 30
+    for k, (target, dt) in enumerate(plan):
+        if k == 100:
+            for gen in (plain, ahead):
+                gen.limits = SetpointLimits(acc_xy_m_s2=2.0)
+        if k == 200:
+            for gen in (plain, ahead):
+                gen.set_reference((1.0, 2.0, -3.0), (0.5, 0.0, 0.0), (0.0, 0.0, 0.0))
+        if k == 250:
+            for gen in (plain, ahead):
+                gen.reset((0.0, 1.0, -4.0), (0.0, 0.0, 0.0), 0.3)
+        plain.update(target, dt, vehicle)
+        ahead.update(target, dt, vehicle)
+        assert (ahead.pos_ned, ahead.vel_ned, ahead.acc_ned, ahead.yaw_rad) == (
+            plain.pos_ned,
+            plain.vel_ned,
+            plain.acc_ned,
+            plain.yaw_rad,
+        ), k
+        ahead.prepare(hold, DT)  # always guesses "hold at DT": wrong for most of the plan after step 300

@@ -27,7 +27,7 @@ from enum import Enum
 
 import numpy as np
 
-from mavlink_bridge.wire import ObstacleDetection, Vec3
+from mavlink_bridge.wire import ObstacleDetection, Vec3, fast_frozen_init
 
 from .bezier import BezierPath
 from .detour import (
@@ -114,6 +114,7 @@ class DetourSetpoint:
     acc_ned_m_s2: Vec3
 
 
+@fast_frozen_init
 @dataclass(frozen=True, slots=True)
 class PlannerOutput:
     """Everything one ``update`` produced (for the runner, telemetry and STATUSTEXT)."""
