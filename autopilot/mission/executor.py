@@ -56,6 +56,7 @@ from autopilot.mission.plan import is_wpl_home_line, item_position_ned, items_ma
 from autopilot.params import ParamStore
 from mavlink_bridge.frames import GeoPoint, LocalNedFrame
 from mavlink_bridge.gcs_types import MissionItem
+from mavlink_bridge.wire import fast_frozen_init
 
 Vec3 = tuple[float, float, float]
 _NAN = float("nan")
@@ -80,6 +81,7 @@ class ExecutorConfig:
         )
 
 
+@fast_frozen_init  # built every control step
 @dataclass(frozen=True, slots=True)
 class VehicleSample:
     """What the executor needs of the vehicle each step: sim time, local NED state about home, landed flag."""
@@ -132,6 +134,7 @@ class MissionAction:
     gripper_instance: int = 1
 
 
+@fast_frozen_init  # built every control step
 @dataclass(frozen=True, slots=True)
 class ExecutorOutput:
     """Result of one step: the MISSION_CURRENT values, the target, and this step's events."""
