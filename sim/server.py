@@ -31,7 +31,7 @@ from typing import Any, Protocol
 import numpy as np
 import yaml
 
-from mavlink_bridge.lockstep import AutopilotLost, LockstepFrame, LockstepInterrupted, LockstepServer
+from mavlink_bridge.lockstep import DEFAULT_SPIN_S, AutopilotLost, LockstepFrame, LockstepInterrupted, LockstepServer
 from mavlink_bridge.wire import ActuatorCommand, ObstacleDetection
 from sim.end_reason import EndReason
 from sim.frame_kernel import FusedFrame
@@ -68,6 +68,7 @@ class SimConfig:
     resend_timeout_s: float = 0.02
     sensor_noise: bool = True
     truth_log: Path | None = None  # .npz of the truth state at control rate
+    lockstep_spin_s: float = DEFAULT_SPIN_S  # busy-poll for the answer before sleeping (0 = never)
 
 
 @dataclass(frozen=True, slots=True)
@@ -173,6 +174,7 @@ class SimServer:
             config.listen_url,
             resend_timeout_s=config.resend_timeout_s,
             peer_lost_timeout_s=config.autopilot_timeout_s,
+            spin_s=config.lockstep_spin_s,
         )
         self._stop_requested = False
         self._motor_cmd: tuple[float, ...] = _MOTORS_OFF

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from mavlink_bridge.link import LinkUrlError
-from mavlink_bridge.lockstep import LockstepClient, LockstepFrame
+from mavlink_bridge.lockstep import DEFAULT_SPIN_S, LockstepClient, LockstepFrame
 from mavlink_bridge.lossy import LossProfile, LossyUdpProxy
 from mavlink_bridge.wire import ActuatorCommand, ObstacleShape
 from sim.cli import (
@@ -147,6 +147,9 @@ def test_cli_options_instance_offset_and_errors(tmp_path: Path) -> None:
         config_from_args(parser.parse_args(["--listen", "udpout:127.0.0.1:15000"]))
     with pytest.raises(SystemExit):
         parser.parse_args(["--speed", "0"])
+    assert config_from_args(parser.parse_args([])).lockstep_spin_s == DEFAULT_SPIN_S
+    assert config_from_args(parser.parse_args(["--lockstep-spin-us", "0"])).lockstep_spin_s == 0.0
+    assert main(["--lockstep-spin-us", "-5", "--listen", "udp:127.0.0.1:0"]) == EXIT_USAGE
     assert main(["--world", str(tmp_path / "missing.yaml"), "--listen", "udp:127.0.0.1:0"]) == EXIT_USAGE
     assert main(["--vehicle", "no_such_vehicle", "--listen", "udp:127.0.0.1:0"]) == EXIT_USAGE
     with pytest.raises(SimSetupError):
