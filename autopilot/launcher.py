@@ -77,6 +77,7 @@ def commands(args: argparse.Namespace) -> tuple[list[str], list[str]]:
         sim += ["--control-hz", str(args.control_hz)]
     if args.no_sensor_noise:
         sim.append("--no-sensor-noise")
+    sim += ["--lockstep-spin-us", str(args.lockstep_spin_us)]
     sim_url = args.sim or f"udpout:{listen.host}:{listen.port}"
     ap = [*py, "autopilot", "--sim", sim_url, "--instance", str(args.instance), "--vehicle", vehicle]
     ap += ["--gcs", args.gcs, "--gcs-target", args.gcs_target, "--api", args.api, "--api-target", args.api_target]
@@ -89,6 +90,7 @@ def commands(args: argparse.Namespace) -> tuple[list[str], list[str]]:
     if args.require_signing:
         ap.append("--require-signing")
     ap += ["--sim-timeout-s", str(args.sim_timeout_s), "--connect-timeout-s", str(args.connect_timeout_s)]
+    ap += ["--lockstep-spin-us", str(args.lockstep_spin_us)]
     if args.params:
         ap += ["--params", args.params]
     if args.script:

@@ -251,7 +251,8 @@ class SimServer:
             cpu0 = time.process_time()
             if not connected:
                 v.end(EndReason.STOPPED)
-            while v.end_reason is EndReason.RUNNING:
+            end_codes, running = v.batch.end_reason, EndReason.RUNNING.value  # the raw code: no enum per step
+            while end_codes[0] == running:
                 if self._stop_requested:
                     v.end(EndReason.STOPPED)
                     break

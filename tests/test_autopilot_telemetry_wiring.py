@@ -148,3 +148,11 @@ def test_up_passes_the_world_to_the_recording_and_signing_to_the_autopilot(argv:
 def test_up_without_a_recording_draws_no_world() -> None:
     _sim, ap = launcher.commands(launcher.build_parser().parse_args(["--world", "m.yaml"]))
     assert "--rerun-world" not in ap
+
+
+def test_up_gives_both_processes_the_same_lockstep_spin() -> None:
+    sim, ap = launcher.commands(launcher.build_parser().parse_args(["--lockstep-spin-us", "0"]))
+    for argv in (sim, ap):
+        assert float(argv[argv.index("--lockstep-spin-us") + 1]) == 0.0
+    with pytest.raises(SystemExit):
+        launcher.build_parser().parse_args(["--lockstep-spin-us", "-1"])

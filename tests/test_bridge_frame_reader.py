@@ -136,7 +136,7 @@ def test_truncated_and_extended_payloads() -> None:
                 bytes(mav2.MAVLink_system_time_message(1, 2).pack(mav2.MAVLink(None, 1, 1), force_mavlink1=True)) + d
             ),
             id="mavlink1",
-        ),  # noqa: E501
+        ),
         pytest.param(lambda d: d[:2] + b"\x01" + d[3:] + bytes(13), id="signed-flag"),
         pytest.param(lambda d: d[:2] + b"\x02" + d[3:], id="unknown-incompat-flag"),
     ],
