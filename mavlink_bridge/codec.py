@@ -428,6 +428,8 @@ class Decoder:
         self.last_system_id = -1
         self.last_component_id = -1
         self._values = _frame_reader().new_out() if compiled else None
+        if self._values is not None:
+            _read_values(b"", self._values)  # load the compiled kernel now, not on the first lockstep frame
 
     def decode(self, data: bytes) -> list[WireMessage]:
         """All wire messages in one datagram, in order."""
