@@ -33,10 +33,12 @@ from mavlink_bridge.wire import ActuatorCommand, GpsSample, GroundTruth, Obstacl
 DEFAULT_SIM_PORT = 14560
 DEFAULT_LISTEN_URL = f"udpin:127.0.0.1:{DEFAULT_SIM_PORT}"
 DEFAULT_SIM_URL = f"udpout:127.0.0.1:{DEFAULT_SIM_PORT}"
-#: Wall time each end busy-polls for the peer's datagram before it sleeps in ``poll`` (both ends of a
-#: lockstep mostly wait for each other for tens of µs; a sleep and wake-up costs ~20-30 µs per
-#: exchange on a VM). 0 on a single CPU, where spinning would starve the peer (``link.spin_allowed``).
-DEFAULT_SPIN_S = 0.0001
+#: Wall time each end busy-polls for the peer's datagram before it sleeps in ``poll``. Each end of a
+#: lockstep waits for the other's step (~50-150 µs here); a sleeping receiver costs the sender ~20 µs more
+#: in ``sendto`` and itself ~20-30 µs to wake on a VM. 1 ms covers a slow autopilot step (whole flight
+#: 19× vs 16× real time with 100 µs, same machine, interleaved runs); a spin that finds nothing backs
+#: off (``UdpLink.recv``), so at ``--speed 1`` the cost is one spin every 256 frames. 0 on one CPU.
+DEFAULT_SPIN_S = 0.001
 
 
 @dataclass(frozen=True, slots=True)
