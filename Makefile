@@ -40,3 +40,4 @@ interop: venv
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .ruff_cache
+	find sim autopilot mavlink_bridge tools -name '*.nbi' -delete -o -name '*.nbc' -delete
