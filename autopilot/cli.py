@@ -36,7 +36,7 @@ from autopilot.runner import Autopilot, AutopilotConfig, AutopilotEndReason, Lin
 from autopilot.scripted_commands import CommandScript, ScriptError, load_script
 from mavlink_bridge.gcs_server import GcsServer
 from mavlink_bridge.link import LinkUrl, LinkUrlError
-from mavlink_bridge.lockstep import DEFAULT_SPIN_S, LockstepClient
+from mavlink_bridge.lockstep import LockstepClient, add_spin_option
 from mavlink_bridge.signing import SigningKeyError, signing_key_from_text
 
 EXIT_OK = 0
@@ -59,17 +59,6 @@ def _speed(text: str) -> float:
     value = float(text)
     if not value > 0.0:
         raise argparse.ArgumentTypeError(f"expected 'max' or a positive number, got {text!r}")
-    return value
-
-
-def _spin_us(text: str) -> float:
-    """``--lockstep-spin-us``: 0..100000 µs."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected microseconds, got {text!r}") from None
-    if not 0.0 <= value <= 1e5:
-        raise argparse.ArgumentTypeError(f"expected 0..100000 µs, got {text!r}")
     return value
 
 
@@ -96,13 +85,7 @@ def add_autopilot_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--script", default=None, metavar="FILE", help="commands at fixed sim times (YAML)")
     p.add_argument("--sim-timeout-s", type=float, default=3.0, help="wall s of sim silence that ends the run")
     p.add_argument("--connect-timeout-s", type=float, default=60.0, help="wall s to wait for the first frame")
-    p.add_argument(
-        "--lockstep-spin-us",
-        type=_spin_us,
-        default=DEFAULT_SPIN_S * 1e6,
-        metavar="US",
-        help=f"busy-poll for the next frame this long before sleeping (default {DEFAULT_SPIN_S * 1e6:g}; 0 = never)",
-    )
+    add_spin_option(p, "the next frame")
 
 
 def build_parser() -> argparse.ArgumentParser:

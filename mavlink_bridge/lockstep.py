@@ -15,6 +15,7 @@ already answered from its cache without bothering the caller. Both ends drop gar
 
 from __future__ import annotations
 
+import argparse
 import time
 from dataclasses import dataclass
 
@@ -39,6 +40,31 @@ DEFAULT_SIM_URL = f"udpout:127.0.0.1:{DEFAULT_SIM_PORT}"
 #: 19× vs 16× real time with 100 µs, same machine, interleaved runs); a spin that finds nothing backs
 #: off (``UdpLink.recv``), so at ``--speed 1`` the cost is one spin every 256 frames. 0 on one CPU.
 DEFAULT_SPIN_S = 0.001
+_SPIN_US_MAX = 100_000.0
+
+
+def _spin_us(text: str) -> float:
+    """``--lockstep-spin-us``: 0..100000 µs."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected microseconds, got {text!r}") from None
+    if not 0.0 <= value <= _SPIN_US_MAX:
+        raise argparse.ArgumentTypeError(f"expected 0..{_SPIN_US_MAX:g} µs, got {text!r}")
+    return value
+
+
+def add_spin_option(parser: argparse.ArgumentParser, waits_for: str) -> None:
+    """``--lockstep-spin-us US`` (the ``spin_s`` of ``LockstepServer``/``LockstepClient`` in µs) for a CLI
+    whose lockstep end waits for ``waits_for``."""
+    default_us = DEFAULT_SPIN_S * 1e6
+    parser.add_argument(
+        "--lockstep-spin-us",
+        type=_spin_us,
+        default=default_us,
+        metavar="US",
+        help=f"busy-poll for {waits_for} this long before sleeping (default {default_us:g}; 0 = never)",
+    )
 
 
 @dataclass(frozen=True, slots=True)

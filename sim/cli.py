@@ -16,7 +16,7 @@ from pathlib import Path
 from types import FrameType
 
 from mavlink_bridge.link import LinkMode, LinkUrl, LinkUrlError
-from mavlink_bridge.lockstep import DEFAULT_SIM_PORT, DEFAULT_SPIN_S
+from mavlink_bridge.lockstep import DEFAULT_SIM_PORT, add_spin_option
 from sim.end_reason import EndReason
 from sim.server import SimConfig, SimServer, SimSetupError
 
@@ -67,13 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--start-timeout-s", type=float, default=None, help="give up waiting for the first HEARTBEAT")
     p.add_argument("--no-sensor-noise", action="store_true", help="noiseless sensors (truth + quantisation)")
     p.add_argument("--truth-log", type=Path, default=None, metavar="PATH.npz", help="truth state at control rate")
-    p.add_argument(
-        "--lockstep-spin-us",
-        type=float,
-        default=DEFAULT_SPIN_S * 1e6,
-        metavar="US",
-        help=f"busy-poll for the answer this long before sleeping (default {DEFAULT_SPIN_S * 1e6:g}; 0 = never spin)",
-    )
+    add_spin_option(p, "the answer")
     p.add_argument("-v", "--verbose", action="store_true", help="log lockstep events")
     return p
 
@@ -85,8 +79,6 @@ def config_from_args(args: argparse.Namespace) -> SimConfig:
         raise LinkUrlError(f"--listen: the simulator listens, use udp:HOST:PORT or udpin:HOST:PORT, got {args.listen}")
     if args.instance < 0:
         raise SimSetupError(f"--instance: expected N >= 0, got {args.instance}")
-    if not 0.0 <= args.lockstep_spin_us <= 1e5:
-        raise SimSetupError(f"--lockstep-spin-us: expected 0..100000, got {args.lockstep_spin_us}")
     return SimConfig(
         listen_url=str(url.with_port_offset(args.instance)),
         world_path=args.world,
