@@ -25,6 +25,7 @@ Address = tuple[str, int]
 
 _MAX_DATAGRAM_BYTES = 65535
 _SPIN_BACKOFF_MAX = 256
+_yield_cpu = getattr(os, "sched_yield", None) or (lambda: None)  # Linux and macOS have it
 _TRANSIENT_ERRNOS = frozenset({errno.EAGAIN, errno.EWOULDBLOCK, errno.ECONNREFUSED, errno.EINTR, errno.ENOBUFS})
 
 
@@ -158,9 +159,10 @@ class UdpLink:
         ``last_sender`` is set to its source; in LISTEN mode with ``follow_sender`` the
         peer follows it. With ``spin_s`` > 0 the socket is first polled without sleeping for up to
         ``spin_s`` (a lockstep peer answers within tens of µs; waking a sleeping process costs about
-        as much again), then the process sleeps in ``poll`` for the rest of ``timeout_s``. A spin that
-        ends empty-handed (slow peer, or a machine too busy to give both ends a CPU) is skipped for the
-        next 1, 2, 4 … 256 waits, so spinning only continues while it pays.
+        as much again), then the process sleeps in ``poll`` for the rest of ``timeout_s``. The spin yields
+        the CPU between polls (another runnable process on it goes first), and a spin that ends
+        empty-handed (slow peer, or a machine too busy to give both ends a CPU) is skipped for the next
+        1, 2, 4 … 256 waits, so spinning only continues while it pays.
         """
         if timeout_s > 0.0:
             if self.spin_s > 0.0:
@@ -180,12 +182,13 @@ class UdpLink:
 
     def _spin(self, spin_s: float) -> bytes | None:
         """Busy-poll the socket for up to ``spin_s`` (wall); the datagram or None."""
-        take, clock = self._take, time.perf_counter
+        take, clock, yield_cpu = self._take, time.perf_counter, _yield_cpu
         end = clock() + spin_s
         while True:
             data = take()
             if data is not None or clock() >= end:
                 return data
+            yield_cpu()  # polite: another runnable process on this CPU (a peer, another SITL) goes first
 
     def _take(self) -> bytes | None:
         """One datagram if the socket has one (never blocks)."""
