@@ -82,14 +82,6 @@ def _accel_toward(dv: float, acc_max: float, jerk_max: float) -> float:
     return min(acc_max, math.sqrt(2.0 * jerk_max * dv), dv / TAU_VEL_S)
 
 
-def _toward(value: float, goal: float, max_step: float) -> float:
-    if goal > value + max_step:
-        return value + max_step
-    if goal < value - max_step:
-        return value - max_step
-    return goal
-
-
 class SetpointGenerator:
     """A jerk-limited reference that flies toward :class:`NavTarget` s; state is scalars (no allocation).
 
@@ -186,35 +178,18 @@ class SetpointGenerator:
         pos, vel, acc = self.pos_ned, self.vel_ned, self.acc_ned
         acc_xy, jerk = lim.acc_xy_m_s2, lim.jerk_m_s3
         tn, te, td = target.pos_ned_m
-        sqrt = math.sqrt
-        # horizontal: desired velocity along the line to the target (_approach_speed and _accel_toward inline,
-        # min(a, b, c) as comparisons in min's order: the same floats, no calls; the golden flight test checks)
+        # horizontal: desired velocity along the line to the target
         dn, de = tn - pos[0], te - pos[1]
         d_xy = math.hypot(dn, de)
         if d_xy > 1e-9:
-            a_t = acc_xy * BRAKE_LAG_S
-            v = target.speed_xy_m_s
-            x = sqrt(a_t * a_t + 2.0 * acc_xy * d_xy) - a_t
-            if x < v:
-                v = x
-            x = K_APPROACH * d_xy
-            if x < v:
-                v = x
-            v = v / d_xy
+            v = _approach_speed(d_xy, target.speed_xy_m_s, acc_xy) / d_xy
             vn_des, ve_des = dn * v, de * v
         else:
             vn_des = ve_des = 0.0
         dvn, dve = vn_des - vel[0], ve_des - vel[1]
         dv_xy = math.hypot(dvn, dve)
         if dv_xy > 1e-12:
-            a = acc_xy
-            x = sqrt(2.0 * jerk * dv_xy)
-            if x < a:
-                a = x
-            x = dv_xy / TAU_VEL_S
-            if x < a:
-                a = x
-            a = a / dv_xy
+            a = _accel_toward(dv_xy, acc_xy, jerk) / dv_xy
             an_des, ae_des = dvn * a, dve * a
         else:
             an_des = ae_des = 0.0
@@ -224,23 +199,15 @@ class SetpointGenerator:
         else:
             dd = td - pos[2]
             if dd > 0.0:
-                d_z, vd_des, acc_z = dd, target.speed_down_m_s, lim.acc_down_m_s2
+                vd_des = math.copysign(_approach_speed(dd, target.speed_down_m_s, lim.acc_down_m_s2), dd)
             else:
-                d_z, vd_des, acc_z = -dd, target.speed_up_m_s, lim.acc_up_m_s2
-            a_t = acc_z * BRAKE_LAG_S  # _approach_speed(d_z, vd_des, acc_z) inline
-            x = sqrt(a_t * a_t + 2.0 * acc_z * d_z) - a_t
-            if x < vd_des:
-                vd_des = x
-            x = K_APPROACH * d_z
-            if x < vd_des:
-                vd_des = x
-            vd_des = math.copysign(vd_des, dd)
+                vd_des = math.copysign(_approach_speed(-dd, target.speed_up_m_s, lim.acc_up_m_s2), dd)
         dvd = vd_des - vel[2]
         if dvd > 0.0:
             ad_des = math.copysign(_accel_toward(dvd, lim.acc_down_m_s2, jerk), dvd)
         else:
             ad_des = math.copysign(_accel_toward(-dvd, lim.acc_up_m_s2, jerk), dvd)
-        # jerk limit (inline _toward), then integrate (semi-implicit Euler)
+        # jerk limit (each component moves at most jerk·dt toward its goal), then integrate (semi-implicit Euler)
         dj = jerk * dt_s
         a0, a1, a2 = acc
         a0 = a0 + dj if an_des > a0 + dj else (a0 - dj if an_des < a0 - dj else an_des)
