@@ -528,24 +528,11 @@ class MissionExecutor:
 
     def _lookahead(self) -> Vec3 | None:
         """Position of the next waypoint/loiter after the current item, following DO items and pending jumps."""
-        jumps = {}
-        k = self._cur + 1
-        for _ in range(2 * len(self._items) + 2):
-            if k >= len(self._items):
-                return None
-            item = self._items[k]
-            if item.command == MavCmd.DO_JUMP:
-                done = jumps.get(k, self._jumps_done[k])
-                if item.param2 < 0 or done < item.param2:
-                    jumps[k] = done + 1
-                    k = int(item.param1)
-                else:
-                    k += 1
+        for k in self._execution_order(self._cur + 1, {}):
+            command = self._items[k].command
+            if command in (MavCmd.DO_JUMP, MavCmd.DO_CHANGE_SPEED, MavCmd.DO_GRIPPER):
                 continue
-            if item.command in (MavCmd.DO_CHANGE_SPEED, MavCmd.DO_GRIPPER):
-                k += 1
-                continue
-            if item.command in (MavCmd.NAV_WAYPOINT, MavCmd.NAV_LOITER_TIME):
+            if command in (MavCmd.NAV_WAYPOINT, MavCmd.NAV_LOITER_TIME):
                 return self._pos_ned[k]
             return None
         return None
