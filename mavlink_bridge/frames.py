@@ -172,8 +172,18 @@ class LocalNedFrame:
             rd[0] * dx + rd[1] * dy + rd[2] * dz,
         )
 
+    @property
+    def ecef_constants(self) -> tuple[float, ...]:
+        """The 12 numbers ``geodetic_from_ned`` uses: home ECEF (m), then the north, east, down rows in ECEF."""
+        rn, re, rd = self._r
+        return (*self._home_ecef, *rn, *re, *rd)
+
     def geodetic_from_ned(self, north_m: float, east_m: float, down_m: float) -> GeoPoint:
-        """WGS-84 point of a local NED position (m)."""
+        """WGS-84 point of a local NED position (m).
+
+        ``sim/frame_kernel.py`` repeats this operation for operation in numba (the simulator's per-step
+        ground truth); change both together (``tests/test_sim_frame_writer.py`` checks they agree bit for bit).
+        """
         rn, re, rd = self._r
         hx, hy, hz = self._home_ecef
         x = hx + rn[0] * north_m + re[0] * east_m + rd[0] * down_m

@@ -20,6 +20,7 @@ import numpy as np
 from numba import njit
 
 import mavlink_bridge.frame_writer
+import mavlink_bridge.frames
 import sim.sensors
 from mavlink_bridge.frame_writer import (
     I_GPS_DUE,
@@ -62,17 +63,18 @@ from mavlink_bridge.wire import ObstacleDetection
 from sim.sensors import _SEA_LEVEL_PA, GPS_PERIOD_US, MAG_FIELD_NED_GAUSS, SensorModel
 from sim.vehicle import VehicleSim
 
-#: sha256 of ``mavlink_bridge/frame_writer.py`` + ``sim/sensors.py`` that these kernels mirror. numba's cache
+#: sha256 of ``mavlink_bridge/frame_writer.py`` + ``sim/sensors.py`` + ``mavlink_bridge/frames.py`` (WGS-84
+#: constants, ``geodetic_from_ned``) that these kernels mirror. numba's cache
 #: only watches this file, not the ones whose kernels and constants get compiled in: when they change, the
 #: kernels compile without the cache (correct, slower start-up) until this line is updated after a review
 #: that the kernel still matches the reference (``tests/test_sim_frame_writer.py`` fails meanwhile).
-DEPENDENCIES_SHA256 = "e52e4ff39ae479948c0df46bc9215441e7f22bfe73c8788d9de8b8505ab79218"
+DEPENDENCIES_SHA256 = "5ce70836019f539570fe97cc62fe134a26dd7d9554e9805f524127e3da71039f"
 
 
 def dependencies_sha256() -> str:
     """The current sha256 of the files named by ``DEPENDENCIES_SHA256``."""
     digest = hashlib.sha256()
-    for module in (mavlink_bridge.frame_writer, sim.sensors):
+    for module in (mavlink_bridge.frame_writer, sim.sensors, mavlink_bridge.frames):
         digest.update(Path(module.__file__ or "").read_bytes())
     return digest.hexdigest()
 
@@ -110,8 +112,7 @@ _GPS_PERIOD_US = GPS_PERIOD_US
 
 def frame_constants(frame: LocalNedFrame) -> list[float]:
     """The 12 numbers of ``LocalNedFrame.geodetic_from_ned``: home ECEF, then the NED rows in ECEF."""
-    rn, re, rd = frame._r
-    return [*frame._home_ecef, *rn, *re, *rd]
+    return list(frame.ecef_constants)
 
 
 @_njit
