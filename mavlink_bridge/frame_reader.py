@@ -10,7 +10,7 @@ then only builds the dataclasses from those rows.
 The kernel takes only the common, well-formed case: unsigned MAVLink 2 frames of exactly the
 messages above (OBSTACLE_DISTANCE_3D in MAV_FRAME_BODY_FRD), each with a valid CRC, filling the
 datagram. For anything else (MAVLink 1, signatures, other messages, garbage, bad CRC, a truncated
-tail, more messages than ``OUT_LEN`` has room for) it returns ``FALLBACK`` and the decoder runs its Python
+tail, more messages than ``VALUES_LEN`` has room for) it returns ``FALLBACK`` and the decoder runs its Python
 loop over the whole datagram, so counters and results are the same either way.
 ``tests/test_bridge_frame_reader.py`` checks it against the Python decoders bit for bit.
 
@@ -31,8 +31,12 @@ KIND_GPS = 2
 KIND_TRUTH = 3
 KIND_DETECTION = 4
 KIND_ACTUATORS = 5
-#: Size of the ``out`` buffer: room for 16 messages of the longest kind, then system and component id.
-OUT_LEN = 16 * 18 + 2
+#: Room for decoded values in the ``out`` buffer: 16 messages of the longest kind, then system and component id.
+VALUES_LEN = 16 * 18 + 2
+#: ``out`` also holds the zero-padded payload being read (88 bytes = 11 float64) after the values, so a call
+#: allocates nothing.
+_SCRATCH_FLOATS = 11
+OUT_LEN = VALUES_LEN + _SCRATCH_FLOATS
 #: ``read_values`` result when the datagram needs the Python decoder.
 FALLBACK = -1
 
@@ -80,7 +84,8 @@ def read_values(data: bytes, out: np.ndarray) -> int:
     actuators: t, flags, c0, c1, c2, c3, gripper, mode.
     """
     n = len(data)
-    scratch = np.zeros(88, np.uint8)  # one zero-padded payload; MAVLink 2 orders fields by size: all aligned
+    # one zero-padded payload at the tail of out (8-byte aligned; MAVLink 2 orders fields by size: all aligned)
+    scratch = out[VALUES_LEN:].view(np.uint8)
     u64 = scratch.view(np.uint64)
     f32 = scratch.view(np.float32)
     i32 = scratch.view(np.int32)
@@ -93,7 +98,7 @@ def read_values(data: bytes, out: np.ndarray) -> int:
     if n == 0:
         return FALLBACK
     while i < n:
-        if n - i < 12 or data[i] != 0xFD or data[i + 2] != 0 or k + 20 > len(out):
+        if n - i < 12 or data[i] != 0xFD or data[i + 2] != 0 or k + 20 > VALUES_LEN:
             return FALLBACK
         plen = int(data[i + 1])
         msg_id = int(data[i + 7]) | (int(data[i + 8]) << 8) | (int(data[i + 9]) << 16)
