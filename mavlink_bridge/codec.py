@@ -38,6 +38,7 @@ import struct
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numpy as np
 from fastcrc import crc16 as _crc16
 from pymavlink.dialects.v20 import ardupilotmega as _dialect
 
@@ -420,22 +421,27 @@ class Decoder:
     valid frame.
     """
 
-    __slots__ = ("_values", "last_component_id", "last_system_id", "stats")
+    __slots__ = ("_read_values", "_values", "last_component_id", "last_system_id", "stats")
 
     def __init__(self, *, compiled: bool = True) -> None:
         """``compiled``: try ``frame_reader.read_values`` (numba) first on each datagram; False: Python only."""
         self.stats = DecoderStats()
         self.last_system_id = -1
         self.last_component_id = -1
-        self._values = _frame_reader().new_out() if compiled else None
-        if self._values is not None:
-            _read_values(b"", self._values)  # load the compiled kernel now, not on the first lockstep frame
+        self._values: np.ndarray | None = None
+        self._read_values: Callable[[bytes, np.ndarray], int] | None = None
+        if compiled:
+            from mavlink_bridge import frame_reader  # here, not at the top: it imports numba (GCS tools need not)
+
+            self._values = frame_reader.new_out()
+            self._read_values = frame_reader.read_values
+            self._read_values(b"", self._values)  # load the compiled kernel now, not on the first lockstep frame
 
     def decode(self, data: bytes) -> list[WireMessage]:
         """All wire messages in one datagram, in order."""
         values = self._values
         if values is not None and len(data) >= _COMPILED_MIN_BYTES:
-            n = _read_values(data, values)
+            n = self._read_values(data, values)  # type: ignore[misc]
             if n > 0:
                 return self._from_values(values[: n + 2].tolist())
         return self._decode_python(data)
@@ -551,21 +557,6 @@ class Decoder:
         return v2
 
 
-_reader_module = None
-
-
-def _frame_reader():  # the module
-    """``mavlink_bridge.frame_reader``, imported on first use (it pulls in numba)."""
-    global _reader_module, _read_values
-    if _reader_module is None:
-        from mavlink_bridge import frame_reader
-
-        _reader_module = frame_reader
-        _read_values = frame_reader.read_values
-    return _reader_module
-
-
-_read_values: Callable[[bytes, object], int]
 #: Shortest datagram handed to the compiled reader: calling a numba kernel costs about as much as the
 #: Python loop spends on one message, so it only pays for two or more (a lockstep frame; measured with
 #: callgrind: 40 k vs 49 k instructions for HIL_STATE_QUATERNION + HIL_SENSOR, 22 k vs 20 k for one
