@@ -142,12 +142,6 @@ def measure_floor_run(n_frames: int, warmup_frames: int = 200, spin_s: float = D
     )
 
 
-def measure_floor(n_frames: int, warmup_frames: int = 200) -> tuple[float, float, int]:
-    """(real-time factor, mean wall µs per frame, resends) for ``n_frames`` exchanges after a warm-up."""
-    r = measure_floor_run(n_frames, warmup_frames)
-    return r.rtf, r.frame_us, r.resends
-
-
 def measure_codec_us(n: int = 2000) -> float:
     """Mean µs to encode a frame + decode it + encode and decode its answer (one process, no sockets)."""
     enc, dec = Encoder(), Decoder()
