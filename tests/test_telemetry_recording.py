@@ -12,6 +12,7 @@ import pytest
 from autopilot.control.airframe import load_airframe
 from autopilot.control.cascade import CascadeController
 from autopilot.control.gains import CascadeGains
+from autopilot.setpoints import NavTarget, TargetKind
 from autopilot.telemetry import RerunTelemetry, make_listener
 from autopilot.telemetry import entities as ent
 from autopilot.telemetry.recording_reader import RecordingReadError, read_recording
@@ -123,6 +124,23 @@ def test_targets_are_drawn_once_each(flight) -> None:
     recording, _ = flight
     strip = recording.latest_component(ent.TARGETS, "LineStrips3D:strips")[0]
     assert strip == [[20.0, 0.0, -5.0]]  # one target in the 6 s flight (a new one every 10 s)
+
+
+def test_a_landing_is_one_target_though_its_down_follows_the_vehicle(tmp_path: Path) -> None:
+    """LAND targets carry the vehicle's own down (only their xy is held): one point, not one per 3D sample."""
+    path = tmp_path / "land.rrd"
+    rec = open_recording(RerunSink(SinkKind.SAVE, str(path)))
+    telemetry = RerunTelemetry(rec)
+    first_land_down = None
+    for k, record in enumerate(synthetic_records(1000, with_planner=False)):
+        if k >= 600:  # descend over (5, 5): the target's down is the vehicle's, a new value every step
+            down = record.state.pos_ned_m[2]
+            first_land_down = down if first_land_down is None else first_land_down
+            record = dataclasses.replace(record, target=NavTarget(TargetKind.LAND, (5.0, 5.0, down)))
+        telemetry.on_step(record)
+    telemetry.close()
+    strip = read_recording(path).latest_component(ent.TARGETS, "LineStrips3D:strips")[0]
+    np.testing.assert_allclose(strip, [[20.0, 0.0, -5.0], [5.0, 5.0, first_land_down]], atol=1e-5)
 
 
 def test_text_log_has_modes_arming_and_events_in_sim_time(flight) -> None:

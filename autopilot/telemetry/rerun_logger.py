@@ -196,7 +196,7 @@ class RerunTelemetry:
         self._last_armed: bool | None = None
         self._last_seq: int | None = None
         self._last_home: tuple[float, float, float] | None = None
-        self._last_target_pos: Sequence[float] | None = None
+        self._last_target_key: Sequence[float] | None = None  # the latest target drawn (LAND: its xy only)
         self._targets: list[tuple[float, float, float]] = []
         self._last_detour: object | None = None
         self._last_obstacle_key: tuple[Any, ...] | None = None
@@ -267,8 +267,14 @@ class RerunTelemetry:
             self._next_3d_us = t_us + self._period_3d_us
             self._sample_3d(t_us, pos, state.q_ned_frd, sp)
             target = record.target
-            if target.kind is not TargetKind.IDLE and target.pos_ned_m != self._last_target_pos:
-                self._add_target(t_us, target.pos_ned_m)
+            kind = target.kind
+            if kind is not TargetKind.IDLE:
+                pos = target.pos_ned_m
+                # LAND holds the xy of its target while its down follows the vehicle: one point per landing
+                key = (pos[0], pos[1]) if kind is TargetKind.LAND else pos
+                if key != self._last_target_key:
+                    self._last_target_key = key
+                    self._add_target(t_us, pos)
             if planner is not None:
                 self._planner_3d(t_us, planner)
         if record.texts or record.mode is not self._last_mode or record.armed is not self._last_armed:
@@ -287,7 +293,6 @@ class RerunTelemetry:
 
     def _add_target(self, t_us: int, pos_ned: Sequence[float]) -> None:
         """The navigation targets flown so far (about the origin): the reference route as commanded."""
-        self._last_target_pos = pos_ned
         if len(self._targets) >= _MAX_TARGETS:
             del self._targets[: _MAX_TARGETS // 2]
         self._targets.append((float(pos_ned[0]), float(pos_ned[1]), float(pos_ned[2])))
