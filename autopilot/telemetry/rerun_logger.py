@@ -131,8 +131,9 @@ class _DiagGather:
 
     def gather(self, out: np.ndarray) -> None:
         """Write the controller block (``_N_CTRL`` values, CHANNELS order for gains) into ``out``."""
-        if self._flat is not None:
-            np.take(self._flat, self._index, out=out)
+        flat = self._flat
+        if flat is not None:
+            flat.take(self._index, out=out)  # the method: np.take's dispatch wrapper costs as much again
             return
         d = self._diag
         out[0:3] = d.att_err_rad[0]
