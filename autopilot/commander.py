@@ -15,9 +15,10 @@ does); ``gripper_release``. Modes:
   until the land detector sees touchdown, then auto-disarm after ``COM_DISARM_LAND``.
 - AUTO_RTL: climb to ``MIS_RTL_ALT`` (if lower), fly home, wait ``RTL_LAND_DELAY``, land.
 - AUTO_MISSION: the target comes from the mission executor (:meth:`set_mission_target`).
-- OFFBOARD: the target is the latest external position setpoint (:meth:`set_offboard_target`); entered
-  only while setpoints stream (PX4's rule: the runner sets ``offboard_streaming``); leaving it on a
-  setpoint loss is the failsafe's job (``COM_OBL_ACT``).
+- OFFBOARD: the target is the latest external position or velocity setpoint (:meth:`set_offboard_target`,
+  :meth:`set_offboard_velocity`); entered only while setpoints stream (PX4's rule: the runner sets
+  ``offboard_streaming``); leaving it on a setpoint loss is the failsafe's job (``COM_OBL_ACT``). On the
+  ground, a position setpoint above the vehicle or a climbing velocity setpoint takes off.
 
 Land detector (PX4 ``MulticopterLandDetector`` in spirit): vertical speed below
 ``LNDMC_Z_VEL_MAX``, horizontal speed below ``LNDMC_XY_VEL_MAX`` and collective thrust
@@ -48,6 +49,8 @@ FORCE_MAGIC = 21196.0
 _CUSTOM_MODE_ENABLED = 1
 #: An armed vehicle on the ground takes off when its target is this far above it (m).
 _TAKEOFF_TRIGGER_M = 0.5
+#: On the ground in OFFBOARD, a velocity setpoint climbing at least this fast takes off (m/s).
+_TAKEOFF_TRIGGER_M_S = 0.3
 #: Face the target only when it is at least this far away horizontally (m).
 _FACE_TARGET_MIN_M = 2.0
 #: Outside AUTO_TAKEOFF, a climbing vehicle counts as in the air above this height over home (m).
@@ -258,7 +261,7 @@ class Commander:
             self._set_mode(mode)
         elif mode is FlightMode.OFFBOARD:
             if self._offboard_target is None or not self.offboard_streaming:
-                return self._refuse(CommandResult.DENIED, "OFFBOARD: stream position setpoints first")
+                return self._refuse(CommandResult.DENIED, "OFFBOARD: stream setpoints first")
             self._set_mode(mode)
         else:
             self._enter_hold(state, mode)
@@ -446,6 +449,16 @@ class Commander:
         """An external position setpoint (SET_POSITION_TARGET_LOCAL_NED); used in OFFBOARD."""
         self._offboard_target = NavTarget(TargetKind.POSITION, pos_ned_m, yaw_rad, *self._speeds())
 
+    def set_offboard_velocity(
+        self, vel_ned_m_s: Vec3, yaw_rad: float = math.nan, yaw_rate_rad_s: float = math.nan
+    ) -> None:
+        """An external velocity setpoint (NED m/s; a yaw, else a yaw rate, NaN = keep the heading); used in
+        OFFBOARD, within the speed limits in force."""
+        nan3 = (math.nan, math.nan, math.nan)
+        self._offboard_target = NavTarget(
+            TargetKind.VELOCITY, nan3, yaw_rad, *self._speeds(), vel_ned_m_s, yaw_rate_rad_s
+        )
+
     def apply_failsafe(self, event: FailsafeEvent) -> None:
         """React to a failsafe that just triggered (action from its parameter)."""
         self._say(event.message, Severity.CRITICAL if event.action >= FailsafeAction.HOLD else Severity.WARNING)
@@ -572,8 +585,12 @@ class Commander:
             return NavTarget(TargetKind.IDLE)
         if self.landed_state is LandedState.ON_GROUND:
             target = self._mode_target(state)
-            climb_m = state.pos_ned_m[2] - target.pos_ned_m[2]
-            if target.kind is not TargetKind.POSITION or climb_m < _TAKEOFF_TRIGGER_M:
+            if target.kind is TargetKind.VELOCITY:
+                takeoff = -target.vel_ned_m_s[2] >= _TAKEOFF_TRIGGER_M_S
+            else:
+                climb_m = state.pos_ned_m[2] - target.pos_ned_m[2]
+                takeoff = target.kind is TargetKind.POSITION and climb_m >= _TAKEOFF_TRIGGER_M
+            if not takeoff:
                 self._auto_disarm_on_ground(state)
                 return NavTarget(TargetKind.IDLE)
             self.landed_state = LandedState.TAKEOFF

@@ -70,6 +70,8 @@ from mavlink_bridge.gcs_types import (
     Severity,
     StatusText,
     TelemetrySnapshot,
+    VelocityFrame,
+    VelocityTarget,
 )
 from mavlink_bridge.wire import ActuatorCommand, ObstacleDetection, Vec3, fast_frozen_init
 
@@ -475,9 +477,26 @@ class Autopilot:
                 alt_amsl += home.alt_amsl_m
             pos = frame.ned_from_geodetic(target.lat_deg, target.lon_deg, alt_amsl)
         self.commander.set_offboard_target((float(pos[0]), float(pos[1]), float(pos[2])), target.yaw_rad)
+        self._offboard_heard()
+        return True
+
+    def set_velocity_target(self, target: VelocityTarget) -> bool:
+        """An offboard velocity setpoint; a body-frame one is turned into NED with the heading now (PX4 does
+        so on receipt). False before the first state (no heading to turn it with)."""
+        vx, vy, vz = target.vel_m_s
+        if target.frame is VelocityFrame.BODY:
+            state = self.state
+            if state is None or not state.valid:
+                return False
+            c, s = math.cos(state.yaw_rad), math.sin(state.yaw_rad)
+            vx, vy = c * vx - s * vy, s * vx + c * vy
+        self.commander.set_offboard_velocity((vx, vy, vz), target.yaw_rad, target.yaw_rate_rad_s)
+        self._offboard_heard()
+        return True
+
+    def _offboard_heard(self) -> None:
         self._offboard_wall_s = self.wall_clock()
         self.commander.offboard_streaming = True
-        return True
 
     def offboard_setpoint_age_s(self) -> float | None:
         """Wall seconds since the last offboard setpoint, stretched by 1/speed when the sim runs slower than
@@ -974,6 +993,9 @@ class VehicleAdapter:
 
     def set_position_target(self, target: PositionTarget) -> bool:
         return self._ap.set_position_target(target)
+
+    def set_velocity_target(self, target: VelocityTarget) -> bool:
+        return self._ap.set_velocity_target(target)
 
     def param_names(self) -> list[str]:
         return self._ap.params.names()

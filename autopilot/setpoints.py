@@ -20,6 +20,11 @@ Per step (horizontal plane and vertical axis shaped separately, as PX4 does):
 ``LAND`` targets descend at a fixed speed instead of stopping; the reference is kept at
 most :data:`LAND_MAX_LEAD_M` below the vehicle so that, on the ground, the controller asks
 for less-than-hover thrust (what the land detector looks for) without winding up.
+
+``VELOCITY`` targets (OFFBOARD velocity setpoints) replace step 1 by the commanded velocity within the
+speed limits; the position reference integrates it but stays within :data:`VELOCITY_MAX_LEAD_M` of the
+vehicle, so a vehicle that cannot follow (the ground, saturation) is not pulled by a runaway reference.
+A yaw rate (``yaw_rate_rad_s``, when no yaw is given) turns the heading reference at that rate.
 """
 
 from __future__ import annotations
@@ -38,6 +43,9 @@ BRAKE_LAG_S = 0.5
 TAU_VEL_S = 0.3
 #: In LAND, the reference stays at most this far below the vehicle (m).
 LAND_MAX_LEAD_M = 1.0
+#: For VELOCITY targets, the position reference stays at most this far from the vehicle (m, horizontal and
+#: vertical separately).
+VELOCITY_MAX_LEAD_M = 2.0
 
 
 class TargetKind(Enum):
@@ -46,6 +54,7 @@ class TargetKind(Enum):
     IDLE = "idle"  # armed or not, on the ground: motors idle, controller off
     POSITION = "position"  # reach ``pos_ned_m`` and hold it
     LAND = "land"  # hold xy of ``pos_ned_m``, descend at ``speed_down_m_s`` until touchdown
+    VELOCITY = "velocity"  # fly at ``vel_ned_m_s`` (within the speed limits); ``pos_ned_m`` is not used
 
 
 @fast_frozen_init
@@ -59,6 +68,8 @@ class NavTarget:
     speed_xy_m_s: float = 5.0
     speed_up_m_s: float = 3.0
     speed_down_m_s: float = 1.5
+    vel_ned_m_s: Vec3 = (0.0, 0.0, 0.0)  # VELOCITY only
+    yaw_rate_rad_s: float = math.nan  # VELOCITY only, used when ``yaw_rad`` is NaN (NaN: keep the heading)
 
 
 @dataclass(frozen=True, slots=True)
@@ -118,8 +129,8 @@ class SetpointGenerator:
         this after answering the sim); ``update`` uses them when its target has the same kind, position and
         speed objects, ``dt_s`` and limits are the same and the reference did not change since: the same floats
         as computing them then (they depend on nothing else), so a step with the same target costs less."""
-        if target.kind is TargetKind.IDLE:
-            self._prepared = None
+        if target.kind is TargetKind.IDLE or target.kind is TargetKind.VELOCITY:
+            self._prepared = None  # VELOCITY: the reference is clamped about the vehicle in update()
             return
         self._prepared = (
             self._version,
@@ -162,12 +173,30 @@ class SetpointGenerator:
         pos[0], pos[1], pos[2] = p0, p1, p2
         if kind is TargetKind.LAND and p2 > vehicle_pos_ned[2] + LAND_MAX_LEAD_M:
             pos[2] = vehicle_pos_ned[2] + LAND_MAX_LEAD_M
+        elif kind is TargetKind.VELOCITY:
+            self._leash(vehicle_pos_ned)
         # yaw: rate-limited turn toward the target heading along the shorter way
         if not math.isnan(target.yaw_rad):
             err = (target.yaw_rad - self.yaw_rad + math.pi) % (2.0 * math.pi) - math.pi
             step = self.limits.yaw_rate_rad_s * dt_s
             self.yaw_rad += max(-step, min(step, err))
             self.yaw_rad = (self.yaw_rad + math.pi) % (2.0 * math.pi) - math.pi
+        elif kind is TargetKind.VELOCITY and not math.isnan(target.yaw_rate_rad_s):
+            limit = self.limits.yaw_rate_rad_s
+            self.yaw_rad += max(-limit, min(limit, target.yaw_rate_rad_s)) * dt_s
+            self.yaw_rad = (self.yaw_rad + math.pi) % (2.0 * math.pi) - math.pi
+
+    def _leash(self, vehicle_pos_ned: Vec3) -> None:
+        """Keep the position reference within VELOCITY_MAX_LEAD_M of the vehicle (horizontally, vertically)."""
+        pos = self.pos_ned
+        dn, de = pos[0] - vehicle_pos_ned[0], pos[1] - vehicle_pos_ned[1]
+        d_xy = math.hypot(dn, de)
+        if d_xy > VELOCITY_MAX_LEAD_M:
+            k = VELOCITY_MAX_LEAD_M / d_xy
+            pos[0], pos[1] = vehicle_pos_ned[0] + dn * k, vehicle_pos_ned[1] + de * k
+        dd = pos[2] - vehicle_pos_ned[2]
+        if abs(dd) > VELOCITY_MAX_LEAD_M:
+            pos[2] = vehicle_pos_ned[2] + math.copysign(VELOCITY_MAX_LEAD_M, dd)
 
     def _next_reference(
         self, target: NavTarget, dt_s: float
@@ -177,15 +206,21 @@ class SetpointGenerator:
         lim = self.limits
         pos, vel, acc = self.pos_ned, self.vel_ned, self.acc_ned
         acc_xy, jerk = lim.acc_xy_m_s2, lim.jerk_m_s3
+        kind = target.kind
         tn, te, td = target.pos_ned_m
-        # horizontal: desired velocity along the line to the target
-        dn, de = tn - pos[0], te - pos[1]
-        d_xy = math.hypot(dn, de)
-        if d_xy > 1e-9:
-            v = _approach_speed(d_xy, target.speed_xy_m_s, acc_xy) / d_xy
-            vn_des, ve_des = dn * v, de * v
-        else:
-            vn_des = ve_des = 0.0
+        if kind is TargetKind.VELOCITY:  # the commanded velocity, within the speed limits
+            vn_des, ve_des, vd_cmd = target.vel_ned_m_s
+            s_xy = math.hypot(vn_des, ve_des)
+            if s_xy > target.speed_xy_m_s:
+                vn_des, ve_des = vn_des * (target.speed_xy_m_s / s_xy), ve_des * (target.speed_xy_m_s / s_xy)
+        else:  # horizontal: desired velocity along the line to the target
+            dn, de = tn - pos[0], te - pos[1]
+            d_xy = math.hypot(dn, de)
+            if d_xy > 1e-9:
+                v = _approach_speed(d_xy, target.speed_xy_m_s, acc_xy) / d_xy
+                vn_des, ve_des = dn * v, de * v
+            else:
+                vn_des = ve_des = 0.0
         dvn, dve = vn_des - vel[0], ve_des - vel[1]
         dv_xy = math.hypot(dvn, dve)
         if dv_xy > 1e-12:
@@ -194,8 +229,10 @@ class SetpointGenerator:
         else:
             an_des = ae_des = 0.0
         # vertical (down positive): a braking profile, or a constant descent when landing
-        if target.kind is TargetKind.LAND:
+        if kind is TargetKind.LAND:
             vd_des = target.speed_down_m_s
+        elif kind is TargetKind.VELOCITY:
+            vd_des = max(-target.speed_up_m_s, min(target.speed_down_m_s, vd_cmd))
         else:
             dd = td - pos[2]
             if dd > 0.0:

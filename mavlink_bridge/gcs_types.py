@@ -175,6 +175,27 @@ class GlobalPositionTarget:
 PositionTarget = LocalPositionTarget | GlobalPositionTarget
 
 
+class VelocityFrame(IntEnum):
+    """The axes of an offboard velocity setpoint."""
+
+    LOCAL_NED = 0  # north, east, down (MAV_FRAME_LOCAL_NED)
+    BODY = 1  # forward, right, down about the vehicle's heading (MAV_FRAME_BODY_NED, BODY_OFFSET_NED, BODY_FRD)
+
+
+@dataclass(frozen=True, slots=True)
+class VelocityTarget:
+    """SET_POSITION_TARGET_LOCAL_NED with only its velocity used (MAVSDK ``set_velocity_ned``/``set_velocity_body``).
+
+    ``vel_m_s`` in ``frame`` (BODY is turned into NED with the heading when it arrives, as PX4 does);
+    ``yaw_rad`` (NaN = not given) takes precedence over ``yaw_rate_rad_s`` (NaN = not given).
+    """
+
+    vel_m_s: Vec3
+    frame: VelocityFrame = VelocityFrame.LOCAL_NED
+    yaw_rad: float = math.nan
+    yaw_rate_rad_s: float = math.nan
+
+
 @dataclass(frozen=True, slots=True)
 class StatusText:
     """A STATUSTEXT event."""
@@ -235,6 +256,10 @@ class VehicleInterface(Protocol):
 
     def set_position_target(self, target: PositionTarget) -> bool:
         """An offboard position setpoint (OFFBOARD mode flies the latest); False if it cannot be used now."""
+        ...
+
+    def set_velocity_target(self, target: VelocityTarget) -> bool:
+        """An offboard velocity setpoint (OFFBOARD mode flies the latest); False if it cannot be used now."""
         ...
 
     def param_names(self) -> list[str]: ...

@@ -20,6 +20,7 @@ from mavlink_bridge.gcs_types import (
     MissionType,
     PositionTarget,
     TelemetrySnapshot,
+    VelocityTarget,
 )
 from mavlink_bridge.mission_items import GLOBAL_FRAMES
 
@@ -68,6 +69,7 @@ class FakeVehicle:
         self.command_calls: Counter[int] = Counter()
         self.requests: list[CommandRequest] = []
         self.position_targets: list[PositionTarget] = []
+        self.velocity_targets: list[VelocityTarget] = []
         self.armed = False
         self.mode = FlightMode.AUTO_LOITER
         self.arming_refused = False
@@ -126,6 +128,10 @@ class FakeVehicle:
 
     def set_position_target(self, target: PositionTarget) -> bool:
         self.position_targets.append(target)
+        return True
+
+    def set_velocity_target(self, target: VelocityTarget) -> bool:
+        self.velocity_targets.append(target)
         return True
 
     def set_current_mission_item(self, seq: int) -> bool:

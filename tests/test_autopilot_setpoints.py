@@ -1,4 +1,5 @@
-"""Setpoint generator: speed, acceleration, jerk and yaw-rate limits hold; it stops at the target; LAND descends."""
+"""Setpoint generator: speed, acceleration, jerk and yaw-rate limits hold; it stops at the target; LAND descends;
+VELOCITY flies the commanded velocity within the limits."""
 
 from __future__ import annotations
 
@@ -6,7 +7,14 @@ import math
 
 import pytest
 
-from autopilot.setpoints import LAND_MAX_LEAD_M, NavTarget, SetpointGenerator, SetpointLimits, TargetKind
+from autopilot.setpoints import (
+    LAND_MAX_LEAD_M,
+    VELOCITY_MAX_LEAD_M,
+    NavTarget,
+    SetpointGenerator,
+    SetpointLimits,
+    TargetKind,
+)
 
 DT = 0.004
 LIMITS = SetpointLimits(acc_xy_m_s2=3.0, acc_up_m_s2=2.5, acc_down_m_s2=1.5, jerk_m_s3=8.0, yaw_rate_rad_s=0.5)
@@ -120,3 +128,55 @@ def test_prepared_reference_is_bit_identical_and_never_stale() -> None:
             plain.yaw_rad,
         ), k
         ahead.prepare(hold, DT)  # always guesses "hold at DT": wrong for most of the plan after step 300
+
+
+def _velocity(vel: tuple[float, float, float], yaw: float = math.nan, yaw_rate: float = math.nan) -> NavTarget:
+    nan3 = (math.nan, math.nan, math.nan)
+    return NavTarget(TargetKind.VELOCITY, nan3, yaw, 5.0, 2.0, 1.0, vel, yaw_rate)
+
+
+def test_velocity_target_is_flown_within_the_speed_and_jerk_limits() -> None:
+    """A velocity command is reached with limited acceleration and jerk; a too-fast one is scaled to the limits
+    (horizontal magnitude to speed_xy, climb and descent to their own speeds), keeping its direction."""
+    gen = SetpointGenerator(LIMITS)
+    gen, worst = _fly(_velocity((3.0, -1.0, -0.5)), 5.0, gen)
+    assert gen.vel_ned == pytest.approx((3.0, -1.0, -0.5), abs=1e-6)
+    assert gen.acc_ned == pytest.approx((0.0, 0.0, 0.0), abs=1e-4)
+    assert worst["a_xy"] <= LIMITS.acc_xy_m_s2 + 1e-9 and worst["jerk"] <= LIMITS.jerk_m_s3 * 1.0001
+    gen, worst = _fly(_velocity((30.0, 40.0, -9.0)), 10.0, gen)
+    assert gen.vel_ned == pytest.approx((3.0, 4.0, -2.0), abs=1e-6)  # |v_xy| 50 -> 5, climb 9 -> 2
+    gen, worst = _fly(_velocity((0.0, 0.0, 9.0)), 10.0, gen)
+    assert gen.vel_ned == pytest.approx((0.0, 0.0, 1.0), abs=1e-6) and worst["v_dn"] <= 1.0 + 1e-9
+
+
+def test_velocity_reference_integrates_and_keeps_on_a_leash() -> None:
+    """The position reference moves with the velocity while the vehicle follows, and stays within
+    VELOCITY_MAX_LEAD_M of a vehicle that does not (horizontally and vertically)."""
+    gen = SetpointGenerator(LIMITS)
+    target = _velocity((2.0, 0.0, 0.0))
+    vehicle = [0.0, 0.0, -5.0]
+    gen.reset(tuple(vehicle), (0.0, 0.0, 0.0), 0.0)
+    for k in range(round(10.0 / DT)):  # the vehicle follows the reference exactly
+        gen.update(target, DT, tuple(vehicle))
+        vehicle[:] = gen.pos_ned
+        if k == round(9.0 / DT) - 1:
+            at_9s = gen.pos_ned[0]
+    assert gen.pos_ned[0] - at_9s == pytest.approx(2.0, abs=1e-6)  # 2 m/s, well after the ramp
+    assert gen.pos_ned[1:] == pytest.approx([0.0, -5.0], abs=1e-12)
+    stuck = tuple(vehicle)
+    for _ in range(round(10.0 / DT)):  # a wall: the vehicle stops
+        gen.update(_velocity((2.0, 0.0, 3.0)), DT, stuck)
+        assert math.hypot(gen.pos_ned[0] - stuck[0], gen.pos_ned[1] - stuck[1]) <= VELOCITY_MAX_LEAD_M + 1e-9
+        assert abs(gen.pos_ned[2] - stuck[2]) <= VELOCITY_MAX_LEAD_M + 1e-9
+    assert gen.pos_ned[2] == pytest.approx(stuck[2] + VELOCITY_MAX_LEAD_M)
+
+
+def test_velocity_yaw_rate_turns_the_heading_within_the_limit() -> None:
+    gen = SetpointGenerator(LIMITS)
+    gen.reset((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0)
+    gen, _ = _fly(_velocity((0.0, 0.0, 0.0), yaw_rate=0.25), 2.0, gen)
+    assert gen.yaw_rad == pytest.approx(0.5)
+    gen, worst = _fly(_velocity((0.0, 0.0, 0.0), yaw_rate=-10.0), 1.0, gen)  # clamped to the 0.5 rad/s limit
+    assert gen.yaw_rad == pytest.approx(0.0, abs=1e-9) and worst["yaw_rate"] <= LIMITS.yaw_rate_rad_s * 1.0001
+    gen, _ = _fly(_velocity((0.0, 0.0, 0.0), yaw=1.0, yaw_rate=0.25), 4.0, gen)  # a yaw wins over a yaw rate
+    assert gen.yaw_rad == pytest.approx(1.0)

@@ -269,7 +269,7 @@ class RerunTelemetry:
             self._sample_3d(t_us, pos, state.q_ned_frd, sp)
             target = record.target
             kind = target.kind
-            if kind is not TargetKind.IDLE:
+            if kind is TargetKind.POSITION or kind is TargetKind.LAND:  # IDLE and VELOCITY have no position
                 pos = target.pos_ned_m
                 # LAND holds the xy of its target while its down follows the vehicle: one point per landing
                 key = (pos[0], pos[1]) if kind is TargetKind.LAND else pos
