@@ -6,8 +6,9 @@ GCS link until the vehicle is ready and downloads the mission at the end; MAVSDK
 timeout, so a hang in the native library cannot hang pytest. MAVSDK's ``Param`` downloads every
 parameter and sets MIS_RTL_ALT; ``MissionRaw`` uploads the items and downloads them back;
 ``Action.arm`` arms and ``MissionRaw.start_mission`` switches to AUTO.MISSION; the flight must
-reach the last item, land and disarm. Skipped when no interpreter imports ``mavsdk`` >= 4 (see
-``interop_clients`` for ``QUADSITL_INTEROP_PYTHON``).
+reach the last item, land and disarm. A second session (``interop_clients/mavsdk_offboard_velocity.py``)
+flies OFFBOARD on ``Offboard.set_velocity_ned`` / ``set_velocity_body`` alone, from takeoff to landing.
+Skipped when no interpreter imports ``mavsdk`` >= 4 (see ``interop_clients`` for ``QUADSITL_INTEROP_PYTHON``).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from typing import Any
 
 import pytest
 from conftest import REPO_ROOT, free_udp_port
-from interop_clients import MAVSDK_DRIVER, mavsdk4_python
+from interop_clients import MAVSDK_DRIVER, MAVSDK_OFFBOARD_DRIVER, mavsdk4_python
 from interop_clients.missions import short_delivery
 from sitl_procs import Ports, logs, read_json, start_autopilot, start_sim, stop
 
@@ -157,3 +158,49 @@ def test_mavsdk_param_download_and_set(flight: Flight) -> None:
 def test_mavsdk_mission_progress_never_steps_back(flight: Flight) -> None:
     progress = flight.result["progress"]
     assert all(a[0] <= b[0] for a, b in pairwise(progress)), progress
+
+
+def test_mavsdk_offboard_velocity_takeoff_cruise_turn_land(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """MAVSDK's Offboard plugin on velocity setpoints: a climbing setpoint takes off, 2 m/s north is flown,
+    a body-frame velocity with a yaw speed turns the vehicle, a descending setpoint lands it and it disarms."""
+    python = mavsdk4_python()
+    if python is None:
+        pytest.skip("mavsdk>=4 not importable here nor in $QUADSITL_INTEROP_PYTHON")
+    ports, api_port, api_target = Ports.free(), free_udp_port(), free_udp_port()
+    sim = start_sim(tmp_path, ports.sim, "--world", str(WORLD), "--seed", "6", *SIM_PATIENCE)
+    api = ["--api", f"udpin:127.0.0.1:{api_port}", "--api-target", f"udpout:127.0.0.1:{api_target}"]
+    plan = load_mission_file(WORLD)
+    ap = start_autopilot(tmp_path, ports.sim, ports, "--vehicle", plan.vehicle, *api, *AUTOPILOT_PATIENCE)
+    driver = [
+        python, str(MAVSDK_OFFBOARD_DRIVER), "--connect", f"udpin://127.0.0.1:{api_target}",
+        "--result", str(tmp_path / "offboard.json"), "--timeout-s", str(DRIVER_TIMEOUT_S),
+    ]  # fmt: skip
+    driver_log = tmp_path / "mavsdk_offboard.log"
+    try:
+        with GcsClient(f"udpin:127.0.0.1:{ports.gcs_target}", timeout_s=20.0) as gcs:
+            gcs.wait_until(lambda s: s.home is not None, READY_WAIT_S)
+            with open(driver_log, "wb") as out:
+                proc = subprocess.Popen(driver, cwd=tmp_path, stdout=out, stderr=subprocess.STDOUT)
+            deadline = time.monotonic() + DRIVER_TIMEOUT_S + 15.0
+            while proc.poll() is None:
+                if time.monotonic() > deadline:
+                    proc.kill()
+                    proc.wait()
+                    pytest.fail(f"MAVSDK driver hung past its own timeout\n{logs(tmp_path)}")
+                gcs.pump(0.2)
+    finally:
+        ap_rc, sim_rc = stop(ap), stop(sim)
+    result = read_json(tmp_path / "offboard.json")
+    context = f"{result.get('error')}\n{driver_log.read_text(errors='replace')[-3000:]}\n{logs(tmp_path)}"
+    assert proc.returncode == 0 and result["ok"], context
+    assert (ap_rc, sim_rc) == (0, 0), logs(tmp_path)
+    samples = {s["phase"]: s for s in result["samples"]}  # type: ignore[union-attr]
+    assert samples["climb"]["vel_ned_m_s"][2] == pytest.approx(-1.5, abs=0.3)
+    assert samples["cruise"]["vel_ned_m_s"] == pytest.approx([2.0, 0.0, 0.0], abs=0.3)
+    turn = samples["turn"]
+    course_deg = math.degrees(math.atan2(turn["vel_ned_m_s"][1], turn["vel_ned_m_s"][0]))
+    assert abs((course_deg - turn["heading_deg"] + 180.0) % 360.0 - 180.0) < 25.0  # body forward follows the turn
+    assert samples["landed"]["down_m"] == pytest.approx(0.0, abs=0.3)
+    summary = read_json(tmp_path / "autopilot_summary.json")
+    assert "OFFBOARD" in [m["mode"] for m in summary["mode_history"]]  # type: ignore[union-attr]
+    assert summary["landed"] and summary["disarmed"]

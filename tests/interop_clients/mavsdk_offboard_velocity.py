@@ -1,0 +1,136 @@
+"""Fly OFFBOARD on velocity setpoints with MAVSDK-Python 4.x (native cmavsdk binding) against any PX4-compatible
+vehicle.
+
+Runs in an interpreter where ``mavsdk>=4`` is importable; imports nothing from quadsitl. Steps: connect, wait
+for the home and global position health flags, ``Offboard.set_velocity_ned`` (climb), ``Offboard.start``,
+``Action.arm``; then, each phase ended by what telemetry shows (so the session works at any sim speed):
+climb to 8 m; ``set_velocity_ned`` 2 m/s north until 15 m north of the start; ``set_velocity_body`` 1 m/s
+forward turning at 30 deg/s until the heading has turned 80 deg; ``set_velocity_ned`` 1 m/s down until the
+vehicle is on the ground and disarmed. MAVSDK re-sends the latest setpoint at 20 Hz on its own.
+
+Usage: ``python mavsdk_offboard_velocity.py --connect udpin://127.0.0.1:PORT --result result.json
+[--timeout-s S]``. ``result.json`` holds the steps and a telemetry sample per phase (``samples``: phase,
+north/east/down m, NED velocity m/s, heading deg); exit code 0 only when every phase completed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from mavsdk import ComponentType, Configuration, Mavsdk
+from mavsdk.plugins.action import Action, ActionError
+from mavsdk.plugins.offboard import Offboard, OffboardError, VelocityBodyYawspeed, VelocityNedYaw
+from mavsdk.plugins.telemetry import LandedState, Telemetry
+
+_POLL_S = 0.02
+CLIMB_TO_M = 8.0
+CRUISE_NORTH_M = 15.0
+TURN_DEG = 80.0
+
+
+class StepFailedError(Exception):
+    """A step of the flight did not succeed; the message says which and why."""
+
+
+def _wait_for(what: str, predicate: Any, deadline: float) -> None:
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise StepFailedError(f"timed out waiting for {what}")
+        time.sleep(_POLL_S)
+
+
+def _sample(telemetry: Telemetry, phase: str) -> dict[str, Any]:
+    pv = telemetry.position_velocity_ned()
+    p, v = pv.position, pv.velocity
+    return {
+        "phase": phase,
+        "north_m": p.north_m,
+        "east_m": p.east_m,
+        "down_m": p.down_m,
+        "vel_ned_m_s": [v.north_m_s, v.east_m_s, v.down_m_s],
+        "heading_deg": telemetry.heading().heading_deg,
+    }
+
+
+def fly(connect_url: str, result: dict[str, Any], deadline: float) -> None:
+    """The whole client session (see module docstring); raises StepFailedError on the first failed step."""
+    mavsdk = Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))
+    steps, samples = result["steps"], result["samples"]
+    try:
+        result["mavsdk_version"] = mavsdk.version()
+        if mavsdk.add_any_connection(connect_url).name != "SUCCESS":
+            raise StepFailedError(f"add_any_connection({connect_url}) failed")
+        system = mavsdk.first_autopilot(max(1.0, deadline - time.monotonic()))
+        if system is None:
+            raise StepFailedError("no autopilot discovered")
+        telemetry, action, offboard = Telemetry(system), Action(system), Offboard(system)
+
+        def position_ok() -> bool:
+            health = telemetry.health()
+            return bool(health.is_home_position_ok and health.is_global_position_ok)
+
+        _wait_for("home and global position health", position_ok, deadline)
+        steps.append("ready")
+        try:
+            offboard.set_velocity_ned(VelocityNedYaw(0.0, 0.0, -1.5, 0.0))  # PX4: a setpoint before start
+            offboard.start()
+            steps.append("offboard_started")
+            action.arm()
+            steps.append("armed")
+        except (OffboardError, ActionError) as exc:
+            raise StepFailedError(f"{exc.origin} -> {exc.result.name}") from None
+
+        _wait_for("the climb", lambda: -telemetry.position_velocity_ned().position.down_m > CLIMB_TO_M, deadline)
+        samples.append(_sample(telemetry, "climb"))
+        start_north = telemetry.position_velocity_ned().position.north_m
+        offboard.set_velocity_ned(VelocityNedYaw(2.0, 0.0, 0.0, 0.0))
+        _wait_for(
+            "the cruise north",
+            lambda: telemetry.position_velocity_ned().position.north_m - start_north > CRUISE_NORTH_M,
+            deadline,
+        )
+        samples.append(_sample(telemetry, "cruise"))
+        heading0 = telemetry.heading().heading_deg
+        offboard.set_velocity_body(VelocityBodyYawspeed(1.0, 0.0, 0.0, 30.0))
+
+        def turned() -> bool:
+            return (telemetry.heading().heading_deg - heading0) % 360.0 > TURN_DEG
+
+        _wait_for("the turn", turned, deadline)
+        samples.append(_sample(telemetry, "turn"))
+        offboard.set_velocity_ned(VelocityNedYaw(0.0, 0.0, 1.0, telemetry.heading().heading_deg))
+        _wait_for(
+            "landed and disarmed",
+            lambda: telemetry.landed_state() == LandedState.ON_GROUND and not telemetry.armed(),
+            deadline,
+        )
+        samples.append(_sample(telemetry, "landed"))
+        steps.append("landed")
+    finally:
+        mavsdk.destroy()
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    parser.add_argument("--connect", required=True, help="MAVSDK connection URL, e.g. udpin://127.0.0.1:14540")
+    parser.add_argument("--result", required=True, type=Path, help="where the JSON observations go")
+    parser.add_argument("--timeout-s", type=float, default=80.0, help="wall-clock limit of the whole session")
+    args = parser.parse_args(argv)
+    result: dict[str, Any] = {"mavsdk_version": "", "steps": [], "samples": [], "ok": False, "error": ""}
+    try:
+        fly(args.connect, result, time.monotonic() + args.timeout_s)
+        result["ok"] = True
+    except StepFailedError as exc:
+        result["error"] = str(exc)
+    finally:
+        args.result.write_text(json.dumps(result, indent=1) + "\n")
+    return 0 if result["ok"] else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
