@@ -3,7 +3,9 @@
 PX4-compatible so QGroundControl, MAVSDK, MAVProxy and pymavlink work unmodified: a
 quadrotor with the PX4 autopilot id and ``custom_mode`` encoding, telemetry streams at
 their rates in sim time, commands acked honestly, the mission protocol (MISSION and
-FENCE), float parameters and offboard position setpoints. The autopilot runner owns the clock: it calls ``poll``
+FENCE), float parameters, offboard position and velocity setpoints, and MAVLink FTP over
+an empty file system (each request refused at once, so a client falls back to the other
+protocols without waiting). The autopilot runner owns the clock: it calls ``poll``
 between lockstep frames (never blocks) and ``publish`` once per control step.
 
 Streams run at their rates in sim time, capped at ``max_stream_speedup`` (default 5) times
@@ -30,6 +32,7 @@ from mavlink_bridge.command_protocol import (
     CommandProtocol,
     LocalHandler,
 )
+from mavlink_bridge.ftp_protocol import FtpProtocol
 from mavlink_bridge.gcs_link import MavlinkEndpoint
 from mavlink_bridge.gcs_types import CommandRequest, CommandResult, Severity, TelemetrySnapshot, VehicleInterface
 from mavlink_bridge.mission_protocol import MissionProtocol, TransferTimeouts
@@ -62,6 +65,7 @@ class GcsServerStats:
     param_sets_refused: int
     setpoints_used: int
     setpoints_dropped: int
+    ftp_requests: int
 
 
 class GcsServer:
@@ -104,6 +108,7 @@ class GcsServer:
         )
         self.params = ParamProtocol(self.mav, vehicle, self.statustext)
         self.setpoints = SetpointProtocol(vehicle)
+        self.ftp = FtpProtocol(self.mav)
         local: dict[int, LocalHandler] = {
             MAV_CMD_SET_MESSAGE_INTERVAL: self._cmd_set_message_interval,
             MAV_CMD_REQUEST_MESSAGE: self._cmd_request_message,
@@ -190,6 +195,7 @@ class GcsServer:
             param_sets_refused=self.params.stats.sets_refused,
             setpoints_used=self.setpoints.stats.used,
             setpoints_dropped=self.setpoints.stats.dropped,
+            ftp_requests=self.ftp.stats.requests,
         )
 
     def close(self) -> None:
@@ -219,6 +225,8 @@ class GcsServer:
                 self.params.handle(msg)
             elif kind in SetpointProtocol.HANDLED:
                 self.setpoints.handle(msg)
+            elif kind in FtpProtocol.HANDLED:
+                self.ftp.handle(msg)
         except Exception as exc:  # a vehicle bug or a message we mis-decode must not stop the autopilot
             self._handler_errors += 1
             _log.exception("GCS %s handling failed", kind)

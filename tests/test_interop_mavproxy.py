@@ -9,7 +9,8 @@ GcsClient watches on the API link and downloads what the autopilot holds. One MA
    MAVProxy uploads every line, home included, as items 0..N (ArduPilot convention).
 2. ``wp load`` of a WPL file without a home line (items numbered from 0, PX4 convention).
 3. ``wp save``: MAVProxy downloads the mission back and writes it as QGC WPL; its parameter
-   download (MAVLink FTP first, then PARAM_REQUEST_LIST) completes and ``param set`` changes one.
+   download (MAVLink FTP first, refused at once as FileNotFound, then PARAM_REQUEST_LIST) completes
+   without an FTP timeout and ``param set`` changes one.
 4. ``arm throttle`` and ``long DO_SET_MODE 1 4 4`` (PX4 AUTO.MISSION): the mission is flown. MAVProxy
    1.8.75's own ``mode MISSION`` cannot be used on any PX4 vehicle: it passes pymavlink's px4_map
    tuple where a number is expected ("required argument is not a float"), a client bug.
@@ -250,6 +251,7 @@ def test_mavproxy_wp_save_writes_back_the_mission_it_loaded(session: Session) ->
 
 def test_mavproxy_downloads_every_parameter_and_sets_one(session: Session) -> None:
     assert session.param_count == len(make_param_store().names())
+    assert "FTP: request timed out" not in session.console  # its @PARAM/param.pck open was refused at once
     assert session.param_value == SET_PARAM[1]  # read back by the project's client on the other link
 
 
