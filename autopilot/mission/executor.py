@@ -52,6 +52,7 @@ from enum import IntEnum
 import numpy as np
 
 from autopilot.mission.commands import GripperAction, MavCmd, MissionState
+from autopilot.mission.param_decls import MISSION_PARAM_DEFAULTS
 from autopilot.mission.plan import is_wpl_home_line, item_position_ned, items_match, uses_current_position
 from autopilot.params import ParamStore
 from mavlink_bridge.frames import GeoPoint, LocalNedFrame
@@ -64,12 +65,12 @@ _NAN = float("nan")
 
 @dataclass(frozen=True, slots=True)
 class ExecutorConfig:
-    """Executor settings (MIS_ACC_RAD, MIS_ALT_ACC_RAD, MIS_CRUISE_SPD, MIS_RTL_ALT)."""
+    """Executor settings (MIS_ACC_RAD, MIS_ALT_ACC_RAD, MIS_CRUISE_SPD, MIS_RTL_ALT; defaults: theirs)."""
 
-    accept_radius_m: float = 1.0
-    alt_accept_m: float = 0.8
-    cruise_speed_m_s: float = 5.0
-    rtl_alt_m: float = 30.0
+    accept_radius_m: float = MISSION_PARAM_DEFAULTS["MIS_ACC_RAD"]
+    alt_accept_m: float = MISSION_PARAM_DEFAULTS["MIS_ALT_ACC_RAD"]
+    cruise_speed_m_s: float = MISSION_PARAM_DEFAULTS["MIS_CRUISE_SPD"]
+    rtl_alt_m: float = MISSION_PARAM_DEFAULTS["MIS_RTL_ALT"]
 
     @classmethod
     def from_params(cls, params: ParamStore) -> ExecutorConfig:

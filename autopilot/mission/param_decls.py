@@ -22,3 +22,7 @@ def mission_param_specs() -> list[ParamSpec]:
         ParamSpec("MIS_ALT_MAX", 120.0, 1.0, 10000.0, "m", "Highest altitude above home of any mission item"),
         ParamSpec("MIS_DIST_MAX", 10000.0, 10.0, 1.0e6, "m", "Largest horizontal distance of a mission item from home"),
     ]
+
+
+#: The defaults of :func:`mission_param_specs` by name (the executor's and validation's dataclass defaults).
+MISSION_PARAM_DEFAULTS: dict[str, float] = {spec.name: spec.default for spec in mission_param_specs()}

@@ -24,6 +24,7 @@ from autopilot.mission.commands import (
     frame_name,
 )
 from autopilot.mission.fence import FenceError, geofence_from_items
+from autopilot.mission.param_decls import MISSION_PARAM_DEFAULTS
 from autopilot.mission.plan import alt_rel_home_m, is_wpl_home_line, uses_current_position
 from autopilot.params import ParamStore
 from mavlink_bridge.frames import GeoPoint, LocalNedFrame
@@ -43,13 +44,13 @@ _PARAM_RESULTS = (
 
 @dataclass(frozen=True, slots=True)
 class MissionLimits:
-    """Upload limits; defaults equal the MIS_* parameter defaults."""
+    """Upload limits; defaults are the MIS_* parameter defaults."""
 
-    max_items: int = 1000
-    alt_min_m: float = 1.0
-    alt_max_m: float = 120.0
-    max_dist_m: float = 10000.0
-    max_speed_m_s: float = 20.0
+    max_items: int = int(MISSION_PARAM_DEFAULTS["MIS_MAX_ITEMS"])
+    alt_min_m: float = MISSION_PARAM_DEFAULTS["MIS_ALT_MIN"]
+    alt_max_m: float = MISSION_PARAM_DEFAULTS["MIS_ALT_MAX"]
+    max_dist_m: float = MISSION_PARAM_DEFAULTS["MIS_DIST_MAX"]
+    max_speed_m_s: float = MISSION_PARAM_DEFAULTS["MIS_SPEED_MAX"]
 
     @classmethod
     def from_params(cls, params: ParamStore) -> MissionLimits:
