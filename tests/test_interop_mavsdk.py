@@ -19,6 +19,7 @@ import subprocess
 import time
 from dataclasses import dataclass
 from itertools import pairwise
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -64,6 +65,43 @@ def _mission_item_int(item: MissionItem) -> dict[str, Any]:
     }
 
 
+def _start_pair(
+    tmp_path: Path, seed: int, vehicle: str
+) -> tuple[Ports, int, subprocess.Popen[bytes], subprocess.Popen[bytes]]:
+    """Sim (with WORLD) and autopilot on free ports, the API link answering ``api_target``; (ports, api_target,
+    sim, autopilot)."""
+    ports, api_port, api_target = Ports.free(), free_udp_port(), free_udp_port()
+    sim = start_sim(tmp_path, ports.sim, "--world", str(WORLD), "--seed", str(seed), *SIM_PATIENCE)
+    api = ["--api", f"udpin:127.0.0.1:{api_port}", "--api-target", f"udpout:127.0.0.1:{api_target}"]
+    ap = start_autopilot(tmp_path, ports.sim, ports, "--vehicle", vehicle, *api, *AUTOPILOT_PATIENCE)
+    return ports, api_target, sim, ap
+
+
+def _run_driver(driver: list[str], log: Path, gcs: GcsClient, tmp_path: Path) -> subprocess.Popen[bytes]:
+    """Run a MAVSDK driver once the vehicle has a home, pumping ``gcs`` meanwhile; killed (and the test failed)
+    15 s after its own timeout."""
+    gcs.wait_until(lambda s: s.home is not None, READY_WAIT_S)
+    with open(log, "wb") as out:
+        proc = subprocess.Popen(driver, cwd=tmp_path, stdout=out, stderr=subprocess.STDOUT)
+    deadline = time.monotonic() + DRIVER_TIMEOUT_S + 15.0
+    while proc.poll() is None:
+        if time.monotonic() > deadline:
+            proc.kill()
+            proc.wait()
+            pytest.fail(f"MAVSDK driver hung past its own timeout\n{logs(tmp_path)}")
+        gcs.pump(0.2)
+    return proc
+
+
+def _driver_result(path: Path, proc: subprocess.Popen[bytes], log: Path, exit_codes: tuple[int, int]) -> dict[str, Any]:
+    """The driver's JSON result, once its success and both processes' clean exits (autopilot, sim) are checked."""
+    result = read_json(path)
+    context = f"{result.get('error')}\n{log.read_text(errors='replace')[-3000:]}\n{logs(path.parent)}"
+    assert proc.returncode == 0 and result["ok"], context
+    assert exit_codes == (0, 0), logs(path.parent)
+    return result
+
+
 @dataclass(frozen=True)
 class Flight:
     """What one MAVSDK session observed, what it was given, and both processes' summaries."""
@@ -86,10 +124,7 @@ def flight(tmp_path_factory: pytest.TempPathFactory) -> Flight:
     plan = load_mission_file(WORLD)
     sent = [_mission_item_int(item) for item in short_delivery(plan.home)]
     (tmp_path / "items.json").write_text(json.dumps(sent))
-    ports, api_port, api_target = Ports.free(), free_udp_port(), free_udp_port()
-    sim = start_sim(tmp_path, ports.sim, "--world", str(WORLD), "--seed", "5", *SIM_PATIENCE)
-    api = ["--api", f"udpin:127.0.0.1:{api_port}", "--api-target", f"udpout:127.0.0.1:{api_target}"]
-    ap = start_autopilot(tmp_path, ports.sim, ports, "--vehicle", plan.vehicle, *api, *AUTOPILOT_PATIENCE)
+    ports, api_target, sim, ap = _start_pair(tmp_path, 5, plan.vehicle)
     driver = [
         python, str(MAVSDK_DRIVER), "--connect", f"udpin://127.0.0.1:{api_target}",
         "--items", str(tmp_path / "items.json"), "--result", str(tmp_path / "mavsdk.json"),
@@ -99,23 +134,11 @@ def flight(tmp_path_factory: pytest.TempPathFactory) -> Flight:
     try:
         # The project's client on the GCS link: readiness before MAVSDK's clock starts, and a second witness.
         with GcsClient(f"udpin:127.0.0.1:{ports.gcs_target}", timeout_s=20.0) as gcs:
-            gcs.wait_until(lambda s: s.home is not None, READY_WAIT_S)
-            with open(driver_log, "wb") as out:
-                proc = subprocess.Popen(driver, cwd=tmp_path, stdout=out, stderr=subprocess.STDOUT)
-            deadline = time.monotonic() + DRIVER_TIMEOUT_S + 15.0
-            while proc.poll() is None:
-                if time.monotonic() > deadline:
-                    proc.kill()
-                    proc.wait()
-                    pytest.fail(f"MAVSDK driver hung past its own timeout\n{logs(tmp_path)}")
-                gcs.pump(0.2)
+            proc = _run_driver(driver, driver_log, gcs, tmp_path)
             held = gcs.download_mission()
     finally:
         ap_rc, sim_rc = stop(ap), stop(sim)
-    result = read_json(tmp_path / "mavsdk.json")
-    context = f"{result.get('error')}\n{driver_log.read_text(errors='replace')[-3000:]}\n{logs(tmp_path)}"
-    assert proc.returncode == 0 and result["ok"], context
-    assert (ap_rc, sim_rc) == (0, 0), logs(tmp_path)
+    result = _driver_result(tmp_path / "mavsdk.json", proc, driver_log, (ap_rc, sim_rc))
     summaries = read_json(tmp_path / "autopilot_summary.json"), read_json(tmp_path / "sim_summary.json")
     return Flight(sent, result, [_mission_item_int(item) for item in held], plan.home, *summaries)
 
@@ -160,17 +183,13 @@ def test_mavsdk_mission_progress_never_steps_back(flight: Flight) -> None:
     assert all(a[0] <= b[0] for a, b in pairwise(progress)), progress
 
 
-def test_mavsdk_offboard_velocity_takeoff_cruise_turn_land(tmp_path) -> None:  # type: ignore[no-untyped-def]
+def test_mavsdk_offboard_velocity_takeoff_cruise_turn_land(tmp_path: Path) -> None:
     """MAVSDK's Offboard plugin on velocity setpoints: a climbing setpoint takes off, 2 m/s north is flown,
     a body-frame velocity with a yaw speed turns the vehicle, a descending setpoint lands it and it disarms."""
     python = mavsdk4_python()
     if python is None:
         pytest.skip("mavsdk>=4 not importable here nor in $QUADSITL_INTEROP_PYTHON")
-    ports, api_port, api_target = Ports.free(), free_udp_port(), free_udp_port()
-    sim = start_sim(tmp_path, ports.sim, "--world", str(WORLD), "--seed", "6", *SIM_PATIENCE)
-    api = ["--api", f"udpin:127.0.0.1:{api_port}", "--api-target", f"udpout:127.0.0.1:{api_target}"]
-    plan = load_mission_file(WORLD)
-    ap = start_autopilot(tmp_path, ports.sim, ports, "--vehicle", plan.vehicle, *api, *AUTOPILOT_PATIENCE)
+    ports, api_target, sim, ap = _start_pair(tmp_path, 6, load_mission_file(WORLD).vehicle)
     driver = [
         python, str(MAVSDK_OFFBOARD_DRIVER), "--connect", f"udpin://127.0.0.1:{api_target}",
         "--result", str(tmp_path / "offboard.json"), "--timeout-s", str(DRIVER_TIMEOUT_S),
@@ -178,22 +197,10 @@ def test_mavsdk_offboard_velocity_takeoff_cruise_turn_land(tmp_path) -> None:  #
     driver_log = tmp_path / "mavsdk_offboard.log"
     try:
         with GcsClient(f"udpin:127.0.0.1:{ports.gcs_target}", timeout_s=20.0) as gcs:
-            gcs.wait_until(lambda s: s.home is not None, READY_WAIT_S)
-            with open(driver_log, "wb") as out:
-                proc = subprocess.Popen(driver, cwd=tmp_path, stdout=out, stderr=subprocess.STDOUT)
-            deadline = time.monotonic() + DRIVER_TIMEOUT_S + 15.0
-            while proc.poll() is None:
-                if time.monotonic() > deadline:
-                    proc.kill()
-                    proc.wait()
-                    pytest.fail(f"MAVSDK driver hung past its own timeout\n{logs(tmp_path)}")
-                gcs.pump(0.2)
+            proc = _run_driver(driver, driver_log, gcs, tmp_path)
     finally:
         ap_rc, sim_rc = stop(ap), stop(sim)
-    result = read_json(tmp_path / "offboard.json")
-    context = f"{result.get('error')}\n{driver_log.read_text(errors='replace')[-3000:]}\n{logs(tmp_path)}"
-    assert proc.returncode == 0 and result["ok"], context
-    assert (ap_rc, sim_rc) == (0, 0), logs(tmp_path)
+    result = _driver_result(tmp_path / "offboard.json", proc, driver_log, (ap_rc, sim_rc))
     samples = {s["phase"]: s for s in result["samples"]}  # type: ignore[union-attr]
     assert samples["climb"]["vel_ned_m_s"][2] == pytest.approx(-1.5, abs=0.3)
     assert samples["cruise"]["vel_ned_m_s"] == pytest.approx([2.0, 0.0, 0.0], abs=0.3)

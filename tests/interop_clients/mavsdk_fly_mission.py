@@ -16,7 +16,6 @@ mission completed with the vehicle landed and disarmed, 1 on a failed step, 2 on
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import threading
@@ -24,11 +23,11 @@ import time
 from pathlib import Path
 from typing import Any
 
-from mavsdk import ComponentType, Configuration, Mavsdk
 from mavsdk.plugins.action import Action, ActionError
 from mavsdk.plugins.mission_raw import MissionItem, MissionRaw, MissionRawError
 from mavsdk.plugins.param import Param, ParamError
 from mavsdk.plugins.telemetry import LandedState, Telemetry
+from mavsdk_session import StepFailedError, connect, session_parser, wait_for, wait_position_ok
 
 _ITEM_FIELDS = (
     "seq",
@@ -45,11 +44,6 @@ _ITEM_FIELDS = (
     "z",
     "mission_type",
 )
-_POLL_S = 0.05
-
-
-class StepFailedError(Exception):
-    """A step of the flight did not succeed; the message says which and why."""
 
 
 class Recorder:
@@ -92,13 +86,6 @@ def _item_dict(item: MissionItem) -> dict[str, Any]:
     return {name: getattr(item, name) for name in _ITEM_FIELDS}
 
 
-def _wait_for(what: str, predicate: Any, deadline: float) -> None:
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise StepFailedError(f"timed out waiting for {what}")
-        time.sleep(_POLL_S)
-
-
 def check_params(param: Param, set_name: str, set_value: float, rec: Recorder) -> None:
     """Download every parameter, then set one float and read it back (PARAM_SET -> PARAM_VALUE)."""
     try:
@@ -123,17 +110,9 @@ def fly(
     connect_url: str, items: list[MissionItem], set_param: tuple[str, float], rec: Recorder, deadline: float
 ) -> None:
     """The whole client session (see module docstring); raises StepFailedError on the first failed step."""
-    config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
-    mavsdk = Mavsdk(config)
+    mavsdk, system = connect(connect_url, deadline)
     try:
         rec.data["mavsdk_version"] = mavsdk.version()
-        result = mavsdk.add_any_connection(connect_url)
-        rec.step("connection", result=result.name)
-        if result.name != "SUCCESS":
-            raise StepFailedError(f"add_any_connection({connect_url}) -> {result.name}")
-        system = mavsdk.first_autopilot(max(1.0, deadline - time.monotonic()))
-        if system is None:
-            raise StepFailedError("no autopilot discovered")
         rec.step(
             "discovered",
             system_id=system.get_system_id(),
@@ -144,12 +123,7 @@ def fly(
         telemetry.subscribe_flight_mode(lambda mode, _ud: rec.append_if_new("flight_modes", mode.name))
         telemetry.subscribe_status_text(lambda st, _ud: rec.append_if_new("status_texts", st.text))
         mission.subscribe_mission_progress(lambda p, _ud: rec.append_if_new("progress", [int(p.current), int(p.total)]))
-
-        def position_ok() -> bool:
-            health = telemetry.health()
-            return bool(health.is_home_position_ok and health.is_global_position_ok)
-
-        _wait_for("home and global position health", position_ok, deadline)
+        wait_position_ok(telemetry, deadline)
         # the subscription reports changes only: record the mode on the ground (HOLD) explicitly
         rec.append_if_new("flight_modes", telemetry.flight_mode().name)
         health = telemetry.health()
@@ -180,9 +154,9 @@ def fly(
         rec.step("started")
 
         total = len(items)
-        _wait_for("mission progress to reach the last item", lambda: rec.last("progress") == [total, total], deadline)
+        wait_for("mission progress to reach the last item", lambda: rec.last("progress") == [total, total], deadline)
         rec.step("mission_finished", progress=rec.last("progress"))
-        _wait_for(
+        wait_for(
             "landed and disarmed",
             lambda: telemetry.landed_state() == LandedState.ON_GROUND and not telemetry.armed(),
             deadline,
@@ -199,12 +173,9 @@ def fly(
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--connect", required=True, help="MAVSDK connection URL, e.g. udpin://127.0.0.1:14540")
+    parser = session_parser(__doc__.split("\n", 1)[0])
     parser.add_argument("--items", required=True, type=Path, help="JSON list of MISSION_ITEM_INT field dicts")
-    parser.add_argument("--result", required=True, type=Path, help="where the JSON observations go")
     parser.add_argument("--set-param", required=True, nargs=2, metavar=("NAME", "VALUE"), help="a float to set")
-    parser.add_argument("--timeout-s", type=float, default=80.0, help="wall-clock limit of the whole session")
     args = parser.parse_args(argv)
     try:
         raw = json.loads(args.items.read_text())

@@ -15,33 +15,19 @@ north/east/down m, NED velocity m/s, heading deg); exit code 0 only when every p
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
-from pathlib import Path
 from typing import Any
 
-from mavsdk import ComponentType, Configuration, Mavsdk
 from mavsdk.plugins.action import Action, ActionError
 from mavsdk.plugins.offboard import Offboard, OffboardError, VelocityBodyYawspeed, VelocityNedYaw
 from mavsdk.plugins.telemetry import LandedState, Telemetry
+from mavsdk_session import StepFailedError, connect, session_parser, wait_for, wait_position_ok
 
-_POLL_S = 0.02
 CLIMB_TO_M = 8.0
 CRUISE_NORTH_M = 15.0
 TURN_DEG = 80.0
-
-
-class StepFailedError(Exception):
-    """A step of the flight did not succeed; the message says which and why."""
-
-
-def _wait_for(what: str, predicate: Any, deadline: float) -> None:
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise StepFailedError(f"timed out waiting for {what}")
-        time.sleep(_POLL_S)
 
 
 def _sample(telemetry: Telemetry, phase: str) -> dict[str, Any]:
@@ -59,22 +45,12 @@ def _sample(telemetry: Telemetry, phase: str) -> dict[str, Any]:
 
 def fly(connect_url: str, result: dict[str, Any], deadline: float) -> None:
     """The whole client session (see module docstring); raises StepFailedError on the first failed step."""
-    mavsdk = Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))
     steps, samples = result["steps"], result["samples"]
+    mavsdk, system = connect(connect_url, deadline)
     try:
         result["mavsdk_version"] = mavsdk.version()
-        if mavsdk.add_any_connection(connect_url).name != "SUCCESS":
-            raise StepFailedError(f"add_any_connection({connect_url}) failed")
-        system = mavsdk.first_autopilot(max(1.0, deadline - time.monotonic()))
-        if system is None:
-            raise StepFailedError("no autopilot discovered")
         telemetry, action, offboard = Telemetry(system), Action(system), Offboard(system)
-
-        def position_ok() -> bool:
-            health = telemetry.health()
-            return bool(health.is_home_position_ok and health.is_global_position_ok)
-
-        _wait_for("home and global position health", position_ok, deadline)
+        wait_position_ok(telemetry, deadline)
         steps.append("ready")
         try:
             offboard.set_velocity_ned(VelocityNedYaw(0.0, 0.0, -1.5, 0.0))  # PX4: a setpoint before start
@@ -85,11 +61,11 @@ def fly(connect_url: str, result: dict[str, Any], deadline: float) -> None:
         except (OffboardError, ActionError) as exc:
             raise StepFailedError(f"{exc.origin} -> {exc.result.name}") from None
 
-        _wait_for("the climb", lambda: -telemetry.position_velocity_ned().position.down_m > CLIMB_TO_M, deadline)
+        wait_for("the climb", lambda: -telemetry.position_velocity_ned().position.down_m > CLIMB_TO_M, deadline)
         samples.append(_sample(telemetry, "climb"))
         start_north = telemetry.position_velocity_ned().position.north_m
         offboard.set_velocity_ned(VelocityNedYaw(2.0, 0.0, 0.0, 0.0))
-        _wait_for(
+        wait_for(
             "the cruise north",
             lambda: telemetry.position_velocity_ned().position.north_m - start_north > CRUISE_NORTH_M,
             deadline,
@@ -101,10 +77,10 @@ def fly(connect_url: str, result: dict[str, Any], deadline: float) -> None:
         def turned() -> bool:
             return (telemetry.heading().heading_deg - heading0) % 360.0 > TURN_DEG
 
-        _wait_for("the turn", turned, deadline)
+        wait_for("the turn", turned, deadline)
         samples.append(_sample(telemetry, "turn"))
         offboard.set_velocity_ned(VelocityNedYaw(0.0, 0.0, 1.0, telemetry.heading().heading_deg))
-        _wait_for(
+        wait_for(
             "landed and disarmed",
             lambda: telemetry.landed_state() == LandedState.ON_GROUND and not telemetry.armed(),
             deadline,
@@ -116,11 +92,7 @@ def fly(connect_url: str, result: dict[str, Any], deadline: float) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--connect", required=True, help="MAVSDK connection URL, e.g. udpin://127.0.0.1:14540")
-    parser.add_argument("--result", required=True, type=Path, help="where the JSON observations go")
-    parser.add_argument("--timeout-s", type=float, default=80.0, help="wall-clock limit of the whole session")
-    args = parser.parse_args(argv)
+    args = session_parser(__doc__.split("\n", 1)[0]).parse_args(argv)
     result: dict[str, Any] = {"mavsdk_version": "", "steps": [], "samples": [], "ok": False, "error": ""}
     try:
         fly(args.connect, result, time.monotonic() + args.timeout_s)

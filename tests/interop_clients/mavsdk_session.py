@@ -1,0 +1,67 @@
+"""What the MAVSDK driver scripts share: errors, waiting, connecting, readiness and their common options.
+
+Imported by the drivers as a sibling module (their folder is first on ``sys.path`` when run as scripts), in an
+interpreter where ``mavsdk>=4`` is importable; imports nothing from quadsitl.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+from typing import Any
+
+from mavsdk import ComponentType, Configuration, Mavsdk
+from mavsdk.plugins.telemetry import Telemetry
+
+POLL_S = 0.02
+
+
+class StepFailedError(Exception):
+    """A step of the session did not succeed; the message says which and why."""
+
+
+def wait_for(what: str, predicate: Any, deadline: float) -> None:
+    """Poll ``predicate`` until it holds; StepFailedError after ``deadline`` (monotonic)."""
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise StepFailedError(f"timed out waiting for {what}")
+        time.sleep(POLL_S)
+
+
+def connect(connect_url: str, deadline: float) -> tuple[Mavsdk, Any]:
+    """A ground-station MAVSDK instance and the first autopilot it discovers on ``connect_url``.
+
+    The caller destroys the instance (``mavsdk.destroy()``), also when this raises after creating it.
+    """
+    mavsdk = Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))
+    try:
+        result = mavsdk.add_any_connection(connect_url)
+        if result.name != "SUCCESS":
+            raise StepFailedError(f"add_any_connection({connect_url}) -> {result.name}")
+        system = mavsdk.first_autopilot(max(1.0, deadline - time.monotonic()))
+        if system is None:
+            raise StepFailedError("no autopilot discovered")
+    except BaseException:
+        mavsdk.destroy()
+        raise
+    return mavsdk, system
+
+
+def wait_position_ok(telemetry: Telemetry, deadline: float) -> None:
+    """Until the home and global position health flags are set (what arming and missions need)."""
+
+    def position_ok() -> bool:
+        health = telemetry.health()
+        return bool(health.is_home_position_ok and health.is_global_position_ok)
+
+    wait_for("home and global position health", position_ok, deadline)
+
+
+def session_parser(description: str) -> argparse.ArgumentParser:
+    """``--connect``, ``--result`` and ``--timeout-s``: the options every driver takes."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--connect", required=True, help="MAVSDK connection URL, e.g. udpin://127.0.0.1:14540")
+    parser.add_argument("--result", required=True, type=Path, help="where the JSON observations go")
+    parser.add_argument("--timeout-s", type=float, default=80.0, help="wall-clock limit of the whole session")
+    return parser
