@@ -170,8 +170,9 @@ def test_rtl_and_land_commanded_in_flight(tmp_path: Path, command: str, mode: Fl
     off_home_m = math.hypot(final_ned[0], final_ned[1])
     if command == "rtl":
         assert off_home_m < 1.5
-    else:  # landed on the first leg, past where LAND was sent, short of the first waypoint
-        assert 20.0 < final_ned[0] < 35.0 and abs(final_ned[1]) < 2.0
+    else:  # landed on the first leg, past where LAND was sent, short of the first waypoint (north 40 m, 1 m radius):
+        # how far past 20 m depends on wall-clock latency at --speed max (stale telemetry, the command's trip)
+        assert 20.0 < final_ned[0] < 39.0 and abs(final_ned[1]) < 2.0
 
 
 # ---- a parameter changed in flight ---------------------------------------------------------------------------
