@@ -119,6 +119,8 @@ class Commander:
         self._takeoff_down_m = 0.0
         self._takeoff_alt_rel_m = 0.0
         self._land_ne: tuple[float, float] = (0.0, 0.0)
+        self._land_key: tuple[object, ...] = ()
+        self._land_nav: NavTarget | None = None
         self._rtl_phase = RtlPhase.CLIMB
         self._rtl_down_m = 0.0
         self._rtl_loiter_until_us = 0
@@ -491,11 +493,24 @@ class Commander:
             self._lndmc = (p("LNDMC_Z_VEL_MAX"), p("LNDMC_XY_VEL_MAX"), p("LNDMC_LOW_T_THR"), trig_us)
         return self._lndmc
 
-    def _land_target(self, state: VehicleState) -> NavTarget:
+    def land_speed_m_s(self, state: VehicleState) -> float:
+        """Descent speed of a landing: MPC_LAND_SPEED below MPC_LAND_ALT2 above home, else MPC_Z_VEL_MAX_DN."""
         p = self.params.get
-        speed_dn = p("MPC_LAND_SPEED") if self.alt_rel_home_m(state) < p("MPC_LAND_ALT2") else p("MPC_Z_VEL_MAX_DN")
-        pos = (self._land_ne[0], self._land_ne[1], state.pos_ned_m[2])
-        return NavTarget(TargetKind.LAND, pos, math.nan, self.speed_xy_m_s, p("MPC_Z_VEL_MAX_UP"), speed_dn)
+        return p("MPC_LAND_SPEED") if self.alt_rel_home_m(state) < p("MPC_LAND_ALT2") else p("MPC_Z_VEL_MAX_DN")
+
+    def _land_target(self, state: VehicleState) -> NavTarget:
+        """LAND over ``_land_ne``; one object while the spot, the speeds and the parameters stay (so the setpoint
+        generator's prepared step applies). Its down is the vehicle's when it was made: LAND holds only the xy."""
+        speed_dn, speed_xy = self.land_speed_m_s(state), self.speed_xy_m_s
+        key = (self._land_ne, speed_dn, speed_xy, self.params.version)
+        nav = self._land_nav
+        if nav is None or key != self._land_key:
+            self._land_key = key
+            pos = (self._land_ne[0], self._land_ne[1], state.pos_ned_m[2])
+            nav = self._land_nav = NavTarget(
+                TargetKind.LAND, pos, math.nan, speed_xy, self.params.get("MPC_Z_VEL_MAX_UP"), speed_dn
+            )
+        return nav
 
     def _mode_target(self, state: VehicleState) -> NavTarget:
         """The target of the current mode, as if airborne."""

@@ -224,12 +224,17 @@ def _mission_to_nav(
     if kind is NavKind.IDLE:
         return NavTarget(TargetKind.IDLE, (n, e, d))
     if kind is NavKind.LAND:
-        alt = commander.alt_rel_home_m(commander.state) if commander.state is not None else 0.0
-        down = p("MPC_LAND_SPEED") if alt < p("MPC_LAND_ALT2") else down
-        return NavTarget(TargetKind.LAND, (n, e, d), yaw, speed, up, down)
+        return NavTarget(TargetKind.LAND, (n, e, d), yaw, speed, up, _mission_land_speed(commander))
     if kind is NavKind.TAKEOFF:
         up = p("MPC_TKO_SPEED")
     return NavTarget(TargetKind.POSITION, (n, e, d), yaw, speed, up, down)
+
+
+def _mission_land_speed(commander: Commander) -> float:
+    """The descent speed of a mission LAND at the commander's latest state (MPC_LAND_SPEED before any: the
+    vehicle is then taken to be at home's height, below MPC_LAND_ALT2)."""
+    state = commander.state
+    return commander.land_speed_m_s(state) if state is not None else commander.params.get("MPC_LAND_SPEED")
 
 
 class Autopilot:
@@ -646,11 +651,13 @@ class Autopilot:
             commander.set_mission_target(None)
             return
         face = self._face_along_path(pos, target)
-        # built once per executor target, home and parameter set (LAND reads the altitude: every step); a target
-        # that faces along the path gets this step's heading (the only field that changes)
-        key = (target, home, self._param_version)
+        # built once per executor target, home and parameter set (and LAND descent speed, which changes at
+        # MPC_LAND_ALT2); a target that faces along the path gets this step's heading (the only field that changes)
+        key: tuple[object, ...] = (target, home, self._param_version)
+        if target.kind is NavKind.LAND:
+            key = (*key, _mission_land_speed(commander))
         nav = self._mission_nav
-        if key != self._mission_nav_key or target.kind is NavKind.LAND or nav is None:
+        if key != self._mission_nav_key or nav is None:
             self._mission_nav_key = key
             nav = _mission_to_nav(target, home, commander, face)
             self._mission_nav_faces = math.isnan(target.yaw_deg) and target.kind in (NavKind.WAYPOINT, NavKind.RETURN)
