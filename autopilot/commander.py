@@ -9,7 +9,9 @@ State: ``armed``; ``mode`` (PX4-encoded :class:`FlightMode`); ``landed_state``
 (:class:`LandedState`); ``home`` (set at the first 3D GPS fix and again at arming, as PX4
 does); ``gripper_release``. Modes:
 
-- AUTO_LOITER (HOLD) and POSCTL (no RC here, so it holds too): hold a point.
+- AUTO_LOITER (HOLD): hold a point. POSCTL: fly the joystick (MANUAL_CONTROL, :meth:`set_manual_input`) as
+  velocities about the heading while it keeps coming (``manual_fresh``, set by the runner); centred sticks or
+  no joystick: hold (see :mod:`autopilot.manual_control`).
 - AUTO_TAKEOFF: climb to the takeoff altitude above home at ``MPC_TKO_SPEED``, then HOLD.
 - AUTO_LAND: descend (``MPC_Z_VEL_MAX_DN``, then ``MPC_LAND_SPEED`` below ``MPC_LAND_ALT2``)
   until the land detector sees touchdown, then auto-disarm after ``COM_DISARM_LAND``.
@@ -37,10 +39,19 @@ from enum import Enum
 
 from autopilot.estimator import VehicleState
 from autopilot.failsafe import FailsafeAction, FailsafeEvent
+from autopilot.manual_control import stick_demand
 from autopilot.params import ParamStore
 from autopilot.setpoints import NavTarget, TargetKind
 from mavlink_bridge.frames import GeoPoint, LocalNedFrame
-from mavlink_bridge.gcs_types import CommandRequest, CommandResult, FlightMode, LandedState, Severity, StatusText
+from mavlink_bridge.gcs_types import (
+    CommandRequest,
+    CommandResult,
+    FlightMode,
+    LandedState,
+    ManualInput,
+    Severity,
+    StatusText,
+)
 from mavlink_bridge.wire import Vec3, fast_frozen_init
 
 #: COMPONENT_ARM_DISARM param2 magic that forces arming/disarming (PX4/ArduPilot).
@@ -51,6 +62,10 @@ _CUSTOM_MODE_ENABLED = 1
 _TAKEOFF_TRIGGER_M = 0.5
 #: On the ground in OFFBOARD, a velocity setpoint climbing at least this fast takes off (m/s).
 _TAKEOFF_TRIGGER_M_S = 0.3
+#: POSCTL: after the sticks let go, the vehicle holds where it is once slower than this on each axis (m/s) ...
+_STICK_STOPPED_M_S = 0.2
+#: ... or after braking this long (sim µs), whichever comes first.
+_STICK_BRAKE_MAX_US = 5_000_000
 #: Face the target only when it is at least this far away horizontally (m).
 _FACE_TARGET_MIN_M = 2.0
 #: Outside AUTO_TAKEOFF, a climbing vehicle counts as in the air above this height over home (m).
@@ -106,6 +121,7 @@ class Commander:
         self.failsafe_reasons: set[str] = set()
         self.mission_ready = False  # set by the runner: a valid mission is loaded
         self.offboard_streaming = False  # set by the runner: setpoints arrived within COM_OF_LOSS_T
+        self.manual_fresh = False  # set by the runner: joystick input arrived within COM_RC_LOSS_T
         self.last_reason = ""
         self.mode_history: list[tuple[int, FlightMode]] = []
         self._texts: list[StatusText] = []
@@ -131,6 +147,9 @@ class Commander:
         self._lndmc = (0.0, 0.0, 0.0, 0.0)
         self._mission_target: NavTarget | None = None
         self._offboard_target: NavTarget | None = None
+        self._sticks: ManualInput | None = None
+        self._sticks_flying = False  # POSCTL flies the sticks, or brakes after them (not yet holding)
+        self._stick_brake_since_us: int | None = None
         self._landed_since_us: int | None = None
         self._touchdown_us: int | None = None
         self._armed_at_us = 0
@@ -461,6 +480,37 @@ class Commander:
             TargetKind.VELOCITY, nan3, yaw_rad, *self._speeds(), vel_ned_m_s, yaw_rate_rad_s
         )
 
+    def set_manual_input(self, sticks: ManualInput) -> None:
+        """The latest joystick input (MANUAL_CONTROL); flown in POSCTL while ``manual_fresh``."""
+        self._sticks = sticks
+
+    def _stick_target(self, state: VehicleState) -> NavTarget | None:
+        """POSCTL: the sticks' velocity target, or None to hold. When the sticks let go (centred, or stale) the
+        vehicle brakes to a stop (a zero velocity target) and then holds where it stopped, as PX4 does: no
+        overshoot and return to a precomputed point."""
+        sticks = self._sticks
+        demand = None
+        if sticks is not None and self.manual_fresh and state.valid:
+            demand = stick_demand(sticks, state.yaw_rad, self.params)
+        nan3 = (math.nan, math.nan, math.nan)
+        if demand is not None:
+            self._sticks_flying = True
+            self._stick_brake_since_us = None
+            vel, yaw_rate = demand.vel_ned_m_s, demand.yaw_rate_rad_s
+            speeds = (demand.speed_xy_m_s, demand.speed_up_m_s, demand.speed_down_m_s)
+            return NavTarget(TargetKind.VELOCITY, nan3, math.nan, *speeds, vel, yaw_rate)
+        if not self._sticks_flying:
+            return None
+        if self._stick_brake_since_us is None:
+            self._stick_brake_since_us = state.time_us
+        vn, ve, vd = state.vel_ned_m_s
+        slow = math.hypot(vn, ve) < _STICK_STOPPED_M_S and abs(vd) < _STICK_STOPPED_M_S
+        if slow or state.time_us - self._stick_brake_since_us >= _STICK_BRAKE_MAX_US:
+            self._sticks_flying = False
+            self._hold_ned, self._hold_yaw = state.pos_ned_m, math.nan
+            return None
+        return NavTarget(TargetKind.VELOCITY, nan3, math.nan, *self._speeds(), (0.0, 0.0, 0.0))
+
     def apply_failsafe(self, event: FailsafeEvent) -> None:
         """React to a failsafe that just triggered (action from its parameter)."""
         self._say(event.message, Severity.CRITICAL if event.action >= FailsafeAction.HOLD else Severity.WARNING)
@@ -531,6 +581,10 @@ class Commander:
             return self._mission_target
         if mode is FlightMode.OFFBOARD and self._offboard_target is not None:
             return self._offboard_target
+        if mode is FlightMode.POSCTL:
+            stick_target = self._stick_target(state)
+            if stick_target is not None:
+                return stick_target
         key = (self._hold_ned, self._hold_yaw, *self._speeds())
         if key != self._hold_key:  # the same hold target every step while nothing changes: build it once
             self._hold_key = key

@@ -33,6 +33,10 @@ def nav_param_specs() -> list[ParamSpec]:
         ParamSpec("MPC_JERK_AUTO", 8.0, 1.0, 80.0, "m/s^3", "Jerk limit of the setpoint acceleration"),
         ParamSpec("MPC_YAWRAUTO_MAX", 45.0, 5.0, 360.0, "deg/s", "Yaw rate limit of the yaw setpoint"),
         ParamSpec("MPC_YAW_MODE", 0.0, 0.0, 1.0, "", "Yaw in auto modes: 0 face the target, 1 keep heading"),
+        # -- position mode from a joystick (MANUAL_CONTROL; autopilot.manual_control) --------------
+        ParamSpec("MPC_VEL_MANUAL", 10.0, 0.5, 30.0, "m/s", "POSCTL: horizontal speed at full stick (capped)"),
+        ParamSpec("MPC_HOLD_DZ", 0.1, 0.0, 0.5, "", "POSCTL: stick deadzone (fraction of full stick) of every axis"),
+        ParamSpec("COM_RC_LOSS_T", 0.5, 0.1, 35.0, "s", "Joystick silence (wall clock) after which POSCTL holds"),
         # -- return to launch -----------------------------------------------------------------
         ParamSpec("RTL_LAND_DELAY", 0.0, 0.0, 300.0, "s", "Hover above home this long before landing"),
         # -- land detector and arming ---------------------------------------------------------

@@ -63,6 +63,7 @@ from mavlink_bridge.gcs_types import (
     FlightMode,
     LandedState,
     LocalPositionTarget,
+    ManualInput,
     MissionItem,
     MissionResult,
     MissionType,
@@ -264,8 +265,9 @@ class Autopilot:
         self.planner = planner
         self.geofence = Geofence()
         self.script = script
-        self.wall_clock = wall_clock  # offboard setpoint ages only (a real-time peer, SPEC §3)
+        self.wall_clock = wall_clock  # offboard setpoint and joystick ages only (real-time peers, SPEC §3)
         self._offboard_wall_s: float | None = None  # when the last offboard setpoint arrived
+        self._manual_wall_s: float | None = None  # when the last joystick input (MANUAL_CONTROL) arrived
         self.commander = Commander(self.params)
         self.setpoints = SetpointGenerator(self._setpoint_limits())
         self.failsafe = FailsafeMonitor(self.params)
@@ -503,14 +505,29 @@ class Autopilot:
         self._offboard_wall_s = self.wall_clock()
         self.commander.offboard_streaming = True
 
-    def offboard_setpoint_age_s(self) -> float | None:
-        """Wall seconds since the last offboard setpoint, stretched by 1/speed when the sim runs slower than
-        real time (like the GCS link timeouts); None if none ever came."""
-        if self._offboard_wall_s is None:
+    def set_manual_input(self, sticks: ManualInput) -> bool:
+        """Joystick input (MANUAL_CONTROL); POSCTL flies it while it keeps coming (COM_RC_LOSS_T)."""
+        self.commander.set_manual_input(sticks)
+        self._manual_wall_s = self.wall_clock()
+        self.commander.manual_fresh = True
+        return True
+
+    def _link_age_s(self, heard_wall_s: float | None) -> float | None:
+        """Wall seconds since ``heard_wall_s``, stretched by 1/speed when the sim runs slower than real time
+        (like the GCS link timeouts); None if never heard."""
+        if heard_wall_s is None:
             return None
-        age = self.wall_clock() - self._offboard_wall_s
+        age = self.wall_clock() - heard_wall_s
         speed = self.config.speed_factor
         return age * speed if 0.0 < speed < 1.0 else age
+
+    def offboard_setpoint_age_s(self) -> float | None:
+        """Wall seconds since the last offboard setpoint (see ``_link_age_s``); None if none ever came."""
+        return self._link_age_s(self._offboard_wall_s)
+
+    def _update_manual_fresh(self) -> None:
+        age = self._link_age_s(self._manual_wall_s)
+        self.commander.manual_fresh = age is not None and age <= self.params.get("COM_RC_LOSS_T")
 
     def _update_offboard_streaming(self) -> float | None:
         age = self.offboard_setpoint_age_s()
@@ -611,6 +628,7 @@ class Autopilot:
         self._next_failsafe_us = state.time_us + FAILSAFE_PERIOD_US
         commander = self.commander
         offboard_age = self._update_offboard_streaming()
+        self._update_manual_fresh()
         events = self.failsafe.update(
             FailsafeInputs(
                 armed=commander.armed,
@@ -1003,6 +1021,9 @@ class VehicleAdapter:
 
     def set_velocity_target(self, target: VelocityTarget) -> bool:
         return self._ap.set_velocity_target(target)
+
+    def set_manual_input(self, sticks: ManualInput) -> bool:
+        return self._ap.set_manual_input(sticks)
 
     def param_names(self) -> list[str]:
         return self._ap.params.names()

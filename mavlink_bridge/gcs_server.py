@@ -3,7 +3,8 @@
 PX4-compatible so QGroundControl, MAVSDK, MAVProxy and pymavlink work unmodified: a
 quadrotor with the PX4 autopilot id and ``custom_mode`` encoding, telemetry streams at
 their rates in sim time, commands acked honestly, the mission protocol (MISSION and
-FENCE), float parameters, offboard position and velocity setpoints, and MAVLink FTP over
+FENCE), float parameters, offboard position and velocity setpoints, joystick input
+(MANUAL_CONTROL), and MAVLink FTP over
 an empty file system (each request refused at once, so a client falls back to the other
 protocols without waiting). The autopilot runner owns the clock: it calls ``poll``
 between lockstep frames (never blocks) and ``publish`` once per control step.
@@ -35,6 +36,7 @@ from mavlink_bridge.command_protocol import (
 from mavlink_bridge.ftp_protocol import FtpProtocol
 from mavlink_bridge.gcs_link import MavlinkEndpoint
 from mavlink_bridge.gcs_types import CommandRequest, CommandResult, Severity, TelemetrySnapshot, VehicleInterface
+from mavlink_bridge.manual_control_protocol import ManualControlProtocol
 from mavlink_bridge.mission_protocol import MissionProtocol, TransferTimeouts
 from mavlink_bridge.param_protocol import ParamProtocol
 from mavlink_bridge.setpoint_protocol import SetpointProtocol
@@ -66,6 +68,7 @@ class GcsServerStats:
     setpoints_used: int
     setpoints_dropped: int
     ftp_requests: int
+    manual_inputs_used: int
 
 
 class GcsServer:
@@ -109,6 +112,7 @@ class GcsServer:
         self.params = ParamProtocol(self.mav, vehicle, self.statustext)
         self.setpoints = SetpointProtocol(vehicle)
         self.ftp = FtpProtocol(self.mav)
+        self.manual = ManualControlProtocol(vehicle, system_id)
         local: dict[int, LocalHandler] = {
             MAV_CMD_SET_MESSAGE_INTERVAL: self._cmd_set_message_interval,
             MAV_CMD_REQUEST_MESSAGE: self._cmd_request_message,
@@ -196,6 +200,7 @@ class GcsServer:
             setpoints_used=self.setpoints.stats.used,
             setpoints_dropped=self.setpoints.stats.dropped,
             ftp_requests=self.ftp.stats.requests,
+            manual_inputs_used=self.manual.stats.used,
         )
 
     def close(self) -> None:
@@ -227,6 +232,8 @@ class GcsServer:
                 self.setpoints.handle(msg)
             elif kind in FtpProtocol.HANDLED:
                 self.ftp.handle(msg)
+            elif kind in ManualControlProtocol.HANDLED:
+                self.manual.handle(msg)
         except Exception as exc:  # a vehicle bug or a message we mis-decode must not stop the autopilot
             self._handler_errors += 1
             _log.exception("GCS %s handling failed", kind)

@@ -175,6 +175,17 @@ class GlobalPositionTarget:
 PositionTarget = LocalPositionTarget | GlobalPositionTarget
 
 
+@dataclass(frozen=True, slots=True)
+class ManualInput:
+    """MANUAL_CONTROL sticks, normalized: ``forward`` (pitch stick), ``right`` (roll stick) and ``yaw`` in [-1, 1],
+    ``throttle`` in [0, 1] with 0.5 = centre (hold altitude in POSCTL)."""
+
+    forward: float = 0.0
+    right: float = 0.0
+    throttle: float = 0.5
+    yaw: float = 0.0
+
+
 class VelocityFrame(IntEnum):
     """The axes of an offboard velocity setpoint."""
 
@@ -260,6 +271,10 @@ class VehicleInterface(Protocol):
 
     def set_velocity_target(self, target: VelocityTarget) -> bool:
         """An offboard velocity setpoint (OFFBOARD mode flies the latest); False if it cannot be used now."""
+        ...
+
+    def set_manual_input(self, sticks: ManualInput) -> bool:
+        """Joystick input (POSCTL flies it while it keeps coming); False if it cannot be used now."""
         ...
 
     def param_names(self) -> list[str]: ...

@@ -15,6 +15,7 @@ from mavlink_bridge.gcs_types import (
     CommandResult,
     FlightMode,
     LandedState,
+    ManualInput,
     MissionItem,
     MissionResult,
     MissionType,
@@ -70,6 +71,7 @@ class FakeVehicle:
         self.requests: list[CommandRequest] = []
         self.position_targets: list[PositionTarget] = []
         self.velocity_targets: list[VelocityTarget] = []
+        self.manual_inputs: list[ManualInput] = []
         self.armed = False
         self.mode = FlightMode.AUTO_LOITER
         self.arming_refused = False
@@ -132,6 +134,10 @@ class FakeVehicle:
 
     def set_velocity_target(self, target: VelocityTarget) -> bool:
         self.velocity_targets.append(target)
+        return True
+
+    def set_manual_input(self, sticks: ManualInput) -> bool:
+        self.manual_inputs.append(sticks)
         return True
 
     def set_current_mission_item(self, seq: int) -> bool:

@@ -7,7 +7,8 @@ timeout, so a hang in the native library cannot hang pytest. MAVSDK's ``Param`` 
 parameter and sets MIS_RTL_ALT; ``MissionRaw`` uploads the items and downloads them back;
 ``Action.arm`` arms and ``MissionRaw.start_mission`` switches to AUTO.MISSION; the flight must
 reach the last item, land and disarm. A second session (``interop_clients/mavsdk_offboard_velocity.py``)
-flies OFFBOARD on ``Offboard.set_velocity_ned`` / ``set_velocity_body`` alone, from takeoff to landing.
+flies OFFBOARD on ``Offboard.set_velocity_ned`` / ``set_velocity_body`` alone, from takeoff to landing, and a
+third (``mavsdk_manual_control.py``) flies POSCTL on ``ManualControl`` joystick input.
 Skipped when no interpreter imports ``mavsdk`` >= 4 (see ``interop_clients`` for ``QUADSITL_INTEROP_PYTHON``).
 """
 
@@ -24,7 +25,7 @@ from typing import Any
 
 import pytest
 from conftest import REPO_ROOT, free_udp_port
-from interop_clients import MAVSDK_DRIVER, MAVSDK_OFFBOARD_DRIVER, mavsdk4_python
+from interop_clients import MAVSDK_DRIVER, MAVSDK_MANUAL_DRIVER, MAVSDK_OFFBOARD_DRIVER, mavsdk4_python
 from interop_clients.missions import short_delivery
 from sitl_procs import Ports, logs, read_json, start_autopilot, start_sim, stop
 
@@ -183,31 +184,59 @@ def test_mavsdk_mission_progress_never_steps_back(flight: Flight) -> None:
     assert all(a[0] <= b[0] for a, b in pairwise(progress)), progress
 
 
-def test_mavsdk_offboard_velocity_takeoff_cruise_turn_land(tmp_path: Path) -> None:
-    """MAVSDK's Offboard plugin on velocity setpoints: a climbing setpoint takes off, 2 m/s north is flown,
-    a body-frame velocity with a yaw speed turns the vehicle, a descending setpoint lands it and it disarms."""
+def _fly_session(tmp_path: Path, script: Path, seed: int) -> tuple[dict[str, Any], dict[str, Any]]:
+    """One MAVSDK driver session (``--connect``, ``--result``, ``--timeout-s``) against a fresh pair; its result
+    with the phases' telemetry samples by name (``by_phase``), and the autopilot's summary."""
     python = mavsdk4_python()
     if python is None:
         pytest.skip("mavsdk>=4 not importable here nor in $QUADSITL_INTEROP_PYTHON")
-    ports, api_target, sim, ap = _start_pair(tmp_path, 6, load_mission_file(WORLD).vehicle)
+    ports, api_target, sim, ap = _start_pair(tmp_path, seed, load_mission_file(WORLD).vehicle)
+    result_path, driver_log = tmp_path / f"{script.stem}.json", tmp_path / f"{script.stem}.log"
     driver = [
-        python, str(MAVSDK_OFFBOARD_DRIVER), "--connect", f"udpin://127.0.0.1:{api_target}",
-        "--result", str(tmp_path / "offboard.json"), "--timeout-s", str(DRIVER_TIMEOUT_S),
+        python, str(script), "--connect", f"udpin://127.0.0.1:{api_target}",
+        "--result", str(result_path), "--timeout-s", str(DRIVER_TIMEOUT_S),
     ]  # fmt: skip
-    driver_log = tmp_path / "mavsdk_offboard.log"
     try:
         with GcsClient(f"udpin:127.0.0.1:{ports.gcs_target}", timeout_s=20.0) as gcs:
             proc = _run_driver(driver, driver_log, gcs, tmp_path)
     finally:
         ap_rc, sim_rc = stop(ap), stop(sim)
-    result = _driver_result(tmp_path / "offboard.json", proc, driver_log, (ap_rc, sim_rc))
-    samples = {s["phase"]: s for s in result["samples"]}  # type: ignore[union-attr]
+    result = _driver_result(result_path, proc, driver_log, (ap_rc, sim_rc))
+    result["by_phase"] = {sample["phase"]: sample for sample in result["samples"]}
+    summary = read_json(tmp_path / "autopilot_summary.json")
+    assert summary["landed"] and summary["disarmed"]
+    return result, summary
+
+
+def test_mavsdk_offboard_velocity_takeoff_cruise_turn_land(tmp_path: Path) -> None:
+    """MAVSDK's Offboard plugin on velocity setpoints: a climbing setpoint takes off, 2 m/s north is flown,
+    a body-frame velocity with a yaw speed turns the vehicle, a descending setpoint lands it and it disarms."""
+    result, summary = _fly_session(tmp_path, MAVSDK_OFFBOARD_DRIVER, 6)
+    samples = result["by_phase"]
     assert samples["climb"]["vel_ned_m_s"][2] == pytest.approx(-1.5, abs=0.3)
     assert samples["cruise"]["vel_ned_m_s"] == pytest.approx([2.0, 0.0, 0.0], abs=0.3)
     turn = samples["turn"]
     course_deg = math.degrees(math.atan2(turn["vel_ned_m_s"][1], turn["vel_ned_m_s"][0]))
     assert abs((course_deg - turn["heading_deg"] + 180.0) % 360.0 - 180.0) < 25.0  # body forward follows the turn
     assert samples["landed"]["down_m"] == pytest.approx(0.0, abs=0.3)
-    summary = read_json(tmp_path / "autopilot_summary.json")
-    assert "OFFBOARD" in [m["mode"] for m in summary["mode_history"]]  # type: ignore[union-attr]
-    assert summary["landed"] and summary["disarmed"]
+    assert "OFFBOARD" in [m["mode"] for m in summary["mode_history"]]
+
+
+def test_mavsdk_manual_control_position_mode_flight(tmp_path: Path) -> None:
+    """MAVSDK's ManualControl plugin streaming sticks in POSCTL: full throttle climbs at MPC_Z_VEL_MAX_UP, half
+    forward stick flies 5 m/s along the heading, centred sticks stop and hold, throttle down lands and disarms."""
+    result, summary = _fly_session(tmp_path, MAVSDK_MANUAL_DRIVER, 7)
+    samples = result["by_phase"]
+    params = make_param_store()
+    assert samples["climb"]["vel_ned_m_s"][2] == pytest.approx(-params.get("MPC_Z_VEL_MAX_UP"), abs=0.3)
+    forward = samples["forward"]
+    heading = math.radians(forward["heading_deg"])
+    along = (5.0 * math.cos(heading), 5.0 * math.sin(heading), 0.0)  # (0.55 - 0.1) / 0.9 of MPC_VEL_MANUAL 10 m/s
+    assert forward["vel_ned_m_s"] == pytest.approx(along, abs=0.4)
+    stopped, held = samples["stopped"], samples["held"]
+    drift = math.dist(
+        [stopped[k] for k in ("north_m", "east_m", "down_m")], [held[k] for k in ("north_m", "east_m", "down_m")]
+    )
+    assert drift < 0.3  # centred sticks hold the position
+    assert samples["landed"]["down_m"] == pytest.approx(0.0, abs=0.3)
+    assert "POSCTL" in [m["mode"] for m in summary["mode_history"]]

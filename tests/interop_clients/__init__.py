@@ -18,6 +18,7 @@ INTEROP_PYTHON_ENV = "QUADSITL_INTEROP_PYTHON"
 CLIENTS_DIR = Path(__file__).resolve().parent
 MAVSDK_DRIVER = CLIENTS_DIR / "mavsdk_fly_mission.py"
 MAVSDK_OFFBOARD_DRIVER = CLIENTS_DIR / "mavsdk_offboard_velocity.py"
+MAVSDK_MANUAL_DRIVER = CLIENTS_DIR / "mavsdk_manual_control.py"
 _PROBE_TIMEOUT_S = 60.0
 _MAVSDK4_PROBE = "import mavsdk, sys; sys.exit(0 if int(mavsdk.__version__.split('.')[0]) >= 4 else 1)"
 

@@ -1,0 +1,61 @@
+"""POSCTL from a joystick (MANUAL_CONTROL): the sticks ask for a velocity about the heading; centred, the vehicle
+holds (PX4's position mode in spirit).
+
+Each axis loses a deadzone of ``MPC_HOLD_DZ`` around centre and the rest is rescaled to 0..1. The pitch and
+roll sticks ask for a horizontal velocity forward/right of the current heading, at most ``MPC_VEL_MANUAL``
+(capped by ``MPC_XY_VEL_MAX``) at full deflection of both together; throttle above/below centre climbs/descends
+at up to ``MPC_Z_VEL_MAX_UP``/``MPC_Z_VEL_MAX_DN``; the yaw stick turns at up to ``MPC_YAWRAUTO_MAX``. The
+commander flies the demand as a VELOCITY target, and holds where the vehicle can stop once every stick is
+centred or the input is older than ``COM_RC_LOSS_T`` (wall clock, like the other GCS-link timeouts). On the
+ground, throttle above centre (a climb of at least 0.3 m/s) takes off; held down, the vehicle lands and
+disarms like any landing.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from autopilot.params import ParamStore
+from mavlink_bridge.gcs_types import ManualInput
+from mavlink_bridge.wire import Vec3
+
+
+@dataclass(frozen=True, slots=True)
+class StickDemand:
+    """What the sticks ask for: a velocity (NED), its speed limits and a yaw rate (clockwise +)."""
+
+    vel_ned_m_s: Vec3
+    yaw_rate_rad_s: float
+    speed_xy_m_s: float
+    speed_up_m_s: float
+    speed_down_m_s: float
+
+
+def deadzone(value: float, width: float) -> float:
+    """``value`` in [-1, 1] without a centre band of +-``width``, the rest rescaled to [-1, 1]."""
+    magnitude = abs(value)
+    if magnitude <= width:
+        return 0.0
+    return math.copysign(min(1.0, (magnitude - width) / (1.0 - width)), value)
+
+
+def stick_demand(sticks: ManualInput, yaw_rad: float, params: ParamStore) -> StickDemand | None:
+    """The velocity and yaw rate the sticks ask for at heading ``yaw_rad``; None when every stick is centred."""
+    p = params.get
+    dz = p("MPC_HOLD_DZ")
+    forward, right = deadzone(sticks.forward, dz), deadzone(sticks.right, dz)
+    climb, turn = deadzone(2.0 * sticks.throttle - 1.0, dz), deadzone(sticks.yaw, dz)
+    if forward == 0.0 and right == 0.0 and climb == 0.0 and turn == 0.0:
+        return None
+    deflection = math.hypot(forward, right)
+    if deflection > 1.0:  # both sticks full: the same top speed as one
+        forward, right = forward / deflection, right / deflection
+    speed_xy, up, down = min(p("MPC_VEL_MANUAL"), p("MPC_XY_VEL_MAX")), p("MPC_Z_VEL_MAX_UP"), p("MPC_Z_VEL_MAX_DN")
+    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
+    vel = (
+        (c * forward - s * right) * speed_xy,
+        (s * forward + c * right) * speed_xy,
+        -climb * (up if climb > 0.0 else down),
+    )
+    return StickDemand(vel, turn * math.radians(p("MPC_YAWRAUTO_MAX")), speed_xy, up, down)

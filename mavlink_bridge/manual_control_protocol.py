@@ -1,0 +1,61 @@
+"""MANUAL_CONTROL (a joystick on the GCS link: QGroundControl's virtual joystick, MAVSDK ``ManualControl``).
+
+Axes are int16 in [-1000, 1000]: ``x`` pitch stick (forward +), ``y`` roll stick (right +), ``r`` yaw stick
+(clockwise +), ``z`` throttle in [0, 1000] (PX4 and MAVSDK: 500 = centre). INT16_MAX marks an axis as
+unused (centred). Values outside the range are clamped; a message for another system is ignored. The
+decoded :class:`ManualInput` goes to ``vehicle.set_manual_input`` (POSCTL flies it; see
+``autopilot.manual_control``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from pymavlink.dialects.v20 import common as mavlink2
+
+from mavlink_bridge.gcs_types import ManualInput
+
+_UNUSED_AXIS = 0x7FFF
+_FULL_SCALE = 1000.0
+
+
+@dataclass(slots=True)
+class ManualControlStats:
+    received: int = 0
+    used: int = 0
+    ignored: int = 0  # for another system, or refused by the vehicle
+
+
+def _axis(raw: int) -> float:
+    """A signed stick axis in [-1, 1] (an unused axis is centred)."""
+    if raw == _UNUSED_AXIS:
+        return 0.0
+    return max(-1.0, min(1.0, raw / _FULL_SCALE))
+
+
+def manual_input_from_msg(msg: mavlink2.MAVLink_message) -> ManualInput:
+    """The normalized sticks of a MANUAL_CONTROL message."""
+    z = int(msg.z)
+    throttle = 0.5 if z == _UNUSED_AXIS else max(0.0, min(1.0, z / _FULL_SCALE))
+    return ManualInput(_axis(int(msg.x)), _axis(int(msg.y)), throttle, _axis(int(msg.r)))
+
+
+class ManualControlProtocol:
+    """Hands MANUAL_CONTROL for ``system_id`` (or 0) to ``vehicle.set_manual_input``."""
+
+    HANDLED = frozenset({"MANUAL_CONTROL"})
+
+    def __init__(self, vehicle: object, system_id: int) -> None:
+        self._vehicle = vehicle
+        self._system_id = system_id
+        self.stats = ManualControlStats()
+
+    def handle(self, msg: mavlink2.MAVLink_message) -> None:
+        self.stats.received += 1
+        if int(msg.target) not in (0, self._system_id):
+            self.stats.ignored += 1
+            return
+        if self._vehicle.set_manual_input(manual_input_from_msg(msg)):  # type: ignore[attr-defined]
+            self.stats.used += 1
+        else:
+            self.stats.ignored += 1
