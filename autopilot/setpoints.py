@@ -21,7 +21,7 @@ Per step (horizontal plane and vertical axis shaped separately, as PX4 does):
 most :data:`LAND_MAX_LEAD_M` below the vehicle so that, on the ground, the controller asks
 for less-than-hover thrust (what the land detector looks for) without winding up.
 
-``VELOCITY`` targets (OFFBOARD velocity setpoints) replace step 1 by the commanded velocity within the
+``VELOCITY`` targets (OFFBOARD velocity setpoints, POSCTL sticks) replace step 1 by the commanded velocity within the
 speed limits; the position reference integrates it but stays within :data:`VELOCITY_MAX_LEAD_M` of the
 vehicle, so a vehicle that cannot follow (the ground, saturation) is not pulled by a runaway reference.
 A yaw rate (``yaw_rate_rad_s``, when no yaw is given) turns the heading reference at that rate.
