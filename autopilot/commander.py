@@ -147,6 +147,7 @@ class Commander:
         self._lndmc = (0.0, 0.0, 0.0, 0.0)
         self._mission_target: NavTarget | None = None
         self._offboard_target: NavTarget | None = None
+        self._offboard_body_vel: Vec3 | None = None  # a body-frame velocity setpoint, turned every step
         self._sticks: ManualInput | None = None
         self._sticks_flying = False  # POSCTL flies the sticks, or brakes after them (not yet holding)
         self._stick_brake_since_us: int | None = None
@@ -469,15 +470,41 @@ class Commander:
     def set_offboard_target(self, pos_ned_m: Vec3, yaw_rad: float = math.nan) -> None:
         """An external position setpoint (SET_POSITION_TARGET_LOCAL_NED); used in OFFBOARD."""
         self._offboard_target = NavTarget(TargetKind.POSITION, pos_ned_m, yaw_rad, *self._speeds())
+        self._offboard_body_vel = None
 
     def set_offboard_velocity(
-        self, vel_ned_m_s: Vec3, yaw_rad: float = math.nan, yaw_rate_rad_s: float = math.nan
+        self, vel_m_s: Vec3, yaw_rad: float = math.nan, yaw_rate_rad_s: float = math.nan, *, body: bool = False
     ) -> None:
-        """An external velocity setpoint (NED m/s; a yaw, else a yaw rate, NaN = keep the heading); used in
-        OFFBOARD, within the speed limits in force."""
+        """An external velocity setpoint (m/s, NED; with ``body`` forward/right/down about the heading; a yaw,
+        else a yaw rate, NaN = keep the heading); used in OFFBOARD, within the speed limits in force.
+
+        A body-frame velocity is turned with the heading of every control step: at ``--speed max`` a client's
+        20 Hz (wall clock) stream can be several tenths of a second of sim time apart, and turned once on
+        receipt (as PX4 does in real time) the course would lag a turning heading by that much.
+        """
         nan3 = (math.nan, math.nan, math.nan)
-        self._offboard_target = NavTarget(
-            TargetKind.VELOCITY, nan3, yaw_rad, *self._speeds(), vel_ned_m_s, yaw_rate_rad_s
+        ned = (0.0, 0.0, vel_m_s[2]) if body else vel_m_s
+        self._offboard_target = NavTarget(TargetKind.VELOCITY, nan3, yaw_rad, *self._speeds(), ned, yaw_rate_rad_s)
+        self._offboard_body_vel = vel_m_s if body else None
+
+    @staticmethod
+    def _body_velocity_target(state: VehicleState, target: NavTarget, vel_frd_m_s: Vec3) -> NavTarget:
+        """``target`` with its velocity ``vel_frd_m_s`` (forward, right, down about the heading) in NED now."""
+        forward, right, down = vel_frd_m_s
+        if state.valid:
+            c, s = math.cos(state.yaw_rad), math.sin(state.yaw_rad)
+            ned = (c * forward - s * right, s * forward + c * right, down)
+        else:  # no heading to turn it with: stop horizontally
+            ned = (0.0, 0.0, down)
+        return NavTarget(
+            target.kind,
+            target.pos_ned_m,
+            target.yaw_rad,
+            target.speed_xy_m_s,
+            target.speed_up_m_s,
+            target.speed_down_m_s,
+            ned,
+            target.yaw_rate_rad_s,
         )
 
     def set_manual_input(self, sticks: ManualInput) -> None:
@@ -580,6 +607,8 @@ class Commander:
         if mode is FlightMode.AUTO_MISSION and self._mission_target is not None:
             return self._mission_target
         if mode is FlightMode.OFFBOARD and self._offboard_target is not None:
+            if self._offboard_body_vel is not None:
+                return self._body_velocity_target(state, self._offboard_target, self._offboard_body_vel)
             return self._offboard_target
         if mode is FlightMode.POSCTL:
             stick_target = self._stick_target(state)

@@ -488,16 +488,10 @@ class Autopilot:
         return True
 
     def set_velocity_target(self, target: VelocityTarget) -> bool:
-        """An offboard velocity setpoint; a body-frame one is turned into NED with the heading now (PX4 does
-        so on receipt). False before the first state (no heading to turn it with)."""
-        vx, vy, vz = target.vel_m_s
-        if target.frame is VelocityFrame.BODY:
-            state = self.state
-            if state is None or not state.valid:
-                return False
-            c, s = math.cos(state.yaw_rad), math.sin(state.yaw_rad)
-            vx, vy = c * vx - s * vy, s * vx + c * vy
-        self.commander.set_offboard_velocity((vx, vy, vz), target.yaw_rad, target.yaw_rate_rad_s)
+        """An offboard velocity setpoint; a body-frame one is turned with the heading of each control step
+        (``Commander.set_offboard_velocity``)."""
+        body = target.frame is VelocityFrame.BODY
+        self.commander.set_offboard_velocity(target.vel_m_s, target.yaw_rad, target.yaw_rate_rad_s, body=body)
         self._offboard_heard()
         return True
 

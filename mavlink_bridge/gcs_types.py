@@ -197,7 +197,7 @@ class VelocityFrame(IntEnum):
 class VelocityTarget:
     """SET_POSITION_TARGET_LOCAL_NED with only its velocity used (MAVSDK ``set_velocity_ned``/``set_velocity_body``).
 
-    ``vel_m_s`` in ``frame`` (BODY is turned into NED with the heading when it arrives, as PX4 does);
+    ``vel_m_s`` in ``frame`` (the autopilot turns BODY into NED with the heading of each control step);
     ``yaw_rad`` (NaN = not given) takes precedence over ``yaw_rate_rad_s`` (NaN = not given).
     """
 

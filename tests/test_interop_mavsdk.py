@@ -217,7 +217,7 @@ def test_mavsdk_offboard_velocity_takeoff_cruise_turn_land(tmp_path: Path) -> No
     assert samples["cruise"]["vel_ned_m_s"] == pytest.approx([2.0, 0.0, 0.0], abs=0.3)
     turn = samples["turn"]
     course_deg = math.degrees(math.atan2(turn["vel_ned_m_s"][1], turn["vel_ned_m_s"][0]))
-    assert abs((course_deg - turn["heading_deg"] + 180.0) % 360.0 - 180.0) < 25.0  # body forward follows the turn
+    assert abs((course_deg - turn["heading_deg"] + 180.0) % 360.0 - 180.0) < 20.0  # body forward follows the turn
     assert samples["landed"]["down_m"] == pytest.approx(0.0, abs=0.3)
     assert "OFFBOARD" in [m["mode"] for m in summary["mode_history"]]
 

@@ -14,7 +14,6 @@ velocity m/s, heading deg); exit code 0 only when every phase completed.
 
 from __future__ import annotations
 
-import json
 import math
 import sys
 import time
@@ -23,24 +22,11 @@ from typing import Any
 from mavsdk.plugins.action import Action, ActionError
 from mavsdk.plugins.manual_control import ManualControl, ManualControlError
 from mavsdk.plugins.telemetry import LandedState, Telemetry
-from mavsdk_session import StepFailedError, connect, session_parser, wait_for, wait_position_ok
+from mavsdk_session import StepFailedError, connect, run_phased_session, telemetry_sample, wait_for, wait_position_ok
 
 SEND_PERIOD_S = 0.02
 CLIMB_TO_M = 6.0
 AHEAD_M = 12.0
-
-
-def _sample(telemetry: Telemetry, phase: str) -> dict[str, Any]:
-    pv = telemetry.position_velocity_ned()
-    p, v = pv.position, pv.velocity
-    return {
-        "phase": phase,
-        "north_m": p.north_m,
-        "east_m": p.east_m,
-        "down_m": p.down_m,
-        "vel_ned_m_s": [v.north_m_s, v.east_m_s, v.down_m_s],
-        "heading_deg": telemetry.heading().heading_deg,
-    }
 
 
 def _hold_sticks(
@@ -81,7 +67,7 @@ def fly(connect_url: str, result: dict[str, Any], deadline: float) -> None:
             return telemetry.position_velocity_ned().position.down_m
 
         _hold_sticks(manual, (0.0, 0.0, 1.0, 0.0), lambda: -down_m() > CLIMB_TO_M, "the climb", deadline)
-        samples.append(_sample(telemetry, "climb"))
+        samples.append(telemetry_sample(telemetry, "climb"))
         start = telemetry.position_velocity_ned().position
 
         def ahead_m() -> float:
@@ -89,39 +75,30 @@ def fly(connect_url: str, result: dict[str, Any], deadline: float) -> None:
             return math.hypot(p.north_m - start.north_m, p.east_m - start.east_m)
 
         _hold_sticks(manual, (0.55, 0.0, 0.5, 0.0), lambda: ahead_m() > AHEAD_M, "the flight ahead", deadline)
-        samples.append(_sample(telemetry, "forward"))
+        samples.append(telemetry_sample(telemetry, "forward"))
 
         def stopped() -> bool:
             v = telemetry.position_velocity_ned().velocity
             return math.hypot(v.north_m_s, v.east_m_s) < 0.1 and abs(v.down_m_s) < 0.1
 
         _hold_sticks(manual, centred, stopped, "the stop", deadline)
-        samples.append(_sample(telemetry, "stopped"))
+        samples.append(telemetry_sample(telemetry, "stopped"))
         later = time.monotonic() + 1.0
         _hold_sticks(manual, centred, lambda: time.monotonic() > later, "a second of holding", deadline)
-        samples.append(_sample(telemetry, "held"))
+        samples.append(telemetry_sample(telemetry, "held"))
 
         def landed_disarmed() -> bool:
             return telemetry.landed_state() == LandedState.ON_GROUND and not telemetry.armed()
 
         _hold_sticks(manual, (0.0, 0.0, 0.0, 0.0), landed_disarmed, "landed and disarmed", deadline)
-        samples.append(_sample(telemetry, "landed"))
+        samples.append(telemetry_sample(telemetry, "landed"))
         steps.append("landed")
     finally:
         mavsdk.destroy()
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = session_parser(__doc__.split("\n", 1)[0]).parse_args(argv)
-    result: dict[str, Any] = {"mavsdk_version": "", "steps": [], "samples": [], "ok": False, "error": ""}
-    try:
-        fly(args.connect, result, time.monotonic() + args.timeout_s)
-        result["ok"] = True
-    except StepFailedError as exc:
-        result["error"] = str(exc)
-    finally:
-        args.result.write_text(json.dumps(result, indent=1) + "\n")
-    return 0 if result["ok"] else 1
+    return run_phased_session(__doc__.split("\n", 1)[0], fly, argv)
 
 
 if __name__ == "__main__":

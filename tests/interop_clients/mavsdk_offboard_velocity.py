@@ -15,32 +15,17 @@ north/east/down m, NED velocity m/s, heading deg); exit code 0 only when every p
 
 from __future__ import annotations
 
-import json
 import sys
-import time
 from typing import Any
 
 from mavsdk.plugins.action import Action, ActionError
 from mavsdk.plugins.offboard import Offboard, OffboardError, VelocityBodyYawspeed, VelocityNedYaw
 from mavsdk.plugins.telemetry import LandedState, Telemetry
-from mavsdk_session import StepFailedError, connect, session_parser, wait_for, wait_position_ok
+from mavsdk_session import StepFailedError, connect, run_phased_session, telemetry_sample, wait_for, wait_position_ok
 
 CLIMB_TO_M = 8.0
 CRUISE_NORTH_M = 15.0
 TURN_DEG = 80.0
-
-
-def _sample(telemetry: Telemetry, phase: str) -> dict[str, Any]:
-    pv = telemetry.position_velocity_ned()
-    p, v = pv.position, pv.velocity
-    return {
-        "phase": phase,
-        "north_m": p.north_m,
-        "east_m": p.east_m,
-        "down_m": p.down_m,
-        "vel_ned_m_s": [v.north_m_s, v.east_m_s, v.down_m_s],
-        "heading_deg": telemetry.heading().heading_deg,
-    }
 
 
 def fly(connect_url: str, result: dict[str, Any], deadline: float) -> None:
@@ -62,7 +47,7 @@ def fly(connect_url: str, result: dict[str, Any], deadline: float) -> None:
             raise StepFailedError(f"{exc.origin} -> {exc.result.name}") from None
 
         wait_for("the climb", lambda: -telemetry.position_velocity_ned().position.down_m > CLIMB_TO_M, deadline)
-        samples.append(_sample(telemetry, "climb"))
+        samples.append(telemetry_sample(telemetry, "climb"))
         start_north = telemetry.position_velocity_ned().position.north_m
         offboard.set_velocity_ned(VelocityNedYaw(2.0, 0.0, 0.0, 0.0))
         wait_for(
@@ -70,7 +55,7 @@ def fly(connect_url: str, result: dict[str, Any], deadline: float) -> None:
             lambda: telemetry.position_velocity_ned().position.north_m - start_north > CRUISE_NORTH_M,
             deadline,
         )
-        samples.append(_sample(telemetry, "cruise"))
+        samples.append(telemetry_sample(telemetry, "cruise"))
         heading0 = telemetry.heading().heading_deg
         offboard.set_velocity_body(VelocityBodyYawspeed(1.0, 0.0, 0.0, 30.0))
 
@@ -78,30 +63,21 @@ def fly(connect_url: str, result: dict[str, Any], deadline: float) -> None:
             return (telemetry.heading().heading_deg - heading0) % 360.0 > TURN_DEG
 
         wait_for("the turn", turned, deadline)
-        samples.append(_sample(telemetry, "turn"))
+        samples.append(telemetry_sample(telemetry, "turn"))
         offboard.set_velocity_ned(VelocityNedYaw(0.0, 0.0, 1.0, telemetry.heading().heading_deg))
         wait_for(
             "landed and disarmed",
             lambda: telemetry.landed_state() == LandedState.ON_GROUND and not telemetry.armed(),
             deadline,
         )
-        samples.append(_sample(telemetry, "landed"))
+        samples.append(telemetry_sample(telemetry, "landed"))
         steps.append("landed")
     finally:
         mavsdk.destroy()
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = session_parser(__doc__.split("\n", 1)[0]).parse_args(argv)
-    result: dict[str, Any] = {"mavsdk_version": "", "steps": [], "samples": [], "ok": False, "error": ""}
-    try:
-        fly(args.connect, result, time.monotonic() + args.timeout_s)
-        result["ok"] = True
-    except StepFailedError as exc:
-        result["error"] = str(exc)
-    finally:
-        args.result.write_text(json.dumps(result, indent=1) + "\n")
-    return 0 if result["ok"] else 1
+    return run_phased_session(__doc__.split("\n", 1)[0], fly, argv)
 
 
 if __name__ == "__main__":

@@ -7,7 +7,9 @@ interpreter where ``mavsdk>=4`` is importable; imports nothing from quadsitl.
 from __future__ import annotations
 
 import argparse
+import json
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -65,3 +67,34 @@ def session_parser(description: str) -> argparse.ArgumentParser:
     parser.add_argument("--result", required=True, type=Path, help="where the JSON observations go")
     parser.add_argument("--timeout-s", type=float, default=80.0, help="wall-clock limit of the whole session")
     return parser
+
+
+def telemetry_sample(telemetry: Telemetry, phase: str) -> dict[str, Any]:
+    """Where the vehicle is and goes now: phase, north/east/down m, NED velocity m/s, heading deg."""
+    pv = telemetry.position_velocity_ned()
+    p, v = pv.position, pv.velocity
+    return {
+        "phase": phase,
+        "north_m": p.north_m,
+        "east_m": p.east_m,
+        "down_m": p.down_m,
+        "vel_ned_m_s": [v.north_m_s, v.east_m_s, v.down_m_s],
+        "heading_deg": telemetry.heading().heading_deg,
+    }
+
+
+def run_phased_session(
+    description: str, fly: Callable[[str, dict[str, Any], float], None], argv: list[str] | None
+) -> int:
+    """``main`` of a driver whose ``fly(connect_url, result, deadline)`` fills ``result["steps"]`` and
+    ``result["samples"]``: the result JSON is written whatever happens; exit code 0 only when ``fly`` returned."""
+    args = session_parser(description).parse_args(argv)
+    result: dict[str, Any] = {"mavsdk_version": "", "steps": [], "samples": [], "ok": False, "error": ""}
+    try:
+        fly(args.connect, result, time.monotonic() + args.timeout_s)
+        result["ok"] = True
+    except StepFailedError as exc:
+        result["error"] = str(exc)
+    finally:
+        args.result.write_text(json.dumps(result, indent=1) + "\n")
+    return 0 if result["ok"] else 1
