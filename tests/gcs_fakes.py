@@ -3,10 +3,16 @@
 from __future__ import annotations
 
 import math
+import os
 import threading
 import time
 from collections import Counter
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
+from typing import Any
+
+from conftest import free_udp_port
 
 from autopilot.params import ParamError, ParamSpec, ParamStore
 from mavlink_bridge.gcs_server import GcsServer
@@ -257,3 +263,22 @@ class ServerHarness:
         self.server.close()
         if self.error is not None:
             raise self.error
+
+
+@contextmanager
+def served_fake_vehicle() -> Iterator[tuple[FakeVehicle, GcsServer, ServerHarness, Any]]:
+    """A FakeVehicle behind a GcsServer on a free loopback port (its harness running) and a pymavlink GCS
+    connection to it (system 255, component 190): ``(vehicle, server, harness, conn)``; all closed after."""
+    os.environ.setdefault("MAVLINK20", "1")
+    from pymavlink import mavutil
+
+    port = free_udp_port()
+    vehicle = FakeVehicle()
+    server = GcsServer(f"udpin:127.0.0.1:{port}", vehicle, default_target_url=f"udpout:127.0.0.1:{free_udp_port()}")
+    harness = ServerHarness(server, vehicle)
+    conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=255, source_component=190)
+    try:
+        yield vehicle, server, harness, conn
+    finally:
+        conn.close()
+        harness.stop()

@@ -11,11 +11,9 @@ import struct
 import time
 
 import pytest
-from conftest import free_udp_port
-from gcs_fakes import FakeVehicle, ServerHarness
+from gcs_fakes import served_fake_vehicle
 
 from mavlink_bridge.ftp_protocol import ftp_reply
-from mavlink_bridge.gcs_server import GcsServer
 
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil
@@ -76,12 +74,7 @@ def test_sequence_wraps_and_acks_naks_and_runts_get_no_reply() -> None:
 
 
 def test_a_client_opening_the_parameter_file_is_refused_over_the_link() -> None:
-    port = free_udp_port()
-    vehicle = FakeVehicle()
-    server = GcsServer(f"udpin:127.0.0.1:{port}", vehicle, default_target_url=f"udpout:127.0.0.1:{free_udp_port()}")
-    harness = ServerHarness(server, vehicle)
-    conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=255, source_component=190)
-    try:
+    with served_fake_vehicle() as (_, server, harness, conn):
         conn.mav.heartbeat_send(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0)
         request = _request(4, seq=11, session=0, path=b"@PARAM/param.pck?withdefaults=1")
         conn.mav.file_transfer_protocol_send(0, 1, 1, list(request))
@@ -95,6 +88,3 @@ def test_a_client_opening_the_parameter_file_is_refused_over_the_link() -> None:
         assert (seq, op, req_opcode, size, data) == (12, NAK, 4, 1, bytes((FILE_NOT_FOUND,)))
         with harness.locked():
             assert server.stats.ftp_requests == 1
-    finally:
-        conn.close()
-        harness.stop()

@@ -10,12 +10,10 @@ import time
 import pytest
 from autopilot_fakes import command
 from autopilot_loop import SimLoop
-from conftest import free_udp_port
-from gcs_fakes import FakeVehicle, ServerHarness
+from gcs_fakes import served_fake_vehicle
 
 from autopilot.manual_control import deadzone, stick_demand
 from autopilot.param_schema import make_param_store
-from mavlink_bridge.gcs_server import GcsServer
 from mavlink_bridge.gcs_types import CommandResult, FlightMode, LandedState, ManualInput
 
 os.environ.setdefault("MAVLINK20", "1")
@@ -57,12 +55,7 @@ def test_sticks_ask_for_velocities_about_the_heading_within_the_limits() -> None
 
 # ---- the message ------------------------------------------------------------------------------------------------
 def test_manual_control_is_decoded_for_this_system_only() -> None:
-    port = free_udp_port()
-    vehicle = FakeVehicle()
-    server = GcsServer(f"udpin:127.0.0.1:{port}", vehicle, default_target_url=f"udpout:127.0.0.1:{free_udp_port()}")
-    harness = ServerHarness(server, vehicle)
-    conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=255, source_component=190)
-    try:
+    with served_fake_vehicle() as (vehicle, server, harness, conn):
         conn.mav.manual_control_send(1, 500, -250, 750, 1000, 0)
         conn.mav.manual_control_send(0, 2000, -2000, 1500, 0x7FFF, 0)  # broadcast; clamped; yaw axis unused
         conn.mav.manual_control_send(1, 0x7FFF, 0x7FFF, 0x7FFF, 0x7FFF, 0)  # every axis unused: centred
@@ -76,15 +69,12 @@ def test_manual_control_is_decoded_for_this_system_only() -> None:
         with harness.locked():
             got = list(vehicle.manual_inputs)
             stats = server.manual.stats
-        assert got == [
-            ManualInput(0.5, -0.25, 0.75, 1.0),
-            ManualInput(1.0, -1.0, 1.0, 0.0),
-            ManualInput(0.0, 0.0, 0.5, 0.0),
-        ]
-        assert (stats.received, stats.used, stats.ignored) == (4, 3, 1)
-    finally:
-        conn.close()
-        harness.stop()
+    assert got == [
+        ManualInput(0.5, -0.25, 0.75, 1.0),
+        ManualInput(1.0, -1.0, 1.0, 0.0),
+        ManualInput(0.0, 0.0, 0.5, 0.0),
+    ]
+    assert (stats.received, stats.used, stats.ignored) == (4, 3, 1)
 
 
 # ---- a flight on the sticks -------------------------------------------------------------------------------------

@@ -26,8 +26,8 @@ from typing import Any
 from mavsdk.plugins.action import Action, ActionError
 from mavsdk.plugins.mission_raw import MissionItem, MissionRaw, MissionRawError
 from mavsdk.plugins.param import Param, ParamError
-from mavsdk.plugins.telemetry import LandedState, Telemetry
-from mavsdk_session import StepFailedError, connect, session_parser, wait_for, wait_position_ok
+from mavsdk.plugins.telemetry import Telemetry
+from mavsdk_session import StepFailedError, connect, landed_and_disarmed, session_parser, wait_for, wait_position_ok
 
 _ITEM_FIELDS = (
     "seq",
@@ -156,11 +156,7 @@ def fly(
         total = len(items)
         wait_for("mission progress to reach the last item", lambda: rec.last("progress") == [total, total], deadline)
         rec.step("mission_finished", progress=rec.last("progress"))
-        wait_for(
-            "landed and disarmed",
-            lambda: telemetry.landed_state() == LandedState.ON_GROUND and not telemetry.armed(),
-            deadline,
-        )
+        wait_for("landed and disarmed", lambda: landed_and_disarmed(telemetry), deadline)
         position = telemetry.position()
         rec.step(
             "landed",

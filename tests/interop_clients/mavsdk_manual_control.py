@@ -21,8 +21,16 @@ from typing import Any
 
 from mavsdk.plugins.action import Action, ActionError
 from mavsdk.plugins.manual_control import ManualControl, ManualControlError
-from mavsdk.plugins.telemetry import LandedState, Telemetry
-from mavsdk_session import StepFailedError, connect, run_phased_session, telemetry_sample, wait_for, wait_position_ok
+from mavsdk.plugins.telemetry import Telemetry
+from mavsdk_session import (
+    StepFailedError,
+    connect,
+    landed_and_disarmed,
+    run_phased_session,
+    telemetry_sample,
+    wait_for,
+    wait_position_ok,
+)
 
 SEND_PERIOD_S = 0.02
 CLIMB_TO_M = 6.0
@@ -86,11 +94,8 @@ def fly(connect_url: str, result: dict[str, Any], deadline: float) -> None:
         later = time.monotonic() + 1.0
         _hold_sticks(manual, centred, lambda: time.monotonic() > later, "a second of holding", deadline)
         samples.append(telemetry_sample(telemetry, "held"))
-
-        def landed_disarmed() -> bool:
-            return telemetry.landed_state() == LandedState.ON_GROUND and not telemetry.armed()
-
-        _hold_sticks(manual, (0.0, 0.0, 0.0, 0.0), landed_disarmed, "landed and disarmed", deadline)
+        down_stick = (0.0, 0.0, 0.0, 0.0)
+        _hold_sticks(manual, down_stick, lambda: landed_and_disarmed(telemetry), "landed and disarmed", deadline)
         samples.append(telemetry_sample(telemetry, "landed"))
         steps.append("landed")
     finally:

@@ -20,8 +20,16 @@ from typing import Any
 
 from mavsdk.plugins.action import Action, ActionError
 from mavsdk.plugins.offboard import Offboard, OffboardError, VelocityBodyYawspeed, VelocityNedYaw
-from mavsdk.plugins.telemetry import LandedState, Telemetry
-from mavsdk_session import StepFailedError, connect, run_phased_session, telemetry_sample, wait_for, wait_position_ok
+from mavsdk.plugins.telemetry import Telemetry
+from mavsdk_session import (
+    StepFailedError,
+    connect,
+    landed_and_disarmed,
+    run_phased_session,
+    telemetry_sample,
+    wait_for,
+    wait_position_ok,
+)
 
 CLIMB_TO_M = 8.0
 CRUISE_NORTH_M = 15.0
@@ -65,11 +73,7 @@ def fly(connect_url: str, result: dict[str, Any], deadline: float) -> None:
         wait_for("the turn", turned, deadline)
         samples.append(telemetry_sample(telemetry, "turn"))
         offboard.set_velocity_ned(VelocityNedYaw(0.0, 0.0, 1.0, telemetry.heading().heading_deg))
-        wait_for(
-            "landed and disarmed",
-            lambda: telemetry.landed_state() == LandedState.ON_GROUND and not telemetry.armed(),
-            deadline,
-        )
+        wait_for("landed and disarmed", lambda: landed_and_disarmed(telemetry), deadline)
         samples.append(telemetry_sample(telemetry, "landed"))
         steps.append("landed")
     finally:

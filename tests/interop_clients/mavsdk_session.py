@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from mavsdk import ComponentType, Configuration, Mavsdk
-from mavsdk.plugins.telemetry import Telemetry
+from mavsdk.plugins.telemetry import LandedState, Telemetry
 
 POLL_S = 0.02
 
@@ -58,6 +58,11 @@ def wait_position_ok(telemetry: Telemetry, deadline: float) -> None:
         return bool(health.is_home_position_ok and health.is_global_position_ok)
 
     wait_for("home and global position health", position_ok, deadline)
+
+
+def landed_and_disarmed(telemetry: Telemetry) -> bool:
+    """On the ground with the motors disarmed (the end of every flight)."""
+    return telemetry.landed_state() == LandedState.ON_GROUND and not telemetry.armed()
 
 
 def session_parser(description: str) -> argparse.ArgumentParser:
