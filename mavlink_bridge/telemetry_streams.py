@@ -36,6 +36,9 @@ FLIGHT_SW_VERSION = (1 << 24) | (14 << 16) | (0 << 8) | 255
 _UINT16_MAX = 65535
 _INT16_MAX = 32767
 
+#: Streams also sent with every arming/mode/landed-state change (before the HEARTBEAT that announces it).
+_POSITION_STREAMS = (M.MAVLINK_MSG_ID_LOCAL_POSITION_NED, M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT)
+
 #: Default stream rates in Hz of sim time.
 DEFAULT_RATES_HZ: dict[int, float] = {
     M.MAVLINK_MSG_ID_HEARTBEAT: 1.0,
@@ -142,12 +145,19 @@ class TelemetryStreams:
 
     # ---- sending -----------------------------------------------------------------------------------------
     def publish(self, snapshot: TelemetrySnapshot) -> None:
-        """Send the streams due at ``snapshot.time_us`` (sim time); HEARTBEAT also on any mode/arming change."""
+        """Send the streams due at ``snapshot.time_us`` (sim time); on any arming, mode or landed-state change
+        also the positions (LOCAL_POSITION_NED, GLOBAL_POSITION_INT, each if its stream is on), then HEARTBEAT
+        and EXTENDED_SYS_STATE at once: a GCS sees a change with where it happened, however far apart the
+        wall-clock cap spaces the position samples at ``--speed max``."""
         self.last_snapshot = snapshot
         t_us = snapshot.time_us
         state = (snapshot.armed, int(snapshot.mode), int(snapshot.landed_state))
         if state != self._last_state:
             self._last_state = state
+            for msg_id in _POSITION_STREAMS:
+                if self.interval_us[msg_id] > 0:
+                    self._encoders[msg_id](snapshot)
+                    self.sent_count[msg_id] += 1
             self._heartbeat(snapshot)
             self._extended_sys_state(snapshot)
             self._next_due_us[M.MAVLINK_MSG_ID_HEARTBEAT] = t_us + self.interval_us[M.MAVLINK_MSG_ID_HEARTBEAT]
