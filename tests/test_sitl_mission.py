@@ -21,7 +21,7 @@ import pytest
 from conftest import REPO_ROOT
 from sitl_procs import (
     STARTUP_TIMEOUT_S,
-    SitlPair,
+    SitlRun,
     connect_gcs,
     landed_disarmed,
     logs,
@@ -240,7 +240,7 @@ def test_invalid_mission_in_flight_is_refused_and_the_old_one_completes(tmp_path
 
 # ---- upload / download round trips with the real autopilot ---------------------------------------------------
 @pytest.fixture(scope="module")
-def idle_sitl(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SitlPair]:
+def idle_sitl(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SitlRun]:
     """One idle pair for the round trips (nothing flies)."""
     log_dir = tmp_path_factory.mktemp("round_trip")
     with sitl_pair(log_dir, MISSIONS / "delivery.yaml") as s:
@@ -250,7 +250,7 @@ def idle_sitl(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SitlPair]:
 
 
 @pytest.mark.parametrize("name", ["delivery.yaml", "delivery.waypoints", "delivery.plan"])
-def test_upload_download_round_trip(idle_sitl: SitlPair, tmp_path: Path, name: str) -> None:
+def test_upload_download_round_trip(idle_sitl: SitlRun, tmp_path: Path, name: str) -> None:
     """``tools.gcs upload FILE`` then ``download OUT`` (same format): the file read back equals the original."""
     src = MISSIONS / name
     out = tmp_path / f"downloaded{src.suffix}"
@@ -266,7 +266,7 @@ def test_upload_download_round_trip(idle_sitl: SitlPair, tmp_path: Path, name: s
     assert (got.home.lat_deg, got.home.lon_deg) == pytest.approx((sent.home.lat_deg, sent.home.lon_deg), abs=1e-6)
 
 
-def test_mission_current_reports_the_mission_state(idle_sitl: SitlPair) -> None:
+def test_mission_current_reports_the_mission_state(idle_sitl: SitlRun) -> None:
     """After an upload and before MISSION_START: MISSION_CURRENT says NOT_STARTED with the item count."""
     plan = load_mission_file(MISSIONS / "delivery.yaml")
     with connect_gcs(idle_sitl.gcs_url) as client:
@@ -278,7 +278,7 @@ def test_mission_current_reports_the_mission_state(idle_sitl: SitlPair) -> None:
     assert status.mission_state == MISSION_STATE_NOT_STARTED
 
 
-def test_600_item_upload_and_download(idle_sitl: SitlPair) -> None:
+def test_600_item_upload_and_download(idle_sitl: SitlRun) -> None:
     with connect_gcs(idle_sitl.gcs_url) as client:
         home = client.wait_until(lambda st: st.home is not None, 60.0).home
         assert home is not None
