@@ -18,28 +18,29 @@ import json
 import math
 import subprocess
 import time
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from itertools import pairwise
 from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import REPO_ROOT, free_udp_port
+from conftest import REPO_ROOT
 from interop_clients import MAVSDK_DRIVER, MAVSDK_MANUAL_DRIVER, MAVSDK_OFFBOARD_DRIVER, mavsdk4_python
 from interop_clients.missions import short_delivery
-from sitl_procs import Ports, logs, read_json, start_autopilot, start_sim, stop
+from sitl_procs import logs, read_json
 
 from autopilot.mission.files import load_mission_file
 from autopilot.param_schema import make_param_store
 from mavlink_bridge.frames import GeoPoint, LocalNedFrame
 from mavlink_bridge.gcs_client import GcsClient
 from mavlink_bridge.gcs_types import MissionItem
+from tools.sitl import SitlRun, sitl_run
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 
 #: Lockstep silence tolerated (wall s): a cold numba cache makes the first control step compile for
-#: several seconds, which the 3 s defaults take for a dead peer. These tests are about the protocol.
-SIM_PATIENCE = ("--autopilot-timeout-s", "30")
+#: several seconds, which the 3 s defaults take for a dead peer (the sim's side: ``sitl_run``'s 30 s).
 AUTOPILOT_PATIENCE = ("--sim-timeout-s", "30")
 WORLD = REPO_ROOT / "missions" / "delivery.yaml"  # home, wind and the 1 kg payload the sim carries
 READY_WAIT_S = 240.0  # failure deadline for the autopilot's first home position (a cold numba cache compiles)
@@ -66,18 +67,6 @@ def _mission_item_int(item: MissionItem) -> dict[str, Any]:
     }
 
 
-def _start_pair(
-    tmp_path: Path, seed: int, vehicle: str
-) -> tuple[Ports, int, subprocess.Popen[bytes], subprocess.Popen[bytes]]:
-    """Sim (with WORLD) and autopilot on free ports, the API link answering ``api_target``; (ports, api_target,
-    sim, autopilot)."""
-    ports, api_port, api_target = Ports.free(), free_udp_port(), free_udp_port()
-    sim = start_sim(tmp_path, ports.sim, "--world", str(WORLD), "--seed", str(seed), *SIM_PATIENCE)
-    api = ["--api", f"udpin:127.0.0.1:{api_port}", "--api-target", f"udpout:127.0.0.1:{api_target}"]
-    ap = start_autopilot(tmp_path, ports.sim, ports, "--vehicle", vehicle, *api, *AUTOPILOT_PATIENCE)
-    return ports, api_target, sim, ap
-
-
 def _run_driver(driver: list[str], log: Path, gcs: GcsClient, tmp_path: Path) -> subprocess.Popen[bytes]:
     """Run a MAVSDK driver once the vehicle has a home, pumping ``gcs`` meanwhile; killed (and the test failed)
     15 s after its own timeout."""
@@ -94,12 +83,16 @@ def _run_driver(driver: list[str], log: Path, gcs: GcsClient, tmp_path: Path) ->
     return proc
 
 
-def _driver_result(path: Path, proc: subprocess.Popen[bytes], log: Path, exit_codes: tuple[int, int]) -> dict[str, Any]:
-    """The driver's JSON result, once its success and both processes' clean exits (autopilot, sim) are checked."""
+def _pair(tmp_path: Path, seed: int) -> AbstractContextManager[SitlRun]:
+    """Sim (with WORLD) and autopilot on free ports, the GCS and API links open (``tools.sitl.sitl_run``)."""
+    return sitl_run(tmp_path, WORLD, seed=seed, api=True, autopilot_args=AUTOPILOT_PATIENCE)
+
+
+def _driver_result(path: Path, proc: subprocess.Popen[bytes], log: Path) -> dict[str, Any]:
+    """The driver's JSON result, once its success is checked (the processes' clean exits: ``sitl_run``)."""
     result = read_json(path)
     context = f"{result.get('error')}\n{log.read_text(errors='replace')[-3000:]}\n{logs(path.parent)}"
     assert proc.returncode == 0 and result["ok"], context
-    assert exit_codes == (0, 0), logs(path.parent)
     return result
 
 
@@ -125,23 +118,19 @@ def flight(tmp_path_factory: pytest.TempPathFactory) -> Flight:
     plan = load_mission_file(WORLD)
     sent = [_mission_item_int(item) for item in short_delivery(plan.home)]
     (tmp_path / "items.json").write_text(json.dumps(sent))
-    ports, api_target, sim, ap = _start_pair(tmp_path, 5, plan.vehicle)
-    driver = [
-        python, str(MAVSDK_DRIVER), "--connect", f"udpin://127.0.0.1:{api_target}",
-        "--items", str(tmp_path / "items.json"), "--result", str(tmp_path / "mavsdk.json"),
-        "--set-param", SET_PARAM[0], repr(SET_PARAM[1]), "--timeout-s", str(DRIVER_TIMEOUT_S),
-    ]  # fmt: skip
     driver_log = tmp_path / "mavsdk_driver.log"
-    try:
-        # The project's client on the GCS link: readiness before MAVSDK's clock starts, and a second witness.
-        with GcsClient(f"udpin:127.0.0.1:{ports.gcs_target}", timeout_s=20.0) as gcs:
-            proc = _run_driver(driver, driver_log, gcs, tmp_path)
-            held = gcs.download_mission()
-    finally:
-        ap_rc, sim_rc = stop(ap), stop(sim)
-    result = _driver_result(tmp_path / "mavsdk.json", proc, driver_log, (ap_rc, sim_rc))
-    summaries = read_json(tmp_path / "autopilot_summary.json"), read_json(tmp_path / "sim_summary.json")
-    return Flight(sent, result, [_mission_item_int(item) for item in held], plan.home, *summaries)
+    # The project's client on the GCS link: readiness before MAVSDK's clock starts, and a second witness.
+    with _pair(tmp_path, 5) as run, GcsClient(str(run.gcs_url), timeout_s=20.0) as gcs:
+        driver = [
+            python, str(MAVSDK_DRIVER), "--connect", f"udpin://127.0.0.1:{run.api_port}",
+            "--items", str(tmp_path / "items.json"), "--result", str(tmp_path / "mavsdk.json"),
+            "--set-param", SET_PARAM[0], repr(SET_PARAM[1]), "--timeout-s", str(DRIVER_TIMEOUT_S),
+        ]  # fmt: skip
+        proc = _run_driver(driver, driver_log, gcs, tmp_path)
+        held = gcs.download_mission()
+    result = _driver_result(tmp_path / "mavsdk.json", proc, driver_log)
+    held_items = [_mission_item_int(item) for item in held]
+    return Flight(sent, result, held_items, plan.home, run.autopilot_summary, run.sim_summary)
 
 
 def test_mavsdk_mission_raw_upload_arm_start_complete(flight: Flight) -> None:
@@ -190,20 +179,16 @@ def _fly_session(tmp_path: Path, script: Path, seed: int) -> tuple[dict[str, Any
     python = mavsdk4_python()
     if python is None:
         pytest.skip("mavsdk>=4 not importable here nor in $QUADSITL_INTEROP_PYTHON")
-    ports, api_target, sim, ap = _start_pair(tmp_path, seed, load_mission_file(WORLD).vehicle)
     result_path, driver_log = tmp_path / f"{script.stem}.json", tmp_path / f"{script.stem}.log"
-    driver = [
-        python, str(script), "--connect", f"udpin://127.0.0.1:{api_target}",
-        "--result", str(result_path), "--timeout-s", str(DRIVER_TIMEOUT_S),
-    ]  # fmt: skip
-    try:
-        with GcsClient(f"udpin:127.0.0.1:{ports.gcs_target}", timeout_s=20.0) as gcs:
-            proc = _run_driver(driver, driver_log, gcs, tmp_path)
-    finally:
-        ap_rc, sim_rc = stop(ap), stop(sim)
-    result = _driver_result(result_path, proc, driver_log, (ap_rc, sim_rc))
+    with _pair(tmp_path, seed) as run, GcsClient(str(run.gcs_url), timeout_s=20.0) as gcs:
+        driver = [
+            python, str(script), "--connect", f"udpin://127.0.0.1:{run.api_port}",
+            "--result", str(result_path), "--timeout-s", str(DRIVER_TIMEOUT_S),
+        ]  # fmt: skip
+        proc = _run_driver(driver, driver_log, gcs, tmp_path)
+    result = _driver_result(result_path, proc, driver_log)
     result["by_phase"] = {sample["phase"]: sample for sample in result["samples"]}
-    summary = read_json(tmp_path / "autopilot_summary.json")
+    summary = run.autopilot_summary
     assert summary["landed"] and summary["disarmed"]
     return result, summary
 

@@ -99,20 +99,32 @@ def read_json(path: Path) -> dict[str, Any]:
 
 @dataclass
 class SitlRun:
-    """A running sim + autopilot pair: where a ground station listens (GCS link; API link when asked for), the
-    processes, and after the ``sitl_run`` block their summaries (``sim_summary.json``,
-    ``autopilot_summary.json``)."""
+    """A running sim + autopilot pair: the loopback ports a ground station listens on (GCS link, unless it was
+    turned off; API link when asked for) with their pymavlink URLs, the processes, and after the ``sitl_run``
+    block their summaries (``sim_summary.json``, ``autopilot_summary.json``)."""
 
     log_dir: Path
-    gcs_url: str
-    api_url: str | None
+    gcs_port: int | None
+    api_port: int | None
     sim: subprocess.Popen[bytes]
     autopilot: subprocess.Popen[bytes]
     sim_summary: dict[str, Any] = field(default_factory=dict)
     autopilot_summary: dict[str, Any] = field(default_factory=dict)
 
+    @property
+    def gcs_url(self) -> str | None:
+        """``udpin:127.0.0.1:PORT`` where the autopilot's GCS link sends (pymavlink / GcsClient form)."""
+        return None if self.gcs_port is None else f"udpin:127.0.0.1:{self.gcs_port}"
+
+    @property
+    def api_url(self) -> str | None:
+        """``udpin:127.0.0.1:PORT`` where the API link sends (MAVSDK: ``udpin://127.0.0.1:PORT``)."""
+        return None if self.api_port is None else f"udpin:127.0.0.1:{self.api_port}"
+
     def gcs_client(self, heartbeat_timeout_s: float = STARTUP_TIMEOUT_S) -> GcsClient:
         """A ground-station client on the GCS link that has heard the vehicle (20 s exchange timeouts)."""
+        if self.gcs_url is None:
+            raise ValueError("this run has no GCS link (sitl_run(gcs=False))")
         client = GcsClient(self.gcs_url, timeout_s=20.0)
         try:
             client.wait_heartbeat(heartbeat_timeout_s)
@@ -129,29 +141,30 @@ def sitl_run(
     *,
     vehicle: str | None = None,
     seed: int = 0,
+    gcs: bool = True,
     api: bool = False,
     sim_args: Sequence[str] = (),
     autopilot_args: Sequence[str] = (),
     autopilot_timeout_s: float = 30.0,
     stop_timeout_s: float = 20.0,
 ) -> Iterator[SitlRun]:
-    """Start the pair (``world``'s vehicle unless ``vehicle`` is given); stop both on the way out, read their
-    summaries, and raise :class:`SitlError` if either exited non-zero (see the module docstring)."""
+    """Start the pair (``world``'s vehicle unless ``vehicle`` is given; ``gcs``/``api``: open those links);
+    stop both on the way out, read their summaries, and raise :class:`SitlError` if either exited non-zero (see
+    the module docstring)."""
     if vehicle is None and world is not None:
         vehicle = load_mission_file(world).vehicle
     ports = Ports.free()
     extra = list(autopilot_args)
-    api_url = None
+    api_port = None
     if api:
-        api_in, api_out = free_udp_port(), free_udp_port()
-        extra += ["--api", f"udpin:127.0.0.1:{api_in}", "--api-target", f"udpout:127.0.0.1:{api_out}"]
-        api_url = f"udpin:127.0.0.1:{api_out}"
+        api_in, api_port = free_udp_port(), free_udp_port()
+        extra += ["--api", f"udpin:127.0.0.1:{api_in}", "--api-target", f"udpout:127.0.0.1:{api_port}"]
     common = ["--vehicle", vehicle] if vehicle is not None else []
     sim_opts = [*(["--world", str(world)] if world is not None else []), *common, "--seed", str(seed)]
     sim_opts += ["--autopilot-timeout-s", f"{autopilot_timeout_s:g}", *sim_args]
     sim = start_sim(log_dir, ports.sim, *sim_opts)
-    ap = start_autopilot(log_dir, ports.sim, ports, *common, *extra)
-    run = SitlRun(log_dir, f"udpin:127.0.0.1:{ports.gcs_target}", api_url, sim, ap)
+    ap = start_autopilot(log_dir, ports.sim, ports if gcs else None, *common, *extra)
+    run = SitlRun(log_dir, ports.gcs_target if gcs else None, api_port, sim, ap)
     try:
         yield run
     finally:

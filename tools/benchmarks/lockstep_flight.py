@@ -12,20 +12,15 @@ per-step cost is reported too (``autopilot_step_us``: ``Autopilot.step`` on reco
 
 from __future__ import annotations
 
-import json
 import math
-import os
-import socket
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 from tools.benchmarks import BenchResult
 from tools.benchmarks.lockstep_floor import measure_floor_run
+from tools.sitl import logs, sitl_run
 
-REPO_ROOT = Path(__file__).resolve().parents[2]
 RTF_TARGET = 30.0
 FLOOR_FRACTION_TARGET = 0.5
 FLIGHT_SCRIPT = """\
@@ -36,44 +31,23 @@ FLIGHT_SCRIPT = """\
 """
 
 
-def _free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 def fly(duration_s: float, work_dir: Path, seed: int = 0, autopilot_args: tuple[str, ...] = ()) -> dict[str, object]:
-    """One scripted flight as two processes; the sim summary (raises if either process failed).
+    """One scripted flight as two processes (``tools.sitl.sitl_run``, no GCS link); the sim summary (raises if
+    either process failed or the flight did not run its ``duration_s``).
 
     ``autopilot_args`` are extra ``quadsitl autopilot`` options (e.g. ``("--rerun", "save:PATH")``).
     """
     work_dir.mkdir(parents=True, exist_ok=True)
     script = work_dir / "flight.yaml"
     script.write_text(FLIGHT_SCRIPT)
-    port = _free_udp_port()
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
-    sim_cmd = [sys.executable, "-m", "sim", "--listen", f"udp:127.0.0.1:{port}", "--speed", "max"]
-    sim_cmd += ["--duration-s", str(duration_s), "--seed", str(seed), "--log-dir", str(work_dir)]
-    ap_cmd = [sys.executable, "-m", "autopilot", "--sim", f"udpout:127.0.0.1:{port}", "--gcs", "off", "--api", "off"]
-    ap_cmd += ["--script", str(script), "--log-dir", str(work_dir), *autopilot_args]
-    with open(work_dir / "sim.log", "wb") as sim_log, open(work_dir / "autopilot.log", "wb") as ap_log:
-        sim = subprocess.Popen(sim_cmd, cwd=REPO_ROOT, env=env, stdout=sim_log, stderr=sim_log)
-        autopilot = subprocess.Popen(ap_cmd, cwd=REPO_ROOT, env=env, stdout=ap_log, stderr=ap_log)
-        try:
-            sim.wait(timeout=600)
-        finally:
-            for proc in (autopilot, sim):
-                proc.terminate()
-                try:
-                    proc.wait(timeout=30)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
-                    proc.wait()
-    summary = json.loads((work_dir / "sim_summary.json").read_text())
-    if sim.returncode != 0 or summary["end_reason"] != "COMPLETED":
-        logs = (work_dir / "sim.log").read_text(errors="replace")[-2000:]
-        logs += (work_dir / "autopilot.log").read_text(errors="replace")[-2000:]
-        raise RuntimeError(f"whole-flight run failed: {summary['end_reason']} (exit {sim.returncode})\n{logs}")
+    sim_args = ("--duration-s", str(duration_s))
+    with sitl_run(
+        work_dir, seed=seed, gcs=False, sim_args=sim_args, autopilot_args=("--script", str(script), *autopilot_args)
+    ) as run:
+        run.sim.wait(timeout=600)  # the sim ends the flight at duration_s; leaving the block stops the autopilot
+    summary = run.sim_summary
+    if summary["end_reason"] != "COMPLETED":
+        raise RuntimeError(f"whole-flight run failed: {summary['end_reason']}\n{logs(work_dir)}")
     return summary
 
 
