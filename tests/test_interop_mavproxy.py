@@ -31,21 +31,20 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import REPO_ROOT, free_udp_port
+from conftest import REPO_ROOT
 from interop_clients import mavproxy_script
 from interop_clients.missions import short_delivery
-from sitl_procs import Ports, logs, read_json, start_autopilot, start_sim, stop
 
 from autopilot.mission.files import load_mission_file
 from autopilot.param_schema import make_param_store
 from mavlink_bridge.gcs_client import GcsClient, VehicleStatus
 from mavlink_bridge.gcs_types import LandedState, MissionItem
+from tools.sitl import sitl_run
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 
 #: Lockstep silence tolerated (wall s): a cold numba cache makes the first control step compile for
 #: several seconds, which the 3 s defaults take for a dead peer. These tests are about the protocol.
-SIM_PATIENCE = ("--autopilot-timeout-s", "30")
 AUTOPILOT_PATIENCE = ("--sim-timeout-s", "30")
 WORLD = REPO_ROOT / "missions" / "delivery.yaml"  # home, wind and payload of the sim
 QGC_FILE = REPO_ROOT / "missions" / "delivery.waypoints"  # the same home in its line 0
@@ -172,46 +171,41 @@ def session(tmp_path_factory: pytest.TempPathFactory) -> Session:
     plan = load_mission_file(WORLD)
     px4_file = tmp_path / "short_delivery.waypoints"
     _write_wpl(px4_file, short_delivery(plan.home))
-    ports, api_port, api_target = Ports.free(), free_udp_port(), free_udp_port()
-    sim = start_sim(tmp_path, ports.sim, "--world", str(WORLD), "--seed", "3", *SIM_PATIENCE)
-    api = ["--api", f"udpin:127.0.0.1:{api_port}", "--api-target", f"udpout:127.0.0.1:{api_target}"]
-    ap = start_autopilot(tmp_path, ports.sim, ports, "--vehicle", plan.vehicle, *api, *AUTOPILOT_PATIENCE)
     console: MavproxyConsole | None = None
-    try:
-        with GcsClient(f"udpin:127.0.0.1:{api_target}", timeout_s=20.0) as gcs:
-            gcs.wait_until(lambda s: s.home is not None, READY_WAIT_S)
-            console = MavproxyConsole(script, f"udpin:127.0.0.1:{ports.gcs_target}", tmp_path)
+    with sitl_run(tmp_path, WORLD, seed=3, api=True, autopilot_args=AUTOPILOT_PATIENCE) as run:
+        try:
+            with GcsClient(str(run.api_url), timeout_s=20.0) as gcs:
+                gcs.wait_until(lambda s: s.home is not None, READY_WAIT_S)
+                console = MavproxyConsole(script, str(run.gcs_url), tmp_path)
 
-            def idle() -> None:
-                gcs.pump(0.1)
+                def idle() -> None:
+                    gcs.pump(0.1)
 
-            console.wait_for("Detected vehicle 1:1", 1, idle, "vehicle detected")
-            console.send(f"wp load {QGC_FILE}")
-            console.wait_for(ACK, 1, idle, "MISSION_ACK of the repository's WPL file")
-            qgc_ack, qgc_held = _last_ack(console), _held_rows(gcs)
-            console.send(f"wp load {px4_file}")
-            console.wait_for(ACK, 2, idle, "MISSION_ACK of the WPL file without home line")
-            px4_ack, px4_held = _last_ack(console), _held_rows(gcs)
-            saved_file = tmp_path / "saved.waypoints"
-            console.send(f"wp save {saved_file}")
-            console.wait_for("Saved ", 1, idle, "wp save")
-            console.wait_for(" parameters", 1, idle, "parameter download")
-            received = re.search(r"Received (\d+) parameters", console.text())
-            param_count = int(received.group(1)) if received else -1
-            console.send(f"param set {SET_PARAM[0]} {SET_PARAM[1]}")
-            deadline = time.monotonic() + WAIT_S
-            while (param_value := gcs.get_param(SET_PARAM[0])) != SET_PARAM[1] and time.monotonic() < deadline:
-                gcs.pump(0.2)
-            console.send("arm throttle")
-            gcs.wait_until(lambda s: s.armed, WAIT_S)
-            console.send("long DO_SET_MODE 1 4 4")  # base mode CUSTOM_MODE_ENABLED, AUTO, MISSION
-            gcs.wait_until(lambda s: s.landed_state is LandedState.IN_AIR, WAIT_S)
-            final = gcs.wait_until(lambda s: not s.armed and s.landed_state is LandedState.ON_GROUND, FLIGHT_WAIT_S)
-            gcs.pump(2.5)  # a mode announcement is rate-limited to one per 2 s by MAVProxy
-    finally:
-        mp_rc = console.close() if console is not None else 0
-        ap_rc, sim_rc = stop(ap), stop(sim)
-    assert (ap_rc, sim_rc) == (0, 0), logs(tmp_path)
+                console.wait_for("Detected vehicle 1:1", 1, idle, "vehicle detected")
+                console.send(f"wp load {QGC_FILE}")
+                console.wait_for(ACK, 1, idle, "MISSION_ACK of the repository's WPL file")
+                qgc_ack, qgc_held = _last_ack(console), _held_rows(gcs)
+                console.send(f"wp load {px4_file}")
+                console.wait_for(ACK, 2, idle, "MISSION_ACK of the WPL file without home line")
+                px4_ack, px4_held = _last_ack(console), _held_rows(gcs)
+                saved_file = tmp_path / "saved.waypoints"
+                console.send(f"wp save {saved_file}")
+                console.wait_for("Saved ", 1, idle, "wp save")
+                console.wait_for(" parameters", 1, idle, "parameter download")
+                received = re.search(r"Received (\d+) parameters", console.text())
+                param_count = int(received.group(1)) if received else -1
+                console.send(f"param set {SET_PARAM[0]} {SET_PARAM[1]}")
+                deadline = time.monotonic() + WAIT_S
+                while (param_value := gcs.get_param(SET_PARAM[0])) != SET_PARAM[1] and time.monotonic() < deadline:
+                    gcs.pump(0.2)
+                console.send("arm throttle")
+                gcs.wait_until(lambda s: s.armed, WAIT_S)
+                console.send("long DO_SET_MODE 1 4 4")  # base mode CUSTOM_MODE_ENABLED, AUTO, MISSION
+                gcs.wait_until(lambda s: s.landed_state is LandedState.IN_AIR, WAIT_S)
+                final = gcs.wait_until(lambda s: not s.armed and s.landed_state is LandedState.ON_GROUND, FLIGHT_WAIT_S)
+                gcs.pump(2.5)  # a mode announcement is rate-limited to one per 2 s by MAVProxy
+        finally:  # MAVProxy goes first, then sitl_run stops both processes (SitlError unless both exit 0)
+            mp_rc = console.close() if console is not None else 0
     assert mp_rc in (0, 1), console.text()[-3000:]  # MAVProxy exits 1 after a clean shutdown on end of input
     return Session(
         console=console.text(),
@@ -224,8 +218,8 @@ def session(tmp_path_factory: pytest.TempPathFactory) -> Session:
         param_count=param_count,
         param_value=param_value,
         final_status=final,
-        autopilot=read_json(tmp_path / "autopilot_summary.json"),
-        sim=read_json(tmp_path / "sim_summary.json"),
+        autopilot=run.autopilot_summary,
+        sim=run.sim_summary,
     )
 
 
