@@ -34,7 +34,7 @@ altitudes are in its ``frame`` (3/6 = relative to home, 0/5 = AMSL); NaN means "
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from enum import Enum
 
 from autopilot.estimator import VehicleState
@@ -42,7 +42,7 @@ from autopilot.failsafe import FailsafeAction, FailsafeEvent
 from autopilot.manual_control import stick_demand
 from autopilot.params import ParamStore
 from autopilot.setpoints import NavTarget, TargetKind
-from mavlink_bridge.frames import GeoPoint, LocalNedFrame
+from mavlink_bridge.frames import GeoPoint, LocalNedFrame, ne_from_heading_frame
 from mavlink_bridge.gcs_types import (
     CommandRequest,
     CommandResult,
@@ -66,6 +66,8 @@ _TAKEOFF_TRIGGER_M_S = 0.3
 _STICK_STOPPED_M_S = 0.2
 #: ... or after braking this long (sim µs), whichever comes first.
 _STICK_BRAKE_MAX_US = 5_000_000
+#: The position of a target that has none (VELOCITY).
+_NO_POSITION = (math.nan, math.nan, math.nan)
 #: Face the target only when it is at least this far away horizontally (m).
 _FACE_TARGET_MIN_M = 2.0
 #: Outside AUTO_TAKEOFF, a climbing vehicle counts as in the air above this height over home (m).
@@ -105,6 +107,16 @@ class Home:
     pos_ned_m: Vec3
     geo: GeoPoint
     yaw_rad: float
+
+
+def _velocity_target(
+    vel_ned_m_s: Vec3,
+    speeds: tuple[float, float, float],
+    yaw_rad: float = math.nan,
+    yaw_rate_rad_s: float = math.nan,
+) -> NavTarget:
+    """A VELOCITY target (it has no position) within ``speeds`` (xy, up, down)."""
+    return NavTarget(TargetKind.VELOCITY, _NO_POSITION, yaw_rad, *speeds, vel_ned_m_s, yaw_rate_rad_s)
 
 
 class Commander:
@@ -482,30 +494,16 @@ class Commander:
         20 Hz (wall clock) stream can be several tenths of a second of sim time apart, and turned once on
         receipt (as PX4 does in real time) the course would lag a turning heading by that much.
         """
-        nan3 = (math.nan, math.nan, math.nan)
         ned = (0.0, 0.0, vel_m_s[2]) if body else vel_m_s
-        self._offboard_target = NavTarget(TargetKind.VELOCITY, nan3, yaw_rad, *self._speeds(), ned, yaw_rate_rad_s)
+        self._offboard_target = _velocity_target(ned, self._speeds(), yaw_rad, yaw_rate_rad_s)
         self._offboard_body_vel = vel_m_s if body else None
 
     @staticmethod
     def _body_velocity_target(state: VehicleState, target: NavTarget, vel_frd_m_s: Vec3) -> NavTarget:
         """``target`` with its velocity ``vel_frd_m_s`` (forward, right, down about the heading) in NED now."""
         forward, right, down = vel_frd_m_s
-        if state.valid:
-            c, s = math.cos(state.yaw_rad), math.sin(state.yaw_rad)
-            ned = (c * forward - s * right, s * forward + c * right, down)
-        else:  # no heading to turn it with: stop horizontally
-            ned = (0.0, 0.0, down)
-        return NavTarget(
-            target.kind,
-            target.pos_ned_m,
-            target.yaw_rad,
-            target.speed_xy_m_s,
-            target.speed_up_m_s,
-            target.speed_down_m_s,
-            ned,
-            target.yaw_rate_rad_s,
-        )
+        north, east = ne_from_heading_frame(forward, right, state.yaw_rad) if state.valid else (0.0, 0.0)
+        return replace(target, vel_ned_m_s=(north, east, down))  # no heading (invalid state): stop horizontally
 
     def set_manual_input(self, sticks: ManualInput) -> None:
         """The latest joystick input (MANUAL_CONTROL); flown in POSCTL while ``manual_fresh``."""
@@ -519,13 +517,11 @@ class Commander:
         demand = None
         if sticks is not None and self.manual_fresh and state.valid:
             demand = stick_demand(sticks, state.yaw_rad, self.params)
-        nan3 = (math.nan, math.nan, math.nan)
         if demand is not None:
             self._sticks_flying = True
             self._stick_brake_since_us = None
-            vel, yaw_rate = demand.vel_ned_m_s, demand.yaw_rate_rad_s
             speeds = (demand.speed_xy_m_s, demand.speed_up_m_s, demand.speed_down_m_s)
-            return NavTarget(TargetKind.VELOCITY, nan3, math.nan, *speeds, vel, yaw_rate)
+            return _velocity_target(demand.vel_ned_m_s, speeds, yaw_rate_rad_s=demand.yaw_rate_rad_s)
         if not self._sticks_flying:
             return None
         if self._stick_brake_since_us is None:
@@ -536,7 +532,7 @@ class Commander:
             self._sticks_flying = False
             self._hold_ned, self._hold_yaw = state.pos_ned_m, math.nan
             return None
-        return NavTarget(TargetKind.VELOCITY, nan3, math.nan, *self._speeds(), (0.0, 0.0, 0.0))
+        return _velocity_target((0.0, 0.0, 0.0), self._speeds())
 
     def apply_failsafe(self, event: FailsafeEvent) -> None:
         """React to a failsafe that just triggered (action from its parameter)."""

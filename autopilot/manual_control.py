@@ -17,6 +17,7 @@ import math
 from dataclasses import dataclass
 
 from autopilot.params import ParamStore
+from mavlink_bridge.frames import ne_from_heading_frame
 from mavlink_bridge.gcs_types import ManualInput
 from mavlink_bridge.wire import Vec3
 
@@ -52,10 +53,6 @@ def stick_demand(sticks: ManualInput, yaw_rad: float, params: ParamStore) -> Sti
     if deflection > 1.0:  # both sticks full: the same top speed as one
         forward, right = forward / deflection, right / deflection
     speed_xy, up, down = min(p("MPC_VEL_MANUAL"), p("MPC_XY_VEL_MAX")), p("MPC_Z_VEL_MAX_UP"), p("MPC_Z_VEL_MAX_DN")
-    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
-    vel = (
-        (c * forward - s * right) * speed_xy,
-        (s * forward + c * right) * speed_xy,
-        -climb * (up if climb > 0.0 else down),
-    )
+    north, east = ne_from_heading_frame(forward * speed_xy, right * speed_xy, yaw_rad)
+    vel = (north, east, -climb * (up if climb > 0.0 else down))
     return StickDemand(vel, turn * math.radians(p("MPC_YAWRAUTO_MAX")), speed_xy, up, down)

@@ -121,6 +121,13 @@ def euler_from_quat(q_ned_frd: np.ndarray) -> np.ndarray:
     return np.stack((roll, pitch, yaw), axis=-1)
 
 
+def ne_from_heading_frame(forward: float, right: float, yaw_rad: float) -> tuple[float, float]:
+    """North and east of a horizontal vector given forward/right of heading ``yaw_rad`` (MAV_FRAME_BODY_NED's
+    horizontal axes; scalar math, for per-step use)."""
+    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
+    return c * forward - s * right, s * forward + c * right
+
+
 def wrap_pi(angle_rad: float | np.ndarray) -> float | np.ndarray:
     """Wrap an angle to [-π, π)."""
     return (np.asarray(angle_rad) + np.pi) % (2.0 * np.pi) - np.pi
