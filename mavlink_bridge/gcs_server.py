@@ -112,7 +112,7 @@ class GcsServer:
         self.params = ParamProtocol(self.mav, vehicle, self.statustext)
         self.setpoints = SetpointProtocol(vehicle)
         self.ftp = FtpProtocol(self.mav)
-        self.manual = ManualControlProtocol(vehicle, system_id)
+        self.manual = ManualControlProtocol(vehicle)
         local: dict[int, LocalHandler] = {
             MAV_CMD_SET_MESSAGE_INTERVAL: self._cmd_set_message_interval,
             MAV_CMD_REQUEST_MESSAGE: self._cmd_request_message,
@@ -208,7 +208,10 @@ class GcsServer:
 
     # ---- dispatch ----------------------------------------------------------------------------------------
     def _for_us(self, msg: mavlink2.MAVLink_message) -> bool:
-        target_system = getattr(msg, "target_system", 0)
+        # MANUAL_CONTROL names its system ``target`` (and has no component)
+        target_system = getattr(msg, "target_system", None)
+        if target_system is None:
+            target_system = getattr(msg, "target", 0)
         target_component = getattr(msg, "target_component", 0)
         return target_system in (0, self.system_id) and target_component in (0, self.component_id)
 

@@ -2,9 +2,9 @@
 
 Axes are int16 in [-1000, 1000]: ``x`` pitch stick (forward +), ``y`` roll stick (right +), ``r`` yaw stick
 (clockwise +), ``z`` throttle in [0, 1000] (PX4 and MAVSDK: 500 = centre). INT16_MAX marks an axis as
-unused (centred). Values outside the range are clamped; a message for another system is ignored. The
-decoded :class:`ManualInput` goes to ``vehicle.set_manual_input`` (POSCTL flies it; see
-``autopilot.manual_control``).
+unused (centred). Values outside the range are clamped. A message for another system never gets here: the
+GCS server drops it with the others not for this vehicle. The decoded :class:`ManualInput` goes to
+``vehicle.set_manual_input`` (POSCTL flies it; see ``autopilot.manual_control``).
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ _FULL_SCALE = 1000.0
 class ManualControlStats:
     received: int = 0
     used: int = 0
-    ignored: int = 0  # for another system, or refused by the vehicle
+    refused: int = 0  # by the vehicle
 
 
 def _axis(raw: int) -> float:
@@ -41,21 +41,17 @@ def manual_input_from_msg(msg: mavlink2.MAVLink_message) -> ManualInput:
 
 
 class ManualControlProtocol:
-    """Hands MANUAL_CONTROL for ``system_id`` (or 0) to ``vehicle.set_manual_input``."""
+    """Hands MANUAL_CONTROL to ``vehicle.set_manual_input``."""
 
     HANDLED = frozenset({"MANUAL_CONTROL"})
 
-    def __init__(self, vehicle: object, system_id: int) -> None:
+    def __init__(self, vehicle: object) -> None:
         self._vehicle = vehicle
-        self._system_id = system_id
         self.stats = ManualControlStats()
 
     def handle(self, msg: mavlink2.MAVLink_message) -> None:
         self.stats.received += 1
-        if int(msg.target) not in (0, self._system_id):
-            self.stats.ignored += 1
-            return
         if self._vehicle.set_manual_input(manual_input_from_msg(msg)):  # type: ignore[attr-defined]
             self.stats.used += 1
         else:
-            self.stats.ignored += 1
+            self.stats.refused += 1

@@ -63,18 +63,18 @@ def test_manual_control_is_decoded_for_this_system_only() -> None:
         deadline = time.monotonic() + 5.0
         while time.monotonic() < deadline:
             with harness.locked():
-                if server.manual.stats.received == 4:
+                if server.manual.stats.received + server.stats.not_for_us == 4:
                     break
             time.sleep(0.02)
         with harness.locked():
             got = list(vehicle.manual_inputs)
-            stats = server.manual.stats
+            stats, not_for_us = server.manual.stats, server.stats.not_for_us
     assert got == [
         ManualInput(0.5, -0.25, 0.75, 1.0),
         ManualInput(1.0, -1.0, 1.0, 0.0),
         ManualInput(0.0, 0.0, 0.5, 0.0),
     ]
-    assert (stats.received, stats.used, stats.ignored) == (4, 3, 1)
+    assert (stats.received, stats.used, stats.refused, not_for_us) == (3, 3, 0, 1)  # system 2's: dropped by the server
 
 
 # ---- a flight on the sticks -------------------------------------------------------------------------------------
