@@ -17,7 +17,17 @@ from autopilot.launcher import stop_process
 from autopilot.mission.plan import MissionPlan
 from mavlink_bridge.gcs_client import CommandFailedError, GcsClient, VehicleStatus
 from mavlink_bridge.gcs_types import LandedState, MissionType
-from tools.sitl import STARTUP_TIMEOUT_S, Ports, SitlRun, logs, read_json, sitl_run, start_autopilot, start_sim
+from tools.sitl import (
+    STARTUP_TIMEOUT_S,
+    Ports,
+    SitlRun,
+    connect_gcs,
+    logs,
+    read_json,
+    sitl_run,
+    start_autopilot,
+    start_sim,
+)
 
 __all__ = [
     "STARTUP_TIMEOUT_S",
@@ -48,13 +58,6 @@ def sitl_pair(
     Both processes must exit 0 (``SitlError`` with both logs otherwise)."""
     with sitl_run(log_dir, world, seed=seed, api=api, autopilot_args=ap_extra) as run:
         yield run
-
-
-def connect_gcs(url: str, heartbeat_timeout_s: float = STARTUP_TIMEOUT_S) -> GcsClient:
-    """A ground-station client on ``url`` that has heard the vehicle (long exchange timeouts: a loaded machine)."""
-    client = GcsClient(url, timeout_s=20.0)
-    client.wait_heartbeat(heartbeat_timeout_s)
-    return client
 
 
 def landed_disarmed(status: VehicleStatus) -> bool:

@@ -88,6 +88,17 @@ def start_autopilot(log_dir: Path, sim_port: int, ports: Ports | None, *extra: s
     return _popen([*args, *extra], log_dir / "autopilot.log")
 
 
+def connect_gcs(url: str, heartbeat_timeout_s: float = STARTUP_TIMEOUT_S) -> GcsClient:
+    """A ground-station client on ``url`` that has heard the vehicle (20 s exchange timeouts: a loaded machine)."""
+    client = GcsClient(url, timeout_s=20.0)
+    try:
+        client.wait_heartbeat(heartbeat_timeout_s)
+    except BaseException:
+        client.close()
+        raise
+    return client
+
+
 def logs(log_dir: Path) -> str:
     """The tails of the processes' logs in ``log_dir``, for error messages."""
     return "\n".join(f"--- {p.name}\n{p.read_text(errors='replace')[-3000:]}" for p in sorted(log_dir.glob("*.log")))
@@ -125,13 +136,7 @@ class SitlRun:
         """A ground-station client on the GCS link that has heard the vehicle (20 s exchange timeouts)."""
         if self.gcs_url is None:
             raise ValueError("this run has no GCS link (sitl_run(gcs=False))")
-        client = GcsClient(self.gcs_url, timeout_s=20.0)
-        try:
-            client.wait_heartbeat(heartbeat_timeout_s)
-        except BaseException:
-            client.close()
-            raise
-        return client
+        return connect_gcs(self.gcs_url, heartbeat_timeout_s)
 
 
 @contextmanager
