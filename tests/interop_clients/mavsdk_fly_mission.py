@@ -27,7 +27,7 @@ from mavsdk.plugins.action import Action, ActionError
 from mavsdk.plugins.mission_raw import MissionItem, MissionRaw, MissionRawError
 from mavsdk.plugins.param import Param, ParamError
 from mavsdk.plugins.telemetry import Telemetry
-from mavsdk_session import StepFailedError, connect, landed_and_disarmed, session_parser, wait_for, wait_position_ok
+from mavsdk_session import StepFailedError, connected, landed_and_disarmed, session_parser, wait_for, wait_position_ok
 
 _ITEM_FIELDS = (
     "seq",
@@ -110,8 +110,7 @@ def fly(
     connect_url: str, items: list[MissionItem], set_param: tuple[str, float], rec: Recorder, deadline: float
 ) -> None:
     """The whole client session (see module docstring); raises StepFailedError on the first failed step."""
-    mavsdk, system = connect(connect_url, deadline)
-    try:
+    with connected(connect_url, deadline) as (mavsdk, system):
         rec.data["mavsdk_version"] = mavsdk.version()
         rec.step(
             "discovered",
@@ -164,8 +163,6 @@ def fly(
             lon_deg=position.longitude_deg,
             rel_alt_m=position.relative_altitude_m,
         )
-    finally:
-        mavsdk.destroy()
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -24,7 +24,7 @@ from mavsdk.plugins.manual_control import ManualControl, ManualControlError
 from mavsdk.plugins.telemetry import Telemetry
 from mavsdk_session import (
     StepFailedError,
-    connect,
+    connected,
     landed_and_disarmed,
     run_phased_session,
     telemetry_sample,
@@ -53,8 +53,7 @@ def _hold_sticks(
 def fly(connect_url: str, result: dict[str, Any], deadline: float) -> None:
     """The whole client session (see module docstring); raises StepFailedError on the first failed step."""
     steps, samples = result["steps"], result["samples"]
-    mavsdk, system = connect(connect_url, deadline)
-    try:
+    with connected(connect_url, deadline) as (mavsdk, system):
         result["mavsdk_version"] = mavsdk.version()
         telemetry, action, manual = Telemetry(system), Action(system), ManualControl(system)
         wait_position_ok(telemetry, deadline)
@@ -98,8 +97,6 @@ def fly(connect_url: str, result: dict[str, Any], deadline: float) -> None:
         _hold_sticks(manual, down_stick, lambda: landed_and_disarmed(telemetry), "landed and disarmed", deadline)
         samples.append(telemetry_sample(telemetry, "landed"))
         steps.append("landed")
-    finally:
-        mavsdk.destroy()
 
 
 def main(argv: list[str] | None = None) -> int:

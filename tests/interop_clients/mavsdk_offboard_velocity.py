@@ -23,7 +23,7 @@ from mavsdk.plugins.offboard import Offboard, OffboardError, VelocityBodyYawspee
 from mavsdk.plugins.telemetry import Telemetry
 from mavsdk_session import (
     StepFailedError,
-    connect,
+    connected,
     landed_and_disarmed,
     run_phased_session,
     telemetry_sample,
@@ -39,8 +39,7 @@ TURN_DEG = 80.0
 def fly(connect_url: str, result: dict[str, Any], deadline: float) -> None:
     """The whole client session (see module docstring); raises StepFailedError on the first failed step."""
     steps, samples = result["steps"], result["samples"]
-    mavsdk, system = connect(connect_url, deadline)
-    try:
+    with connected(connect_url, deadline) as (mavsdk, system):
         result["mavsdk_version"] = mavsdk.version()
         telemetry, action, offboard = Telemetry(system), Action(system), Offboard(system)
         wait_position_ok(telemetry, deadline)
@@ -76,8 +75,6 @@ def fly(connect_url: str, result: dict[str, Any], deadline: float) -> None:
         wait_for("landed and disarmed", lambda: landed_and_disarmed(telemetry), deadline)
         samples.append(telemetry_sample(telemetry, "landed"))
         steps.append("landed")
-    finally:
-        mavsdk.destroy()
 
 
 def main(argv: list[str] | None = None) -> int:

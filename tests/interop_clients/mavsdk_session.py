@@ -9,7 +9,8 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -31,11 +32,10 @@ def wait_for(what: str, predicate: Any, deadline: float) -> None:
         time.sleep(POLL_S)
 
 
-def connect(connect_url: str, deadline: float) -> tuple[Mavsdk, Any]:
-    """A ground-station MAVSDK instance and the first autopilot it discovers on ``connect_url``.
-
-    The caller destroys the instance (``mavsdk.destroy()``), also when this raises after creating it.
-    """
+@contextmanager
+def connected(connect_url: str, deadline: float) -> Iterator[tuple[Mavsdk, Any]]:
+    """A ground-station MAVSDK instance and the first autopilot it discovers on ``connect_url``; the instance
+    is destroyed on the way out (its native threads would otherwise outlive the session)."""
     mavsdk = Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))
     try:
         result = mavsdk.add_any_connection(connect_url)
@@ -44,10 +44,9 @@ def connect(connect_url: str, deadline: float) -> tuple[Mavsdk, Any]:
         system = mavsdk.first_autopilot(max(1.0, deadline - time.monotonic()))
         if system is None:
             raise StepFailedError("no autopilot discovered")
-    except BaseException:
+        yield mavsdk, system
+    finally:
         mavsdk.destroy()
-        raise
-    return mavsdk, system
 
 
 def wait_position_ok(telemetry: Telemetry, deadline: float) -> None:
