@@ -68,7 +68,7 @@ from sim.vehicle import VehicleSim
 #: only watches this file, not the ones whose kernels and constants get compiled in: when they change, the
 #: kernels compile without the cache (correct, slower start-up) until this line is updated after a review
 #: that the kernel still matches the reference (``tests/test_sim_frame_writer.py`` fails meanwhile).
-DEPENDENCIES_SHA256 = "5ce70836019f539570fe97cc62fe134a26dd7d9554e9805f524127e3da71039f"
+DEPENDENCIES_SHA256 = "a2a5c1fa8fb5c474a73d5cc6c288bec7c76ee97eb2251450d14d47d9f4b41ea4"
 
 
 def dependencies_sha256() -> str:
