@@ -120,6 +120,9 @@ def _command(conn, cmd: int, *params: float) -> int:  # type: ignore[no-untyped-
 def test_offboard_flight_needs_streaming_setpoints_and_holds_when_they_stop() -> None:
     loop = SimLoop("x500")
     ap = loop.ap
+    # A loaded machine can stall the setpoint thread for a second (wall clock): tolerate that in flight; the
+    # default 1 s comes back over PARAM_SET right before the client goes silent on purpose.
+    ap.params.set("COM_OF_LOSS_T", 10.0)
     port = free_udp_port()
     server = GcsServer(
         f"udpin:127.0.0.1:{port}", loop.vehicle, default_target_url=f"udpout:127.0.0.1:{free_udp_port()}"
@@ -150,6 +153,8 @@ def test_offboard_flight_needs_streaming_setpoints_and_holds_when_they_stop() ->
         assert _command(conn, M.MAV_CMD_DO_SET_MODE, 1, 6) == M.MAV_RESULT_ACCEPTED
         assert _command(conn, M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
         _recv(conn, "LOCAL_POSITION_NED", 60.0, lambda m: math.dist((m.x, m.y, m.z), (6.0, 0.0, -8.0)) < 0.5)
+        conn.mav.param_set_send(1, 1, b"COM_OF_LOSS_T", 1.0, M.MAV_PARAM_TYPE_REAL32)
+        _recv(conn, "PARAM_VALUE", 10.0, lambda m: m.param_id == "COM_OF_LOSS_T" and m.param_value == 1.0)
         streaming.clear()  # the offboard client goes silent: COM_OF_LOSS_T later, COM_OBL_ACT = hold
         _recv(conn, "STATUSTEXT", 30.0, lambda m: "offboard setpoints lost" in m.text)
         hold = FlightMode.AUTO_LOITER
