@@ -39,6 +39,9 @@ VELOCITY_ONLY = 0x0DC7
 VELOCITY_YAW_RATE = 0x05C7
 VELOCITY_YAW = 0x09C7
 ACCELERATION_ONLY = 0x0C3F
+#: Failure deadline (wall s) of each exchange in the in-process flight: a numba kernel compiled on first use (a
+#: fresh clone) holds the autopilot thread for many seconds on a loaded 2-core machine.
+WAIT_S = 60.0
 
 
 def _recv(conn, kind: str, timeout_s: float, predicate=lambda m: True):  # type: ignore[no-untyped-def]
@@ -114,7 +117,7 @@ def test_setpoint_messages_are_decoded_for_the_vehicle() -> None:
 def _command(conn, cmd: int, *params: float) -> int:  # type: ignore[no-untyped-def]
     full = [*params, *[0.0] * (7 - len(params))]
     conn.mav.command_long_send(1, 1, cmd, 0, *full)
-    return _recv(conn, "COMMAND_ACK", 10.0, lambda m: m.command == cmd).result
+    return _recv(conn, "COMMAND_ACK", WAIT_S, lambda m: m.command == cmd).result
 
 
 def test_offboard_flight_needs_streaming_setpoints_and_holds_when_they_stop() -> None:
@@ -154,11 +157,11 @@ def test_offboard_flight_needs_streaming_setpoints_and_holds_when_they_stop() ->
         assert _command(conn, M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
         _recv(conn, "LOCAL_POSITION_NED", 60.0, lambda m: math.dist((m.x, m.y, m.z), (6.0, 0.0, -8.0)) < 0.5)
         conn.mav.param_set_send(1, 1, b"COM_OF_LOSS_T", 1.0, M.MAV_PARAM_TYPE_REAL32)
-        _recv(conn, "PARAM_VALUE", 10.0, lambda m: m.param_id == "COM_OF_LOSS_T" and m.param_value == 1.0)
+        _recv(conn, "PARAM_VALUE", WAIT_S, lambda m: m.param_id == "COM_OF_LOSS_T" and m.param_value == 1.0)
         streaming.clear()  # the offboard client goes silent: COM_OF_LOSS_T later, COM_OBL_ACT = hold
-        _recv(conn, "STATUSTEXT", 30.0, lambda m: "offboard setpoints lost" in m.text)
+        _recv(conn, "STATUSTEXT", WAIT_S, lambda m: "offboard setpoints lost" in m.text)
         hold = FlightMode.AUTO_LOITER
-        _recv(conn, "HEARTBEAT", 10.0, lambda m: m.custom_mode == hold.value)
+        _recv(conn, "HEARTBEAT", WAIT_S, lambda m: m.custom_mode == hold.value)
         assert _command(conn, M.MAV_CMD_DO_SET_MODE, 1, 6) == M.MAV_RESULT_DENIED  # stale setpoints: not again
     finally:
         stop.set()
