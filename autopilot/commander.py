@@ -37,13 +37,14 @@ import math
 from dataclasses import dataclass, replace
 from enum import Enum
 
-from autopilot.estimator import VehicleState
+from autopilot.estimation import VehicleState
 from autopilot.failsafe import FailsafeAction, FailsafeEvent
 from autopilot.manual_control import stick_demand
 from autopilot.params import ParamStore
 from autopilot.setpoints import NavTarget, TargetKind
-from mavlink_bridge.frames import GeoPoint, LocalNedFrame, ne_from_heading_frame
-from mavlink_bridge.gcs_types import (
+from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame, ne_from_heading_frame
+from mavlink_bridge.contract.mav_enums import MavCmd
+from mavlink_bridge.contract.vehicle_api import (
     CommandRequest,
     CommandResult,
     FlightMode,
@@ -52,7 +53,7 @@ from mavlink_bridge.gcs_types import (
     Severity,
     StatusText,
 )
-from mavlink_bridge.wire import Vec3, fast_frozen_init
+from mavlink_bridge.contract.wire import Vec3, fast_frozen_init
 
 #: COMPONENT_ARM_DISARM param2 magic that forces arming/disarming (PX4/ArduPilot).
 FORCE_MAGIC = 21196.0
@@ -74,15 +75,6 @@ _FACE_TARGET_MIN_M = 2.0
 _AIRBORNE_ALT_M = 1.0
 _RELATIVE_ALT_FRAMES = frozenset({3, 6, 11})
 
-CMD_NAV_RETURN_TO_LAUNCH = 20
-CMD_NAV_LAND = 21
-CMD_NAV_TAKEOFF = 22
-CMD_DO_SET_MODE = 176
-CMD_DO_CHANGE_SPEED = 178
-CMD_DO_REPOSITION = 192
-CMD_DO_GRIPPER = 211
-CMD_MISSION_START = 300
-CMD_COMPONENT_ARM_DISARM = 400
 
 _ARMABLE_MODES = frozenset(
     {FlightMode.POSCTL, FlightMode.AUTO_LOITER, FlightMode.AUTO_TAKEOFF, FlightMode.AUTO_MISSION, FlightMode.OFFBOARD}
@@ -363,7 +355,7 @@ class Commander:
             return self._refuse(CommandResult.DENIED, "command parameter is infinite")
         cmd = request.command
         state = self._state
-        if cmd == CMD_COMPONENT_ARM_DISARM:
+        if cmd == MavCmd.COMPONENT_ARM_DISARM:
             force = p[1] == FORCE_MAGIC
             if p[0] == 1.0:
                 return self.arm(force)
@@ -372,9 +364,9 @@ class Commander:
             return self._refuse(CommandResult.DENIED, f"ARM_DISARM param1 must be 0 or 1, got {p[0]:g}")
         if state is None:
             return self._refuse(CommandResult.TEMPORARILY_REJECTED, "no vehicle state yet")
-        if cmd == CMD_NAV_TAKEOFF:
+        if cmd == MavCmd.NAV_TAKEOFF:
             return self._cmd_takeoff(request, state)
-        if cmd == CMD_NAV_LAND:
+        if cmd == MavCmd.NAV_LAND:
             if not (self.armed and self.in_air):
                 return self._refuse(CommandResult.DENIED, "LAND: not flying")
             ne = self._ne_from_latlon(p[4], p[5], state)
@@ -382,20 +374,20 @@ class Commander:
                 return self._refuse(CommandResult.DENIED, "LAND: latitude/longitude out of range")
             self._enter_land(state, ne)
             return CommandResult.ACCEPTED
-        if cmd == CMD_NAV_RETURN_TO_LAUNCH:
+        if cmd == MavCmd.NAV_RETURN_TO_LAUNCH:
             return self.request_mode(FlightMode.AUTO_RTL)
-        if cmd == CMD_MISSION_START:
+        if cmd == MavCmd.MISSION_START:
             return self.request_mode(FlightMode.AUTO_MISSION)
-        if cmd == CMD_DO_SET_MODE:
+        if cmd == MavCmd.DO_SET_MODE:
             return self._cmd_set_mode(p)
-        if cmd == CMD_DO_CHANGE_SPEED:
+        if cmd == MavCmd.DO_CHANGE_SPEED:
             return self._cmd_change_speed(p)
-        if cmd == CMD_DO_GRIPPER:
+        if cmd == MavCmd.DO_GRIPPER:
             if p[1] not in (0.0, 1.0):
                 return self._refuse(CommandResult.DENIED, f"GRIPPER: action must be 0 release or 1 grab, not {p[1]:g}")
             self.set_gripper(release=p[1] == 0.0)
             return CommandResult.ACCEPTED
-        if cmd == CMD_DO_REPOSITION:
+        if cmd == MavCmd.DO_REPOSITION:
             return self._cmd_reposition(request, state)
         return self._refuse(CommandResult.UNSUPPORTED, f"command {cmd} is not supported")
 

@@ -17,9 +17,9 @@ import math
 from dataclasses import dataclass
 
 from autopilot.params import ParamStore
-from mavlink_bridge.frames import ne_from_heading_frame
-from mavlink_bridge.gcs_types import ManualInput
-from mavlink_bridge.wire import Vec3
+from mavlink_bridge.contract.frames import ne_from_heading_frame
+from mavlink_bridge.contract.vehicle_api import ManualInput
+from mavlink_bridge.contract.wire import Vec3
 
 
 @dataclass(frozen=True, slots=True)

@@ -29,14 +29,13 @@ from typing import Protocol
 
 import numpy as np
 
-from autopilot.commander import CMD_MISSION_START, Commander
+from autopilot.commander import Commander
 from autopilot.control.airframe import Airframe, load_airframe
 from autopilot.control.cascade import GRAVITY_M_S2, CascadeController, SingleStep
 from autopilot.control.param_decls import gains_from_params, limits_from_params
-from autopilot.estimator import Estimator, FrameLike, VehicleState, make_estimator
+from autopilot.estimation import Estimator, FrameLike, VehicleState, make_estimator
 from autopilot.failsafe import BatteryModel, FailsafeInputs, FailsafeKind, FailsafeMonitor
 from autopilot.fence_zones import planner_fence_zones
-from autopilot.mission.commands import MissionState
 from autopilot.mission.executor import (
     ActionKind,
     ExecutorConfig,
@@ -55,8 +54,9 @@ from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import AvoidancePlanner
 from autopilot.scripted_commands import CommandScript
 from autopilot.setpoints import NavTarget, SetpointGenerator, SetpointLimits, TargetKind
-from mavlink_bridge.frames import GeoPoint
-from mavlink_bridge.gcs_types import (
+from mavlink_bridge.contract.frames import GeoPoint
+from mavlink_bridge.contract.mav_enums import MavCmd, MissionState
+from mavlink_bridge.contract.vehicle_api import (
     AltitudeFrame,
     CommandRequest,
     CommandResult,
@@ -74,7 +74,7 @@ from mavlink_bridge.gcs_types import (
     VelocityFrame,
     VelocityTarget,
 )
-from mavlink_bridge.wire import ActuatorCommand, ObstacleDetection, Vec3, fast_frozen_init
+from mavlink_bridge.contract.wire import ActuatorCommand, ObstacleDetection, Vec3, fast_frozen_init
 
 #: MAV_SYS_STATUS_SENSOR bits: 3D gyro, accel, mag, abs pressure, GPS, rate/attitude/position control,
 #: motor outputs, AHRS, battery.
@@ -531,7 +531,7 @@ class Autopilot:
     def handle_command(self, request: CommandRequest) -> CommandResult:
         self._update_offboard_streaming()
         result = self.commander.handle_command(request)
-        if request.command == CMD_MISSION_START and result is CommandResult.ACCEPTED and self.executor is not None:
+        if request.command == MavCmd.MISSION_START and result is CommandResult.ACCEPTED and self.executor is not None:
             first = request.params[0]
             seq = int(first) if math.isfinite(first) and first >= 1.0 else None
             if not self.executor.start(self._now_us(), seq):

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import yaml
 
-from mavlink_bridge.gcs_types import CommandRequest
+from mavlink_bridge.contract.vehicle_api import CommandRequest
 
 _ARGS = {
     "arm": (),

@@ -33,7 +33,7 @@ import math
 from dataclasses import dataclass
 from enum import Enum
 
-from mavlink_bridge.wire import Vec3, fast_frozen_init
+from mavlink_bridge.contract.wire import Vec3, fast_frozen_init
 
 #: Slope of the final approach, 1/s: ``v_des <= K_APPROACH · distance``.
 K_APPROACH = 1.0

@@ -1,4 +1,4 @@
-"""MAVLink 2 bytes <-> the typed wire contract of ``mavlink_bridge.wire`` (SPEC §4).
+"""MAVLink 2 bytes <-> the typed wire contract of ``mavlink_bridge.contract.wire`` (SPEC §4).
 
 The only place that converts the sim<->autopilot dataclasses to and from MAVLink. Message
 layouts (ids, CRC extras, field order, struct formats) come from pymavlink's
@@ -42,8 +42,8 @@ import numpy as np
 from fastcrc import crc16 as _crc16
 from pymavlink.dialects.v20 import ardupilotmega as _dialect
 
-from mavlink_bridge.frames import DEG_E7, GRAVITY_M_S2
-from mavlink_bridge.wire import (
+from mavlink_bridge.contract.frames import DEG_E7, GRAVITY_M_S2
+from mavlink_bridge.contract.wire import (
     ACTUATOR_FLAG_LOCKSTEP,
     ACTUATOR_MODE_ARMED,
     GRIPPER_CHANNEL,

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavlink_bridge.gcs_types import CommandRequest, CommandResult, VehicleInterface
+from mavlink_bridge.contract.vehicle_api import CommandRequest, CommandResult, VehicleInterface
 from mavlink_bridge.mission_items import xy_from_int
 
 MAV_CMD_SET_MESSAGE_INTERVAL = mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from mavlink_bridge.frames import DEG_E7, GRAVITY_M_S2
+from mavlink_bridge.contract.frames import DEG_E7, GRAVITY_M_S2
 
 #: Message kinds (the code before each message's values).
 KIND_SENSOR = 1

@@ -32,8 +32,8 @@ from mavlink_bridge.codec import (
     SIM_COMPONENT_ID,
     SIM_SYSTEM_ID,
 )
-from mavlink_bridge.frames import DEG_E7
-from mavlink_bridge.wire import ObstacleDetection
+from mavlink_bridge.contract.frames import DEG_E7
+from mavlink_bridge.contract.wire import ObstacleDetection
 
 # --- the values array: SI units, the fields of SensorSample, GroundTruth and GpsSample -----------
 V_ACCEL_FRD = 0  # 3, m/s²

@@ -19,9 +19,8 @@ from typing import TypeVar
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavlink_bridge.frames import GeoPoint, deg_from_deg_e7
-from mavlink_bridge.gcs_link import MavlinkEndpoint
-from mavlink_bridge.gcs_types import (
+from mavlink_bridge.contract.frames import GeoPoint, deg_from_deg_e7
+from mavlink_bridge.contract.vehicle_api import (
     CommandResult,
     FlightMode,
     LandedState,
@@ -31,6 +30,7 @@ from mavlink_bridge.gcs_types import (
     Severity,
     StatusText,
 )
+from mavlink_bridge.gcs_link import MavlinkEndpoint
 from mavlink_bridge.mission_items import MissionItemEncodeError, item_from_msg, send_item, xy_to_int
 from mavlink_bridge.param_protocol import PARAM_TYPE_REAL32, decode_param_id
 

@@ -33,9 +33,15 @@ from mavlink_bridge.command_protocol import (
     CommandProtocol,
     LocalHandler,
 )
+from mavlink_bridge.contract.vehicle_api import (
+    CommandRequest,
+    CommandResult,
+    Severity,
+    TelemetrySnapshot,
+    VehicleInterface,
+)
 from mavlink_bridge.ftp_protocol import FtpProtocol
 from mavlink_bridge.gcs_link import MavlinkEndpoint
-from mavlink_bridge.gcs_types import CommandRequest, CommandResult, Severity, TelemetrySnapshot, VehicleInterface
 from mavlink_bridge.manual_control_protocol import ManualControlProtocol
 from mavlink_bridge.mission_protocol import MissionProtocol, TransferTimeouts
 from mavlink_bridge.param_protocol import ParamProtocol

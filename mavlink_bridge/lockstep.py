@@ -28,8 +28,8 @@ from mavlink_bridge.codec import (
     Encoder,
     Heartbeat,
 )
+from mavlink_bridge.contract.wire import ActuatorCommand, GpsSample, GroundTruth, ObstacleDetection, SensorSample
 from mavlink_bridge.link import LinkMode, LinkUrl, LinkUrlError, UdpLink
-from mavlink_bridge.wire import ActuatorCommand, GpsSample, GroundTruth, ObstacleDetection, SensorSample
 
 DEFAULT_SIM_PORT = 14560
 DEFAULT_LISTEN_URL = f"udpin:127.0.0.1:{DEFAULT_SIM_PORT}"

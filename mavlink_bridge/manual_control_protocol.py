@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavlink_bridge.gcs_types import ManualInput
+from mavlink_bridge.contract.vehicle_api import ManualInput
 
 _UNUSED_AXIS = 0x7FFF
 _FULL_SCALE = 1000.0

@@ -11,7 +11,7 @@ import math
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavlink_bridge.gcs_types import MissionItem, MissionType
+from mavlink_bridge.contract.vehicle_api import MissionItem, MissionType
 
 #: MAV_FRAME_GLOBAL, _RELATIVE_ALT, _INT, _RELATIVE_ALT_INT, _TERRAIN_ALT, _TERRAIN_ALT_INT.
 GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavlink_bridge.gcs_types import Severity, VehicleInterface
+from mavlink_bridge.contract.vehicle_api import Severity, VehicleInterface
 
 PARAM_TYPE_REAL32 = mavlink2.MAV_PARAM_TYPE_REAL32
 PARAM_ID_LEN = 16

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavlink_bridge.gcs_types import (
+from mavlink_bridge.contract.vehicle_api import (
     AltitudeFrame,
     GlobalPositionTarget,
     LocalPositionTarget,

@@ -18,8 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavlink_bridge.frames import deg_e7_from_deg, euler_from_quat
-from mavlink_bridge.gcs_types import FlightMode, TelemetrySnapshot
+from mavlink_bridge.contract.frames import deg_e7_from_deg, euler_from_quat
+from mavlink_bridge.contract.vehicle_api import FlightMode, TelemetrySnapshot
 
 M = mavlink2
 #: Advertised in AUTOPILOT_VERSION.capabilities.

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from mavlink_bridge.frames import GRAVITY_M_S2, quat_from_euler
+from mavlink_bridge.contract.frames import GRAVITY_M_S2, quat_from_euler
 from sim import physics as ph
 from sim.end_reason import EndReason
 from sim.vehicle_config import VehicleConfig

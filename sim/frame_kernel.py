@@ -19,9 +19,19 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
+import mavlink_bridge.contract.frames
 import mavlink_bridge.frame_writer
-import mavlink_bridge.frames
 import sim.sensors
+from mavlink_bridge.contract.frames import (
+    _GEODETIC_ITERATIONS,
+    _WGS84_A_M,
+    _WGS84_B_M,
+    _WGS84_E2,
+    _WGS84_EP2,
+    DEG_E7,
+    LocalNedFrame,
+)
+from mavlink_bridge.contract.wire import ObstacleDetection
 from mavlink_bridge.frame_writer import (
     I_GPS_DUE,
     I_TIME_US,
@@ -50,31 +60,21 @@ from mavlink_bridge.frame_writer import (
     python_hypot,
     write_frame,
 )
-from mavlink_bridge.frames import (
-    _GEODETIC_ITERATIONS,
-    _WGS84_A_M,
-    _WGS84_B_M,
-    _WGS84_E2,
-    _WGS84_EP2,
-    DEG_E7,
-    LocalNedFrame,
-)
-from mavlink_bridge.wire import ObstacleDetection
 from sim.sensors import _SEA_LEVEL_PA, GPS_PERIOD_US, MAG_FIELD_NED_GAUSS, SensorModel
 from sim.vehicle import VehicleSim
 
-#: sha256 of ``mavlink_bridge/frame_writer.py`` + ``sim/sensors.py`` + ``mavlink_bridge/frames.py`` (WGS-84
+#: sha256 of ``mavlink_bridge/frame_writer.py`` + ``sim/sensors.py`` + ``mavlink_bridge/contract/frames.py`` (WGS-84
 #: constants, ``geodetic_from_ned``) that these kernels mirror. numba's cache
 #: only watches this file, not the ones whose kernels and constants get compiled in: when they change, the
 #: kernels compile without the cache (correct, slower start-up) until this line is updated after a review
 #: that the kernel still matches the reference (``tests/test_sim_frame_writer.py`` fails meanwhile).
-DEPENDENCIES_SHA256 = "a2a5c1fa8fb5c474a73d5cc6c288bec7c76ee97eb2251450d14d47d9f4b41ea4"
+DEPENDENCIES_SHA256 = "43801f9026a2f5c75cfaacc48e74d956527a7cc02a22702a5c9e569eef3a4738"
 
 
 def dependencies_sha256() -> str:
     """The current sha256 of the files named by ``DEPENDENCIES_SHA256``."""
     digest = hashlib.sha256()
-    for module in (mavlink_bridge.frame_writer, sim.sensors, mavlink_bridge.frames):
+    for module in (mavlink_bridge.frame_writer, sim.sensors, mavlink_bridge.contract.frames):
         digest.update(Path(module.__file__ or "").read_bytes())
     return digest.hexdigest()
 

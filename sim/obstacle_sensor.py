@@ -17,7 +17,7 @@ Model, per call of :meth:`ObstacleSensor.detect` (the sim calls it at ``config.r
   surface (not a box: its reported volume is the circumscribed cylinder), it is fused with the
   camera range by inverse-variance weighting.
 
-On the wire each detection is one ``OBSTACLE_DISTANCE_3D`` (``mavlink_bridge.wire.ObstacleDetection``):
+On the wire each detection is one ``OBSTACLE_DISTANCE_3D`` (``mavlink_bridge.contract.wire.ObstacleDetection``):
 ``frame = MAV_FRAME_BODY_FRD``, ``obstacle_id`` = index of the obstacle in the world (stable, like a
 tracker id), position = the nearest point, and the radius/shape as the bridge codec documents. Chosen
 over OBSTACLE_DISTANCE (a 2D ring of ranges, no elevation) and DISTANCE_SENSOR (one range) because
@@ -32,8 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from mavlink_bridge.frames import dcm_from_quat
-from mavlink_bridge.wire import ObstacleDetection, ObstacleShape
+from mavlink_bridge.contract.frames import dcm_from_quat
+from mavlink_bridge.contract.wire import ObstacleDetection, ObstacleShape
 
 from .world import KIND_BOX, KIND_CYLINDER, KIND_SPHERE, World, obstacle_distance_m
 

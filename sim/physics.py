@@ -32,7 +32,7 @@ import math
 import numpy as np
 from numba import njit
 
-from mavlink_bridge.frames import GRAVITY_M_S2
+from mavlink_bridge.contract.frames import GRAVITY_M_S2
 from sim.aerodynamics import drag_force_frd
 from sim.ground import ground_reaction_ned, resolve_touchdown
 from sim.motors import motor_lag_rate, omega_command_rad_s, rotor_wrench_frd

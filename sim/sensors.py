@@ -23,8 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mavlink_bridge.frames import DEG_E7, GeoPoint, LocalNedFrame
-from mavlink_bridge.wire import GpsSample, SensorSample
+from mavlink_bridge.contract.frames import DEG_E7, GeoPoint, LocalNedFrame
+from mavlink_bridge.contract.wire import GpsSample, SensorSample
 from sim.vehicle import VehicleSim
 from sim.vehicle_config import VehicleConfig
 

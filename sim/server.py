@@ -31,8 +31,8 @@ from typing import Any, Protocol
 import numpy as np
 import yaml
 
+from mavlink_bridge.contract.wire import ActuatorCommand, ObstacleDetection
 from mavlink_bridge.lockstep import DEFAULT_SPIN_S, AutopilotLost, LockstepFrame, LockstepInterrupted, LockstepServer
-from mavlink_bridge.wire import ActuatorCommand, ObstacleDetection
 from sim.end_reason import EndReason
 from sim.frame_kernel import FusedFrame
 from sim.sensors import SensorModel

@@ -10,8 +10,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from mavlink_bridge.frames import GeoPoint, LocalNedFrame
-from mavlink_bridge.wire import GroundTruth
+from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
+from mavlink_bridge.contract.wire import GroundTruth
 from sim.batch import BatchSim
 from sim.end_reason import EndReason
 from sim.vehicle_config import VehicleConfig

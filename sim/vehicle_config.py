@@ -19,7 +19,7 @@ from typing import Any
 
 import yaml
 
-from mavlink_bridge.frames import GRAVITY_M_S2
+from mavlink_bridge.contract.frames import GRAVITY_M_S2
 
 VEHICLES_DIR = Path(__file__).resolve().parent / "vehicles"
 

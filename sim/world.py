@@ -18,7 +18,7 @@ import numpy as np
 import yaml
 from numba import njit
 
-from mavlink_bridge.frames import GeoPoint
+from mavlink_bridge.contract.frames import GeoPoint
 
 #: Default home when a world has none (SPEC §8 example, Hangzhou).
 DEFAULT_HOME = GeoPoint(30.2635, 120.1233, 12.0)

@@ -6,13 +6,13 @@ import math
 from dataclasses import dataclass
 
 from autopilot.commander import Commander
-from autopilot.estimator import VehicleState
+from autopilot.estimation import VehicleState
 from autopilot.mission.param_decls import mission_param_specs
 from autopilot.nav_params import nav_param_specs
 from autopilot.params import ParamStore
 from autopilot.setpoints import SetpointGenerator, SetpointLimits, TargetKind
-from mavlink_bridge.frames import GRAVITY_M_S2, GeoPoint, LocalNedFrame
-from mavlink_bridge.gcs_types import CommandRequest
+from mavlink_bridge.contract.frames import GRAVITY_M_S2, GeoPoint, LocalNedFrame
+from mavlink_bridge.contract.vehicle_api import CommandRequest
 
 HOME = GeoPoint(47.397742, 8.545594, 488.0)
 FRAME = LocalNedFrame(HOME)

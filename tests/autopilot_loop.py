@@ -7,9 +7,9 @@ from collections.abc import Callable
 from autopilot_fakes import command
 
 from autopilot.runner import Autopilot, AutopilotConfig, VehicleAdapter
-from mavlink_bridge.gcs_types import CommandResult, FlightMode
+from mavlink_bridge.contract.vehicle_api import CommandResult, FlightMode
+from mavlink_bridge.contract.wire import ActuatorCommand
 from mavlink_bridge.lockstep import LockstepFrame
-from mavlink_bridge.wire import ActuatorCommand
 from sim.obstacle_sensor import ObstacleSensor, ObstacleSensorConfig
 from sim.sensors import SensorModel
 from sim.vehicle import VehicleSim

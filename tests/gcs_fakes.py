@@ -15,8 +15,7 @@ from typing import Any
 from conftest import free_udp_port
 
 from autopilot.params import ParamError, ParamSpec, ParamStore
-from mavlink_bridge.gcs_server import GcsServer
-from mavlink_bridge.gcs_types import (
+from mavlink_bridge.contract.vehicle_api import (
     CommandRequest,
     CommandResult,
     FlightMode,
@@ -29,6 +28,7 @@ from mavlink_bridge.gcs_types import (
     TelemetrySnapshot,
     VelocityTarget,
 )
+from mavlink_bridge.gcs_server import GcsServer
 from mavlink_bridge.mission_items import GLOBAL_FRAMES
 
 MAV_CMD_NAV_WAYPOINT = 16

@@ -8,9 +8,9 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from autopilot.estimator import TruthEstimator, make_estimator
-from mavlink_bridge.frames import GeoPoint, LocalNedFrame, quat_from_euler
-from mavlink_bridge.wire import GpsSample, GroundTruth, SensorSample
+from autopilot.estimation import TruthEstimator, make_estimator
+from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame, quat_from_euler
+from mavlink_bridge.contract.wire import GpsSample, GroundTruth, SensorSample
 
 ORIGIN = GeoPoint(30.2635, 120.1233, 12.0)
 FRAME = LocalNedFrame(ORIGIN)
@@ -91,7 +91,7 @@ def test_fast_built_state_is_the_frozen_dataclass_with_the_reference_values() ->
     """``TruthEstimator`` builds ``VehicleState`` through a plain twin (speed): same type, values, frozen."""
     import dataclasses
 
-    from autopilot.estimator import VehicleState, _euler_zyx
+    from autopilot.estimation import VehicleState, _euler_zyx
 
     est = TruthEstimator()
     gps = GpsSample(4000, 30.2635, 120.1233, 12.0, (0.0, 0.0, 0.0), 0.8, 1.2, 3, 11)

@@ -15,7 +15,7 @@ from autopilot.failsafe import (
 from autopilot.mission.fence import geofence_from_items
 from autopilot.nav_params import nav_param_specs
 from autopilot.params import ParamStore
-from mavlink_bridge.gcs_types import MissionItem, MissionType
+from mavlink_bridge.contract.vehicle_api import MissionItem, MissionType
 
 
 def _inputs(**kw: object) -> FailsafeInputs:

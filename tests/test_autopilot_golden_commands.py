@@ -20,8 +20,15 @@ import struct
 
 from autopilot.runner import Autopilot, AutopilotConfig, VehicleAdapter
 from autopilot.scripted_commands import CommandScript, parse_script
-from mavlink_bridge.frames import LocalNedFrame
-from mavlink_bridge.gcs_types import CommandRequest, CommandResult, FlightMode, MissionItem, MissionResult, MissionType
+from mavlink_bridge.contract.frames import LocalNedFrame
+from mavlink_bridge.contract.vehicle_api import (
+    CommandRequest,
+    CommandResult,
+    FlightMode,
+    MissionItem,
+    MissionResult,
+    MissionType,
+)
 from mavlink_bridge.lockstep import LockstepFrame
 from sim.sensors import SensorModel
 from sim.vehicle import VehicleSim

@@ -16,10 +16,10 @@ import numpy as np
 from autopilot_fakes import command
 from autopilot_loop import SimLoop
 
-from autopilot.mission.commands import GripperAction, MavCmd, MavFrame
 from autopilot.planner.obstacle_map import ObstacleKind, TrackedObstacle
-from mavlink_bridge.frames import LocalNedFrame
-from mavlink_bridge.gcs_types import CommandResult, MissionItem, MissionResult, MissionType
+from mavlink_bridge.contract.frames import LocalNedFrame
+from mavlink_bridge.contract.mav_enums import GripperAction, MavCmd, MavFrame
+from mavlink_bridge.contract.vehicle_api import CommandResult, MissionItem, MissionResult, MissionType
 
 REL = int(MavFrame.GLOBAL_RELATIVE_ALT_INT)
 ALT_M = 5.0

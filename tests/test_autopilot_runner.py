@@ -13,8 +13,15 @@ import pytest
 from autopilot_fakes import command
 
 from autopilot.runner import Autopilot, AutopilotConfig, VehicleAdapter
-from mavlink_bridge.frames import LocalNedFrame
-from mavlink_bridge.gcs_types import CommandResult, FlightMode, LandedState, MissionItem, MissionResult, MissionType
+from mavlink_bridge.contract.frames import LocalNedFrame
+from mavlink_bridge.contract.vehicle_api import (
+    CommandResult,
+    FlightMode,
+    LandedState,
+    MissionItem,
+    MissionResult,
+    MissionType,
+)
 from mavlink_bridge.lockstep import LockstepFrame
 from sim.sensors import SensorModel
 from sim.vehicle import VehicleSim

@@ -16,8 +16,8 @@ from autopilot.runner import Autopilot, AutopilotConfig, Links, run_loop
 from autopilot.telemetry import entities as ent
 from autopilot.telemetry import make_listener
 from autopilot.telemetry.recording_reader import read_recording
-from mavlink_bridge.frames import LocalNedFrame
-from mavlink_bridge.gcs_types import CommandResult, MissionItem, MissionResult, MissionType, Severity
+from mavlink_bridge.contract.frames import LocalNedFrame
+from mavlink_bridge.contract.vehicle_api import CommandResult, MissionItem, MissionResult, MissionType, Severity
 from sim.world import load_world
 
 COLUMN = {"cylinder": {"north_m": 25, "east_m": 1.0, "radius_m": 3, "height_m": 30}}

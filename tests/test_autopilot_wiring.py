@@ -15,8 +15,8 @@ from autopilot.control.param_decls import controller_param_specs
 from autopilot.mission.fence import circle_fence_items, polygon_fence_items
 from autopilot.param_schema import all_param_specs, make_param_store
 from autopilot.runner import Autopilot, AutopilotConfig
-from mavlink_bridge.gcs_types import CommandResult, MissionResult, MissionType
-from mavlink_bridge.wire import ObstacleDetection, ObstacleShape
+from mavlink_bridge.contract.vehicle_api import CommandResult, MissionResult, MissionType
+from mavlink_bridge.contract.wire import ObstacleDetection, ObstacleShape
 
 Z, ROLL = 2, 3  # CHANNELS order in the diagnostics: x, y, z, roll, pitch, yaw
 

@@ -11,8 +11,8 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mav2
 
 from mavlink_bridge.codec import HIL_SENSOR_FIELDS_ALL, Decoder, Encoder, Heartbeat, make_mavlink
-from mavlink_bridge.frames import GRAVITY_M_S2
-from mavlink_bridge.wire import (
+from mavlink_bridge.contract.frames import GRAVITY_M_S2
+from mavlink_bridge.contract.wire import (
     GRIPPER_CHANNEL,
     ActuatorCommand,
     GpsSample,

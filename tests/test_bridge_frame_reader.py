@@ -15,7 +15,14 @@ from pymavlink.dialects.v20 import ardupilotmega as mav2
 
 from mavlink_bridge import codec, frame_reader
 from mavlink_bridge.codec import Decoder, Encoder, Heartbeat
-from mavlink_bridge.wire import ActuatorCommand, GpsSample, GroundTruth, ObstacleDetection, ObstacleShape, SensorSample
+from mavlink_bridge.contract.wire import (
+    ActuatorCommand,
+    GpsSample,
+    GroundTruth,
+    ObstacleDetection,
+    ObstacleShape,
+    SensorSample,
+)
 
 SPECIALS = (math.nan, math.inf, -math.inf, -0.0, 0.0, 1e-40, 3.4e38, -1e9)
 

@@ -8,9 +8,16 @@ import threading
 import numpy as np
 import pytest
 
+from mavlink_bridge.contract.wire import (
+    ActuatorCommand,
+    GpsSample,
+    GroundTruth,
+    ObstacleDetection,
+    ObstacleShape,
+    SensorSample,
+)
 from mavlink_bridge.lockstep import AutopilotLost, LockstepClient, LockstepFrame, LockstepServer
 from mavlink_bridge.lossy import LossProfile, LossyUdpProxy
-from mavlink_bridge.wire import ActuatorCommand, GpsSample, GroundTruth, ObstacleDetection, ObstacleShape, SensorSample
 
 FRAME_PERIOD_US = 4000
 

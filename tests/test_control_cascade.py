@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from autopilot.control import CascadeController, CascadeGains, CascadeLimits, NlvgGains, load_airframe
-from mavlink_bridge.frames import quat_from_euler
+from mavlink_bridge.contract.frames import quat_from_euler
 
 G = 9.80665
 AF = load_airframe("x500")

@@ -17,7 +17,7 @@ import pytest
 from autopilot import metrics
 from autopilot.control import CascadeController, CascadeGains, load_airframe
 from autopilot.trajectories import make_trajectory
-from mavlink_bridge.frames import euler_from_quat
+from mavlink_bridge.contract.frames import euler_from_quat
 from sim.batch import BatchSim
 from sim.vehicle_config import load_vehicle
 

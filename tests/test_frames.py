@@ -6,7 +6,7 @@ import numpy as np
 import pymap3d
 import pytest
 
-from mavlink_bridge.frames import (
+from mavlink_bridge.contract.frames import (
     GeoPoint,
     LocalNedFrame,
     dcm_from_quat,

@@ -7,7 +7,7 @@ import math
 
 import pymap3d
 
-from mavlink_bridge.frames import GeoPoint, LocalNedFrame
+from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
 
 _HOMES = [
     GeoPoint(lat, lon, alt)

@@ -13,6 +13,7 @@ from conftest import free_udp_port
 from gcs_fakes import MAV_CMD_COMPONENT_ARM_DISARM, FakeVehicle, ServerHarness
 
 from autopilot.params import ParamSpec, ParamStore
+from mavlink_bridge.contract.vehicle_api import CommandResult, FlightMode, LandedState
 from mavlink_bridge.gcs_client import (
     CommandFailedError,
     GcsClient,
@@ -21,7 +22,6 @@ from mavlink_bridge.gcs_client import (
     ParamRefusedError,
 )
 from mavlink_bridge.gcs_server import GcsServer
-from mavlink_bridge.gcs_types import CommandResult, FlightMode, LandedState
 from mavlink_bridge.lossy import LossProfile, LossyUdpProxy
 from mavlink_bridge.signing import signing_key_from_text
 

@@ -14,7 +14,7 @@ from gcs_fakes import served_fake_vehicle
 
 from autopilot.manual_control import deadzone, stick_demand
 from autopilot.param_schema import make_param_store
-from mavlink_bridge.gcs_types import CommandResult, FlightMode, LandedState, ManualInput
+from mavlink_bridge.contract.vehicle_api import CommandResult, FlightMode, LandedState, ManualInput
 
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil

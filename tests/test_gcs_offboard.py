@@ -15,8 +15,7 @@ from conftest import free_udp_port
 from gcs_fakes import FakeVehicle, ServerHarness
 
 from autopilot.runner import Links, run_loop
-from mavlink_bridge.gcs_server import GcsServer
-from mavlink_bridge.gcs_types import (
+from mavlink_bridge.contract.vehicle_api import (
     AltitudeFrame,
     CommandResult,
     FlightMode,
@@ -25,6 +24,7 @@ from mavlink_bridge.gcs_types import (
     VelocityFrame,
     VelocityTarget,
 )
+from mavlink_bridge.gcs_server import GcsServer
 
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil

@@ -11,8 +11,8 @@ from conftest import free_udp_port
 from gcs_fakes import FakeVehicle, ServerHarness
 
 from autopilot.mission.files import load_mission_file
+from mavlink_bridge.contract.vehicle_api import MissionType
 from mavlink_bridge.gcs_server import GcsServer
-from mavlink_bridge.gcs_types import MissionType
 from tools import gcs
 
 MISSION_YAML = textwrap.dedent(

@@ -7,7 +7,7 @@ import os
 
 from gcs_fakes import FakeVehicle
 
-from mavlink_bridge.gcs_types import FlightMode
+from mavlink_bridge.contract.vehicle_api import FlightMode
 from mavlink_bridge.telemetry_streams import TelemetryStreams
 
 os.environ.setdefault("MAVLINK20", "1")

@@ -7,7 +7,6 @@ from dataclasses import dataclass, field
 
 import pytest
 
-from autopilot.mission.commands import GripperAction, MavCmd, MavFrame, MissionState
 from autopilot.mission.executor import (
     ActionKind,
     ExecutorConfig,
@@ -17,8 +16,9 @@ from autopilot.mission.executor import (
     NavTarget,
     VehicleSample,
 )
-from mavlink_bridge.frames import GeoPoint, LocalNedFrame
-from mavlink_bridge.gcs_types import MissionItem
+from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
+from mavlink_bridge.contract.mav_enums import GripperAction, MavCmd, MavFrame, MissionState
+from mavlink_bridge.contract.vehicle_api import MissionItem
 
 HOME = GeoPoint(47.397742, 8.545594, 488.0)
 FRAME = LocalNedFrame(HOME)

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from test_mission_executor import DO, HOME, PointVehicle, do, land, numbered, takeoff, wp
 
-from autopilot.mission.commands import GripperAction, MavCmd, MissionState
 from autopilot.mission.executor import ActionKind, ExecutorConfig, MissionExecutor, NavKind
-from mavlink_bridge.gcs_types import MissionItem
+from mavlink_bridge.contract.mav_enums import GripperAction, MavCmd, MissionState
+from mavlink_bridge.contract.vehicle_api import MissionItem
 
 
 def started(items: list[MissionItem], seconds: float = 4.0) -> tuple[MissionExecutor, PointVehicle]:

@@ -17,7 +17,7 @@ from autopilot.mission.fence import (
     polygon_fence_items,
     segment_to_segments_distance,
 )
-from mavlink_bridge.frames import GeoPoint, LocalNedFrame
+from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
 
 HOME = GeoPoint(30.2635, 120.1233, 12.0)
 SQUARE = ((10.0, -5.0), (10.0, 5.0), (20.0, 5.0), (20.0, -5.0))

@@ -8,12 +8,12 @@ from pathlib import Path
 
 import pytest
 
-from autopilot.mission.commands import GripperAction, MavCmd, MavFrame
 from autopilot.mission.fence import geofence_from_items
 from autopilot.mission.files import MissionFileError, load_mission_file, save_mission_file
 from autopilot.mission.plan import items_match
-from mavlink_bridge.frames import LocalNedFrame
-from mavlink_bridge.gcs_types import MissionType
+from mavlink_bridge.contract.frames import LocalNedFrame
+from mavlink_bridge.contract.mav_enums import GripperAction, MavCmd, MavFrame
+from mavlink_bridge.contract.vehicle_api import MissionType
 
 FULL_YAML = """
 name: city_block_delivery

@@ -7,11 +7,11 @@ from pathlib import Path
 
 import pytest
 
-from autopilot.mission.commands import GripperAction, MavCmd
 from autopilot.mission.files import load_mission_file
 from autopilot.mission.plan import items_match
 from autopilot.mission.validation import validate_mission
-from mavlink_bridge.gcs_types import MissionResult
+from mavlink_bridge.contract.mav_enums import GripperAction, MavCmd
+from mavlink_bridge.contract.vehicle_api import MissionResult
 
 MISSIONS = Path(__file__).resolve().parent.parent / "missions"
 FILES = sorted(p for p in MISSIONS.iterdir() if p.suffix in (".yaml", ".yml", ".waypoints", ".txt", ".plan"))

@@ -7,11 +7,11 @@ from dataclasses import replace
 
 import pytest
 
-from autopilot.mission.commands import MavCmd, MavFrame
 from autopilot.mission.validation import MissionLimits, check_mission, validate_mission
 from autopilot.param_schema import all_param_specs, make_param_store, markdown_reference
-from mavlink_bridge.frames import GeoPoint, LocalNedFrame
-from mavlink_bridge.gcs_types import MissionItem, MissionResult, MissionType
+from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
+from mavlink_bridge.contract.mav_enums import MavCmd, MavFrame
+from mavlink_bridge.contract.vehicle_api import MissionItem, MissionResult, MissionType
 
 HOME = GeoPoint(47.397742, 8.545594, 488.0)
 REL = int(MavFrame.GLOBAL_RELATIVE_ALT_INT)

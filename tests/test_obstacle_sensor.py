@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from mavlink_bridge.frames import quat_from_euler, rotate_frd_to_ned
-from mavlink_bridge.wire import ObstacleShape
+from mavlink_bridge.contract.frames import quat_from_euler, rotate_frd_to_ned
+from mavlink_bridge.contract.wire import ObstacleShape
 from sim.obstacle_sensor import ObstacleSensor, ObstacleSensorConfig
 from sim.world import load_world
 

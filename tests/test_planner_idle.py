@@ -12,8 +12,8 @@ import numpy as np
 
 from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import AvoidancePlanner, PlannerState
-from mavlink_bridge.frames import quat_from_euler
-from mavlink_bridge.wire import ObstacleDetection, ObstacleShape
+from mavlink_bridge.contract.frames import quat_from_euler
+from mavlink_bridge.contract.wire import ObstacleDetection, ObstacleShape
 
 Q_NORTH = quat_from_euler(0.0, 0.0, 0.0)
 TARGET = (80.0, 0.0, -10.0)

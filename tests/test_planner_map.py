@@ -9,8 +9,8 @@ import pytest
 
 from autopilot.planner.obstacle_map import ObstacleKind, ObstacleMap, TrackedObstacle
 from autopilot.planner.threat import assess_threat
-from mavlink_bridge.frames import quat_from_euler
-from mavlink_bridge.wire import ObstacleDetection, ObstacleShape
+from mavlink_bridge.contract.frames import quat_from_euler
+from mavlink_bridge.contract.wire import ObstacleDetection, ObstacleShape
 
 POS = np.array([0.0, 0.0, -10.0])
 

@@ -10,8 +10,8 @@ from autopilot.planner.detour import DetourLimits, plan_detour
 from autopilot.planner.obstacle_map import ObstacleKind, TrackedObstacle
 from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import AvoidancePlanner, PlannerState
-from mavlink_bridge.frames import quat_from_euler
-from mavlink_bridge.wire import ObstacleDetection, ObstacleShape
+from mavlink_bridge.contract.frames import quat_from_euler
+from mavlink_bridge.contract.wire import ObstacleDetection, ObstacleShape
 
 POS = np.array([0.0, 0.0, -10.0])
 VEL = np.array([5.0, 0.0, 0.0])

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from mavlink_bridge.codec import SIM_COMPONENT_ID, SIM_SYSTEM_ID, Decoder, Encoder
+from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
+from mavlink_bridge.contract.wire import GpsSample, ObstacleDetection
 from mavlink_bridge.frame_writer import python_hypot
-from mavlink_bridge.frames import GeoPoint, LocalNedFrame
 from mavlink_bridge.lockstep import LockstepFrame, encode_frame
-from mavlink_bridge.wire import GpsSample, ObstacleDetection
 from sim.frame_kernel import (
     C_TRUTH_FRAME,
     DEPENDENCIES_SHA256,

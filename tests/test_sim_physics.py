@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from mavlink_bridge.frames import GRAVITY_M_S2, dcm_from_quat, euler_from_quat
+from mavlink_bridge.contract.frames import GRAVITY_M_S2, dcm_from_quat, euler_from_quat
 from sim.batch import BatchSim
 from sim.end_reason import EndReason
 from sim.vehicle import VehicleSim

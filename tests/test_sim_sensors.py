@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mavlink_bridge.frames import GRAVITY_M_S2, GeoPoint, LocalNedFrame, deg_e7_from_deg, deg_from_deg_e7
+from mavlink_bridge.contract.frames import GRAVITY_M_S2, GeoPoint, LocalNedFrame, deg_e7_from_deg, deg_from_deg_e7
 from sim.sensors import MAG_FIELD_NED_GAUSS, NOISE_BLOCK, SensorModel, isa_altitude_m, isa_pressure_pa
 from sim.vehicle import VehicleSim
 from sim.vehicle_config import load_vehicle

@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from autopilot.mission.commands import MavCmd
 from autopilot.telemetry.scene import ObstacleShape, SceneError, fence_outlines, route_points_ned, true_obstacles
 from autopilot.telemetry.sinks import DEFAULT_CONNECT_URL, RerunSink, RerunSpecError, SinkKind, parse_rerun_spec
-from mavlink_bridge.frames import GeoPoint, LocalNedFrame
-from mavlink_bridge.gcs_types import MissionItem
+from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
+from mavlink_bridge.contract.mav_enums import MavCmd
+from mavlink_bridge.contract.vehicle_api import MissionItem
 
 
 @pytest.mark.parametrize(

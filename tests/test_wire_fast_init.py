@@ -8,7 +8,13 @@ import pickle
 
 import pytest
 
-from mavlink_bridge.wire import ActuatorCommand, GroundTruth, ObstacleDetection, ObstacleShape, fast_frozen_init
+from mavlink_bridge.contract.wire import (
+    ActuatorCommand,
+    GroundTruth,
+    ObstacleDetection,
+    ObstacleShape,
+    fast_frozen_init,
+)
 
 
 def test_fast_init_keeps_signature_defaults_equality_hash_replace_and_pickle() -> None:

@@ -19,9 +19,9 @@ from pathlib import Path
 
 from autopilot.mission.files import MissionFileError, load_mission_file, save_mission_file
 from autopilot.mission.plan import MissionPlan
-from mavlink_bridge.frames import GeoPoint
+from mavlink_bridge.contract.frames import GeoPoint
+from mavlink_bridge.contract.vehicle_api import CommandResult, FlightMode, LandedState, MissionResult, MissionType
 from mavlink_bridge.gcs_client import CommandFailedError, GcsClient, GcsError, MissionUploadError, VehicleStatus
-from mavlink_bridge.gcs_types import CommandResult, FlightMode, LandedState, MissionResult, MissionType
 from mavlink_bridge.link import LinkUrl, LinkUrlError
 from mavlink_bridge.signing import SigningKeyError, signing_key_from_text
 

@@ -25,7 +25,7 @@ import rerun as rr
 from autopilot.telemetry import entities as ent
 from autopilot.telemetry.blueprint import monitor_blueprint
 from autopilot.telemetry.sinks import RerunSpecError, open_recording, parse_rerun_spec
-from mavlink_bridge.frames import quat_from_euler
+from mavlink_bridge.contract.frames import quat_from_euler
 from mavlink_bridge.link import LinkUrlError
 from mavlink_bridge.telemetry_listener import (
     Attitude,

@@ -39,7 +39,7 @@ from autopilot.control.airframe import Airframe
 from autopilot.control.gains import CascadeGains, CascadeLimits
 from autopilot.control.mixer import QuadXMixer, mix_one
 from autopilot.control.pid import N_GAIN_COLS, N_STATE_COLS, nlvg_pid_step
-from mavlink_bridge.frames import GRAVITY_M_S2
+from mavlink_bridge.contract.frames import GRAVITY_M_S2
 
 # packed parameter vector: CascadeLimits.as_array() then airframe constants, then A⁻¹ (row-major)
 L_TILT, L_ACC_XY, L_ACC_UP, L_ACC_DOWN, L_AA_RP, L_AA_YAW, L_I_POS, L_I_ATT, L_T_POS, L_T_ATT, L_GYRO = range(11)

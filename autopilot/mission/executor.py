@@ -51,15 +51,14 @@ from enum import IntEnum
 
 import numpy as np
 
-from autopilot.mission.commands import GripperAction, MavCmd, MissionState
 from autopilot.mission.param_decls import MISSION_PARAM_DEFAULTS
 from autopilot.mission.plan import is_wpl_home_line, item_position_ned, items_match, uses_current_position
 from autopilot.params import ParamStore
-from mavlink_bridge.frames import GeoPoint, LocalNedFrame
-from mavlink_bridge.gcs_types import MissionItem
-from mavlink_bridge.wire import fast_frozen_init
+from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame, Vec3
+from mavlink_bridge.contract.mav_enums import GripperAction, MavCmd, MissionState
+from mavlink_bridge.contract.vehicle_api import MissionItem
+from mavlink_bridge.contract.wire import fast_frozen_init
 
-Vec3 = tuple[float, float, float]
 _NAN = float("nan")
 
 

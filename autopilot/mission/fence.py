@@ -15,12 +15,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from autopilot.mission.commands import FENCE_COMMANDS, GLOBAL_FRAMES, MavCmd, MavFrame, command_name
-from mavlink_bridge.frames import GeoPoint, LocalNedFrame
-from mavlink_bridge.gcs_types import MissionItem, MissionType
+from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
+from mavlink_bridge.contract.mav_enums import FENCE_COMMANDS, GLOBAL_FRAMES, MavCmd, MavFrame, command_name
+from mavlink_bridge.contract.vehicle_api import MissionItem, MissionType
 
 Vec2 = tuple[float, float]
-Vec3 = tuple[float, float, float]
 
 
 class FenceError(ValueError):

@@ -40,12 +40,12 @@ from typing import Any
 
 import yaml
 
-from autopilot.mission.commands import GripperAction, MavCmd, MavFrame
 from autopilot.mission.fence import circle_fence_items, polygon_fence_items
 from autopilot.mission.plan import DEFAULT_VEHICLE, MissionPlan, items_match
 from autopilot.mission.validation import MissionLimits, check_mission
-from mavlink_bridge.frames import GeoPoint, LocalNedFrame
-from mavlink_bridge.gcs_types import MissionItem
+from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
+from mavlink_bridge.contract.mav_enums import GripperAction, MavCmd, MavFrame
+from mavlink_bridge.contract.vehicle_api import MissionItem
 
 #: ``(type, spacing_m, params) -> [(north_m, east_m, alt_m), ...]``: expands a YAML ``pattern:`` entry.
 PatternExpander = Callable[[str, float, dict[str, Any]], list[tuple[float, float, float]]]

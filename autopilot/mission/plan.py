@@ -11,11 +11,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, fields
 from typing import Any
 
-from autopilot.mission.commands import AMSL_FRAMES, CURRENT_POSITION_OK, MavCmd
-from mavlink_bridge.frames import GeoPoint, LocalNedFrame
-from mavlink_bridge.gcs_types import MissionItem
-
-Vec3 = tuple[float, float, float]
+from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame, Vec3
+from mavlink_bridge.contract.mav_enums import AMSL_FRAMES, CURRENT_POSITION_OK, MavCmd
+from mavlink_bridge.contract.vehicle_api import MissionItem
 
 #: Default vehicle config name when a file does not say.
 DEFAULT_VEHICLE = "x500"

@@ -12,7 +12,12 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from autopilot.mission.commands import (
+from autopilot.mission.fence import FenceError, geofence_from_items
+from autopilot.mission.param_decls import MISSION_PARAM_DEFAULTS
+from autopilot.mission.plan import alt_rel_home_m, is_wpl_home_line, uses_current_position
+from autopilot.params import ParamStore
+from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
+from mavlink_bridge.contract.mav_enums import (
     GLOBAL_FRAMES,
     MISSION_COMMANDS,
     NAV_COMMANDS,
@@ -23,12 +28,7 @@ from autopilot.mission.commands import (
     command_name,
     frame_name,
 )
-from autopilot.mission.fence import FenceError, geofence_from_items
-from autopilot.mission.param_decls import MISSION_PARAM_DEFAULTS
-from autopilot.mission.plan import alt_rel_home_m, is_wpl_home_line, uses_current_position
-from autopilot.params import ParamStore
-from mavlink_bridge.frames import GeoPoint, LocalNedFrame
-from mavlink_bridge.gcs_types import MissionItem, MissionResult, MissionType
+from mavlink_bridge.contract.vehicle_api import MissionItem, MissionResult, MissionType
 
 #: Mission commands whose param4 is a yaw angle where NaN means "vehicle's choice" (MAVLink convention).
 _NAN_YAW_OK = frozenset({MavCmd.NAV_WAYPOINT, MavCmd.NAV_LOITER_TIME, MavCmd.NAV_LAND, MavCmd.NAV_TAKEOFF})

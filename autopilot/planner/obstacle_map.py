@@ -1,6 +1,6 @@
 """The obstacle map: tracked obstacles built from sensor detections (merge, track, forget).
 
-A detection (``mavlink_bridge.wire.ObstacleDetection``, OBSTACLE_DISTANCE_3D on the wire) gives
+A detection (``mavlink_bridge.contract.wire.ObstacleDetection``, OBSTACLE_DISTANCE_3D on the wire) gives
 the nearest sensed surface point in body FRD and a radius estimate. The map turns it into a
 volume in local NED:
 
@@ -30,8 +30,8 @@ from enum import Enum
 
 import numpy as np
 
-from mavlink_bridge.frames import rotate_frd_to_ned
-from mavlink_bridge.wire import ObstacleDetection, ObstacleShape
+from mavlink_bridge.contract.frames import Vec3, rotate_frd_to_ned
+from mavlink_bridge.contract.wire import ObstacleDetection, ObstacleShape
 
 from .geometry import cylinder_signed_distance, sphere_signed_distance
 
@@ -66,9 +66,6 @@ class TrackedObstacle:
         if self.kind is ObstacleKind.SPHERE:
             return sphere_signed_distance(points_ned, np.array(self.center_ned), self.radius_m)
         return cylinder_signed_distance(points_ned, np.array(self.center_ned[:2]), self.radius_m, self.top_down)
-
-
-Vec3 = tuple[float, float, float]
 
 
 @dataclass(slots=True)

@@ -27,7 +27,7 @@ from enum import Enum
 
 import numpy as np
 
-from mavlink_bridge.wire import ObstacleDetection, Vec3, fast_frozen_init
+from mavlink_bridge.contract.wire import ObstacleDetection, Vec3, fast_frozen_init
 
 from .bezier import BezierPath
 from .detour import (

@@ -16,6 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mavlink_bridge.contract.frames import Vec3
+
 from .geometry import segment_cylinder_intersection, segment_sphere_intersection
 from .obstacle_map import ObstacleArrays, ObstacleKind, TrackedObstacle, row_signed_distance
 
@@ -31,7 +33,6 @@ class Threat:
     on_route: bool  # found on the route polyline (else on the velocity ray)
 
 
-Vec3 = tuple[float, float, float]
 Row = tuple[int, float, float, float, float, bool, float]
 
 

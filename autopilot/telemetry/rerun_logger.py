@@ -27,8 +27,8 @@ from autopilot.setpoints import TargetKind
 from autopilot.telemetry import entities as ent
 from autopilot.telemetry.blueprint import flight_blueprint
 from autopilot.telemetry.scene import TrueObstacle, fence_outlines, route_points_ned, true_obstacles
-from mavlink_bridge.frames import GeoPoint
-from mavlink_bridge.gcs_types import FlightMode, MissionItem, Severity
+from mavlink_bridge.contract.frames import GeoPoint
+from mavlink_bridge.contract.vehicle_api import FlightMode, MissionItem, Severity
 
 if TYPE_CHECKING:
     from autopilot.runner import StepRecord

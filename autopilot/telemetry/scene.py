@@ -14,10 +14,10 @@ from typing import Any
 
 import numpy as np
 
-from autopilot.mission.commands import MavCmd
 from autopilot.mission.plan import item_position_ned, uses_current_position
-from mavlink_bridge.frames import GeoPoint, LocalNedFrame
-from mavlink_bridge.gcs_types import MissionItem
+from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
+from mavlink_bridge.contract.mav_enums import MavCmd
+from mavlink_bridge.contract.vehicle_api import MissionItem
 
 #: Commands whose x/y/z is a place the vehicle flies to.
 _ROUTE_COMMANDS = frozenset(

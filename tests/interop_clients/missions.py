@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import math
 
-from autopilot.mission.commands import GripperAction, MavCmd, MavFrame
-from mavlink_bridge.frames import GeoPoint, LocalNedFrame
-from mavlink_bridge.gcs_types import MissionItem
+from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
+from mavlink_bridge.contract.mav_enums import GripperAction, MavCmd, MavFrame
+from mavlink_bridge.contract.vehicle_api import MissionItem
 
 
 def short_delivery(home: GeoPoint) -> list[MissionItem]:

@@ -32,7 +32,7 @@ import numpy as np
 from autopilot.planner.geometry import FenceZone
 from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import AvoidancePlanner, PlannerState
-from mavlink_bridge.frames import quat_from_euler
+from mavlink_bridge.contract.frames import quat_from_euler
 from sim.obstacle_sensor import ObstacleSensor, ObstacleSensorConfig
 from sim.world import Box, Cylinder, Sphere, WindConfig, World, empty_world
 from tools.benchmarks import BenchResult

@@ -10,9 +10,7 @@ import socket
 import threading
 import time
 
-from mavlink_bridge.gcs_client import GcsClient
-from mavlink_bridge.gcs_server import GcsServer
-from mavlink_bridge.gcs_types import (
+from mavlink_bridge.contract.vehicle_api import (
     CommandRequest,
     CommandResult,
     FlightMode,
@@ -22,6 +20,8 @@ from mavlink_bridge.gcs_types import (
     MissionType,
     TelemetrySnapshot,
 )
+from mavlink_bridge.gcs_client import GcsClient
+from mavlink_bridge.gcs_server import GcsServer
 from tools.benchmarks import BenchResult
 
 

@@ -22,8 +22,8 @@ from dataclasses import dataclass
 from multiprocessing.connection import Connection
 
 from mavlink_bridge.codec import Decoder, Encoder
+from mavlink_bridge.contract.wire import ActuatorCommand, GpsSample, GroundTruth, SensorSample
 from mavlink_bridge.lockstep import DEFAULT_SPIN_S, LockstepClient, LockstepFrame, LockstepServer, encode_frame
-from mavlink_bridge.wire import ActuatorCommand, GpsSample, GroundTruth, SensorSample
 from sim.frame_kernel import FusedFrame
 from sim.sensors import SensorModel
 from sim.server import DEFAULT_VEHICLE

@@ -16,8 +16,8 @@ import time
 from collections.abc import Callable
 
 from mavlink_bridge.codec import SIM_COMPONENT_ID, SIM_SYSTEM_ID, Decoder, Encoder
+from mavlink_bridge.contract.wire import ActuatorCommand
 from mavlink_bridge.lockstep import LockstepFrame, encode_frame
-from mavlink_bridge.wire import ActuatorCommand
 from sim.frame_kernel import FusedFrame
 from sim.sensors import SensorModel
 from sim.vehicle import VehicleSim

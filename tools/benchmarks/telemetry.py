@@ -20,13 +20,13 @@ from types import SimpleNamespace
 import numpy as np
 
 from autopilot.control.cascade import CascadeDiagnostics
-from autopilot.estimator import VehicleState
+from autopilot.estimation import VehicleState
 from autopilot.runner import StepRecord
 from autopilot.setpoints import NavTarget, TargetKind
 from autopilot.telemetry import RerunTelemetry
 from autopilot.telemetry.sinks import RerunSink, SinkKind, open_recording
-from mavlink_bridge.frames import quat_from_euler
-from mavlink_bridge.gcs_types import FlightMode, LandedState, Severity, StatusText
+from mavlink_bridge.contract.frames import quat_from_euler
+from mavlink_bridge.contract.vehicle_api import FlightMode, LandedState, Severity, StatusText
 from tools.benchmarks import BenchResult
 from tools.benchmarks.lockstep_flight import fly
 

@@ -23,8 +23,7 @@ from dataclasses import MISSING, dataclass, fields
 from enum import IntEnum
 from typing import TypeVar
 
-Vec3 = tuple[float, float, float]
-Quat = tuple[float, float, float, float]
+from mavlink_bridge.contract.frames import Quat, Vec3
 
 _T = TypeVar("_T")
 

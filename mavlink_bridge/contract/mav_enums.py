@@ -24,6 +24,7 @@ class MavCmd(IntEnum):
     DO_JUMP = 177  # p1 target seq, p2 repeat count (-1 = forever)
     DO_CHANGE_SPEED = 178  # p1 speed type, p2 speed_m_s (-1 no change, -2 default)
     DO_SET_HOME = 179
+    DO_REPOSITION = 192
     DO_GRIPPER = 211  # p1 gripper instance, p2 action (GripperAction)
     MISSION_START = 300
     COMPONENT_ARM_DISARM = 400

@@ -1,61 +1,24 @@
-"""State estimation: the ``Estimator`` seam and the ground-truth estimator (SPEC §4, issue 4).
+"""The "truth" estimator (``--estimator truth``): the sim's HIL_STATE_QUATERNION about the first fix.
 
-An estimator turns one lockstep frame (IMU/baro/mag ``SensorSample``, an optional
-``GpsSample`` at 10 Hz, and the sim's ``GroundTruth``) into a :class:`VehicleState`:
-local NED position about the *origin* (the first position fix), NED velocity,
-``q_ned_frd``, body rates, Euler angles and the GPS quality the arming checks need.
-
-Seam for a sensor-fusion estimator (``--estimator ekf`` later): implement
-:class:`Estimator` — ``update(frame)`` is called once per lockstep step with the whole
-frame and must not read ``frame.truth``; it returns ``None`` until it has a first fix and
-``VehicleState(valid=False)`` while it is not trusted. ``origin`` is the geodetic point of
-local NED (0, 0, 0). Nothing else in the autopilot knows which estimator runs.
+For controller studies only: it reads the frame's ground truth, which no real estimator can.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Protocol
 
-from mavlink_bridge.frames import GeoPoint, LocalNedFrame
-from mavlink_bridge.wire import GpsSample, GroundTruth, Quat, SensorSample, Vec3, fast_frozen_init
+from autopilot.estimation.state import EstimatorStatus, FrameLike, VehicleState
+from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
+from mavlink_bridge.contract.wire import GpsSample
 
-
-class FrameLike(Protocol):
-    """What an estimator reads from a lockstep frame (``mavlink_bridge.lockstep.LockstepFrame``)."""
-
-    @property
-    def sensor(self) -> SensorSample: ...
-
-    @property
-    def gps(self) -> GpsSample | None: ...
-
-    @property
-    def truth(self) -> GroundTruth | None: ...
-
-
-@fast_frozen_init
-@dataclass(frozen=True, slots=True)
-class VehicleState:
-    """The estimated vehicle state at one control step; NED about the local origin, SI units."""
-
-    time_us: int
-    pos_ned_m: Vec3
-    vel_ned_m_s: Vec3
-    q_ned_frd: Quat
-    rate_frd_rad_s: Vec3
-    roll_rad: float
-    pitch_rad: float
-    yaw_rad: float
-    lat_deg: float
-    lon_deg: float
-    alt_amsl_m: float
-    gps_fix_type: int  # 0 none, 2 2D, 3 3D (GPS_FIX_TYPE)
-    gps_satellites: int
-    gps_eph_m: float
-    gps_epv_m: float
-    valid: bool
+#: The truth is always aligned; it is "healthy" once the receiver has a 3D fix (so the arming checks still wait for
+#: GPS, as with a real estimator).
+_TRUTH_OK = EstimatorStatus(
+    aligned=True, healthy=True, gps_fused=True, baro_fused=True, mag_fused=True, pos_horiz_valid=True,
+    pos_vert_valid=True, pos_horiz_accuracy_m=0.0, pos_vert_accuracy_m=0.0, reason="",
+)  # fmt: skip
+_NO_FIX = EstimatorStatus(aligned=True, pos_vert_valid=True, reason="no 3D GPS fix yet")
+_INVALID = EstimatorStatus(reason="ground truth not finite")
 
 
 class _StateBuilder:
@@ -69,27 +32,6 @@ class _StateBuilder:
     __slots__ = VehicleState.__slots__
 
 
-class Estimator(Protocol):
-    """One lockstep frame in, the vehicle state out (``None`` before the first fix)."""
-
-    @property
-    def origin(self) -> GeoPoint | None: ...
-
-    @property
-    def local_frame(self) -> LocalNedFrame | None: ...
-
-    def update(self, frame: FrameLike) -> VehicleState | None: ...
-
-
-def _euler_zyx(q: Quat) -> tuple[float, float, float]:
-    """Roll, pitch, yaw (rad) of ``q_ned_frd``; scalar math (per step, no numpy allocation)."""
-    w, x, y, z = q
-    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
-    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    return roll, pitch, yaw
-
-
 class TruthEstimator:
     """The "truth" estimator: the sim's HIL_STATE_QUATERNION, expressed about the first fix.
 
@@ -101,10 +43,15 @@ class TruthEstimator:
     def __init__(self) -> None:
         self._frame: LocalNedFrame | None = None
         self._gps: GpsSample | None = None
+        self._status = _NO_FIX
 
     @property
     def origin(self) -> GeoPoint | None:
         return None if self._frame is None else self._frame.home
+
+    @property
+    def status(self) -> EstimatorStatus:
+        return self._status
 
     @property
     def local_frame(self) -> LocalNedFrame | None:
@@ -151,16 +98,9 @@ class TruthEstimator:
                 gps.epv_m,
             )
         s.valid = valid
+        fix = gps is not None and gps.fix_type >= 3
+        status = _TRUTH_OK if valid and fix else (_NO_FIX if valid else _INVALID)
+        if status is not self._status:
+            self._status = status
         s.__class__ = VehicleState  # type: ignore[assignment]
         return s  # type: ignore[return-value]
-
-
-ESTIMATORS = {"truth": TruthEstimator}
-
-
-def make_estimator(name: str) -> Estimator:
-    """The estimator called ``name`` (``--estimator``); ValueError names the choices."""
-    try:
-        return ESTIMATORS[name]()
-    except KeyError:
-        raise ValueError(f"unknown estimator {name!r}; choose one of {sorted(ESTIMATORS)}") from None

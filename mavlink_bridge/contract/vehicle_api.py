@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import Protocol
 
-from mavlink_bridge.wire import Quat, Vec3
+from mavlink_bridge.contract.wire import Quat, Vec3
 
 
 class FlightMode(IntEnum):

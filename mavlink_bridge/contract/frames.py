@@ -21,6 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 Vec3 = tuple[float, float, float]
+#: Hamilton, w first.
+Quat = tuple[float, float, float, float]
 
 GRAVITY_M_S2 = 9.80665
 DEG_E7 = 1e7
