@@ -91,7 +91,7 @@ def test_fast_built_state_is_the_frozen_dataclass_with_the_reference_values() ->
     """``TruthEstimator`` builds ``VehicleState`` through a plain twin (speed): same type, values, frozen."""
     import dataclasses
 
-    from autopilot.estimation import VehicleState, _euler_zyx
+    from autopilot.estimation.state import VehicleState, _euler_zyx
 
     est = TruthEstimator()
     gps = GpsSample(4000, 30.2635, 120.1233, 12.0, (0.0, 0.0, 0.0), 0.8, 1.2, 3, 11)
