@@ -1,9 +1,10 @@
 """``quadsitl up``: the simulator and the autopilot as two processes (SPEC §3, §12).
 
-Starts ``python -m sim`` and ``python -m autopilot`` with the options of both (``--instance``
-offsets every port of both), forwards SIGINT/SIGTERM to them, and when either one exits
-stops the other. Exit status: 0 when both ended cleanly (a signal, ``--duration-s``), else the
-simulator's non-zero status if it had one (3 autopilot lost, 4 vehicle ended the run), else
+Starts ``python -m sim`` and ``python -m autopilot`` with the options of both (``--instance N``
+offsets every default port of both; an address given explicitly is used as typed), first checks that
+every port either will listen on is free (one line naming a taken port, exit 2), forwards SIGINT/SIGTERM
+to them, and when either one exits stops the other. Exit status: 0 when both ended cleanly (a signal,
+``--duration-s``), else the simulator's non-zero status if it had one (3 autopilot lost, 4 vehicle ended the run), else
 the autopilot's; 2 for bad options.
 """
 
@@ -18,8 +19,10 @@ import time
 from pathlib import Path
 from types import FrameType
 
-from autopilot.cli import add_autopilot_options
-from mavlink_bridge.link import LinkMode, LinkUrl, LinkUrlError
+from autopilot.cli import add_autopilot_options, link_urls
+from mavlink_bridge.link import LinkMode, LinkUrl, LinkUrlError, check_ports_free, resolve_url
+from mavlink_bridge.lockstep import DEFAULT_LISTEN_URL
+from mavlink_bridge.lossy import loss_fraction
 
 EXIT_USAGE = 2
 #: How long a child gets to exit after SIGTERM before it is killed (wall s).
@@ -33,14 +36,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--speed", default="max", metavar="{max|FLOAT}", help="sim s per wall s (default max)")
     p.add_argument("--instance", type=int, default=0, metavar="N", help="add N to every port of both processes")
-    p.add_argument("--listen", default="udp:127.0.0.1:14560", metavar="URL", help="the simulator's lockstep address")
+    p.add_argument(
+        "--listen", default=None, metavar="URL", help=f"the simulator's lockstep address (default {DEFAULT_LISTEN_URL})"
+    )
+    p.add_argument(
+        "--sim-loss",
+        type=loss_fraction,
+        default=0.0,
+        metavar="FRACTION",
+        help="drop this share of lockstep datagrams each way (a lossy relay in the sim; default 0)",
+    )
     p.add_argument("--log-dir", default=None, metavar="DIR", help="both summaries and the processes' logs")
     p.add_argument("--duration-s", type=float, default=None, help="stop after this much sim time")
     p.add_argument("--physics-hz", type=int, default=None)
     p.add_argument("--control-hz", type=int, default=None)
     p.add_argument("--no-sensor-noise", action="store_true")
     add_autopilot_options(p)
-    p.set_defaults(sim=None)
     return p
 
 
@@ -59,14 +70,24 @@ def _world_vehicle(world: str | None) -> str | None:
 
 
 def commands(args: argparse.Namespace) -> tuple[list[str], list[str]]:
-    """The sim and autopilot command lines for parsed ``up`` options (LinkUrlError on a bad --listen)."""
-    listen = LinkUrl.parse(args.listen)
+    """The sim and autopilot command lines for parsed ``up`` options (LinkUrlError on a bad URL).
+
+    Both children get ``--instance`` and only the link URLs given here, so each shifts its own defaults and
+    uses typed addresses as typed; an explicit ``--listen`` without ``--sim`` makes the autopilot send there.
+    """
+    listen_url = resolve_url(args.listen, DEFAULT_LISTEN_URL, args.instance)
+    listen = LinkUrl.parse(listen_url)
     if listen.mode is not LinkMode.LISTEN:
         raise LinkUrlError(f"--listen must be udp:HOST:PORT or udpin:HOST:PORT, got {args.listen!r}")
+    link_urls(args)  # LinkUrlError for a malformed link URL before anything starts
     vehicle = args.vehicle or _world_vehicle(args.world) or "x500"
     py = [sys.executable, "-m"]
     sim = [*py, "sim", "--seed", str(args.seed), "--speed", args.speed, "--instance", str(args.instance)]
-    sim += ["--listen", args.listen, "--vehicle", vehicle]
+    sim += ["--vehicle", vehicle]
+    if args.listen is not None:
+        sim += ["--listen", args.listen]
+    if args.sim_loss > 0.0:
+        sim += ["--sim-loss", repr(args.sim_loss)]
     if args.world:
         sim += ["--world", args.world]
     if args.duration_s is not None:
@@ -78,9 +99,17 @@ def commands(args: argparse.Namespace) -> tuple[list[str], list[str]]:
     if args.no_sensor_noise:
         sim.append("--no-sensor-noise")
     sim += ["--lockstep-spin-us", str(args.lockstep_spin_us)]
-    sim_url = args.sim or f"udpout:{listen.host}:{listen.port}"
-    ap = [*py, "autopilot", "--sim", sim_url, "--instance", str(args.instance), "--vehicle", vehicle]
-    ap += ["--gcs", args.gcs, "--gcs-target", args.gcs_target, "--api", args.api, "--api-target", args.api_target]
+    ap = [*py, "autopilot", "--instance", str(args.instance), "--vehicle", vehicle]
+    sim_url = args.sim or (f"udpout:{listen.host}:{listen.port}" if args.listen is not None else None)
+    for option, url in (
+        ("--sim", sim_url),
+        ("--gcs", args.gcs),
+        ("--gcs-target", args.gcs_target),
+        ("--api", args.api),
+        ("--api-target", args.api_target),
+    ):
+        if url is not None:
+            ap += [option, url]
     ap += ["--rerun", args.rerun, "--estimator", args.estimator, "--speed", args.speed]
     rerun_world = args.rerun_world or (args.world if args.world and args.world.endswith((".yaml", ".yml")) else None)
     if rerun_world and args.rerun != "off":  # drawn in the recording only (the autopilot never plans with it)
@@ -99,6 +128,12 @@ def commands(args: argparse.Namespace) -> tuple[list[str], list[str]]:
         sim += ["--log-dir", args.log_dir]
         ap += ["--log-dir", args.log_dir]
     return sim, ap
+
+
+def listen_urls(args: argparse.Namespace) -> list[str]:
+    """Every address the pair will listen on: the sim's lockstep port, the autopilot's GCS and API links."""
+    urls = link_urls(args)
+    return [resolve_url(args.listen, DEFAULT_LISTEN_URL, args.instance), urls["gcs"], urls["api"]]
 
 
 def stop_process(proc: subprocess.Popen[bytes], timeout_s: float = STOP_TIMEOUT_S, *, signalled: bool = False) -> int:
@@ -122,7 +157,8 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         sim_cmd, ap_cmd = commands(args)
-    except LinkUrlError as exc:
+        check_ports_free(listen_urls(args))
+    except (LinkUrlError, OSError) as exc:  # OSError: PortInUseError naming the port and --instance
         print(f"quadsitl up: {exc}", file=sys.stderr)
         return EXIT_USAGE
     if args.log_dir:

@@ -9,6 +9,11 @@
 The link moves whole datagrams only: it knows nothing of MAVLink (framing, signing and
 decoding belong to ``mavlink_bridge.codec``). ``recv`` never raises on what a peer sends;
 socket errors caused by a vanished peer (ICMP port unreachable) are swallowed and counted.
+
+Ports are exclusive: a listening link never sets ``SO_REUSEADDR``/``SO_REUSEPORT`` (on Linux either lets a
+second process bind the same UDP port and steal its traffic), and a taken port raises ``PortInUseError``
+naming the port and the fix. ``--instance N`` shifts default ports only (``resolve_url``): an address the
+user typed is used as typed, as PX4's and ArduPilot's instance offsets do.
 """
 
 from __future__ import annotations
@@ -39,6 +44,21 @@ def spin_allowed() -> bool:
 
 class LinkUrlError(ValueError):
     """A connection string that is not ``udpin:``, ``udpout:`` or ``udp:`` HOST:PORT."""
+
+
+class PortInUseError(OSError):
+    """A UDP port to listen on is taken (another quadsitl instance, or another program); one-line message."""
+
+    def __init__(self, host: str, port: int) -> None:
+        super().__init__(
+            f"UDP port {port} on {host} is already in use (another quadsitl instance?); "
+            "run this one with --instance N to shift every default port by N"
+        )
+        self.host = host
+        self.port = port
+
+    def __str__(self) -> str:
+        return str(self.args[0])
 
 
 class LinkMode(Enum):
@@ -80,6 +100,40 @@ class LinkUrl:
         return f"{self.mode.value}:{self.host}:{self.port}"
 
 
+def bind_exclusive(sock: socket.socket, host: str, port: int) -> None:
+    """Bind ``sock`` to (host, port) without address reuse; ``PortInUseError`` when the port is taken."""
+    try:
+        sock.bind((host, port))
+    except OSError as exc:
+        if exc.errno == errno.EADDRINUSE:
+            raise PortInUseError(host, port) from None
+        raise
+
+
+def check_ports_free(urls: list[str]) -> None:
+    """Raise ``PortInUseError`` for the first listening URL of ``urls`` whose port is taken (``udpout:``, ``off``
+    skipped).
+
+    For launchers: fail before starting any process rather than leave one running on a half-taken set.
+    """
+    for text in urls:
+        if text == "off":
+            continue
+        url = LinkUrl.parse(text)
+        if url.mode is not LinkMode.LISTEN or url.port == 0:
+            continue
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+            bind_exclusive(sock, url.host, url.port)
+
+
+def resolve_url(given: str | None, default: str, instance: int) -> str:
+    """The link URL to use: ``given`` exactly as typed, else ``default`` with its port shifted by ``instance``."""
+    if given is not None:
+        LinkUrl.parse(given)  # LinkUrlError now, not when the link opens
+        return given
+    return str(LinkUrl.parse(default).with_port_offset(instance))
+
+
 class UdpLink:
     """A non-blocking UDP socket that sends and receives whole datagrams.
 
@@ -118,8 +172,7 @@ class UdpLink:
         sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
             if url.mode is LinkMode.LISTEN:
-                sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-                sock.bind((url.host, url.port))
+                bind_exclusive(sock, url.host, url.port)
             else:
                 local = "127.0.0.1" if url.host.startswith("127.") or url.host == "localhost" else "0.0.0.0"
                 sock.bind((local, 0))

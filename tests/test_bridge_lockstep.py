@@ -122,7 +122,8 @@ def test_both_ends_survive_garbage_datagrams() -> None:
                 junk.sendto(b"\xfd" + rng.integers(0, 256, 40).astype(np.uint8).tobytes(), ("127.0.0.1", client_port))
             answers.append(server.exchange(make_frame(k)))
         assert [a.time_us for a in answers] == [k * FRAME_PERIOD_US for k in range(60)]
-        assert server.stats.malformed > 0 and client.stats.malformed > 0
+        assert server.stats.malformed > 0  # garbage before the heartbeat: read (no peer yet), counted
+        assert server.stats.foreign > 0 and client.stats.foreign > 0  # after it: a stranger's, dropped unread
     finally:
         stop.set()
         thread.join(5.0)
