@@ -258,11 +258,14 @@ class UdpLink:
 
     def send(self, data: bytes) -> bool:
         """Send one datagram to the peer; False when there is no peer yet or the kernel refused it."""
-        peer = self.peer
-        if peer is None:
+        return self.send_to(data, self.peer)
+
+    def send_to(self, data: bytes, address: Address | None) -> bool:
+        """Send one datagram to ``address`` (not the peer); False when it is None or the kernel refused it."""
+        if address is None:
             return False
         try:
-            self._sock.sendto(data, peer)
+            self._sock.sendto(data, address)
         except OSError:
             self.send_errors += 1
             return False

@@ -106,6 +106,8 @@ MAX_FRAME_TIME_US = 10**12
 #: Floor and initial value of the adaptive resend timeout (s); the ceiling is ``resend_timeout_s``.
 MIN_RESEND_TIMEOUT_S = 0.00025
 INITIAL_RESEND_TIMEOUT_S = 0.005
+#: HEARTBEAT senders the sim sends its first frame to before one of them answers it (see ``LockstepServer``).
+MAX_CANDIDATES = 8
 
 
 @dataclass(frozen=True, slots=True)
@@ -196,9 +198,11 @@ def encode_frame(encoder: Encoder, frame: LockstepFrame) -> bytes:
 class LockstepServer:
     """Sim end of the lockstep: one ``exchange`` per control step (SPEC §4).
 
-    The autopilot whose HEARTBEAT started the lockstep is the only peer: datagrams from any other address are
-    counted (``foreign``) and dropped unread; the run ends (``AutopilotLost``) before another could take over.
-    Answers are checked before they are returned: the frame's time echoed, motors finite and in [0, 1].
+    The lockstep starts with the first valid answer: until then every address that sent a HEARTBEAT (up to
+    ``MAX_CANDIDATES``) is sent the first frame, and the one whose answer comes first (time echoed, motors finite
+    and in [0, 1]) is the peer for the rest of the run (so a stranger's early HEARTBEAT cannot take the place of
+    the autopilot). From then on datagrams from any other address are counted (``foreign``) and dropped unread;
+    the run ends (``AutopilotLost``) before another could take over.
     """
 
     def __init__(
@@ -226,6 +230,8 @@ class LockstepServer:
         self._foreign = 0
         self._invalid = 0
         self._interrupted = False
+        self._candidates: list[tuple[str, int]] = []  # HEARTBEAT senders before the first valid answer
+        self._locked = False  # the peer answered a frame: nobody else is heard from now on
         self._frame_time_us = -1  # the frame of the last send (what wait_answer waits for)
         self._datagram = b""
         self._sent_at_s = 0.0
@@ -242,8 +248,8 @@ class LockstepServer:
 
     @property
     def peer(self) -> tuple[str, int] | None:
-        """The autopilot's address once its HEARTBEAT started the lockstep (None before)."""
-        return self._link.peer
+        """The autopilot's address once it answered the first frame (None before)."""
+        return self._link.peer if self._locked else None
 
     @property
     def stats(self) -> LockstepServerStats:
@@ -264,7 +270,7 @@ class LockstepServer:
     def wait_for_autopilot(self, timeout_s: float | None) -> bool:
         """Block until a HEARTBEAT arrives (True) or ``timeout_s`` passes (False; None = forever).
 
-        Its sender becomes the peer for the rest of the run; once there is a peer, only it is heard.
+        Its sender is sent the first frame (see the class docstring for who becomes the peer).
         """
         deadline = None if timeout_s is None else time.monotonic() + timeout_s
         link = self._link
@@ -273,15 +279,17 @@ class LockstepServer:
             if remaining <= 0.0 or self._interrupted:
                 return False
             data = link.recv(min(remaining, self.resend_timeout_s))
-            if data is None:
-                continue
-            if link.peer is not None and link.last_sender != link.peer:
-                self._foreign += 1
-                continue
-            for msg in self._decoder.decode(data):
-                if type(msg) is Heartbeat:
-                    link.set_peer(link.last_sender)
-                    return True
+            if data is not None and self._heard_heartbeat(data, link.last_sender):
+                link.set_peer(link.last_sender)
+                return True
+
+    def _heard_heartbeat(self, data: bytes, sender: tuple[str, int] | None) -> bool:
+        """Before the lockstep starts: True when ``data`` holds a HEARTBEAT (its sender becomes a candidate)."""
+        if sender is None or not any(type(msg) is Heartbeat for msg in self._decoder.decode(data)):
+            return False
+        if sender not in self._candidates and len(self._candidates) < MAX_CANDIDATES:
+            self._candidates.append(sender)
+        return True
 
     def exchange(self, frame: LockstepFrame) -> ActuatorCommand:
         """Send ``frame`` and return the HIL_ACTUATOR_CONTROLS answering it (``time_us`` echoed).
@@ -328,7 +336,7 @@ class LockstepServer:
         while True:
             data = link.recv(resend_at - now)
             now = time.monotonic()
-            if data is not None and link.last_sender != peer:
+            if data is not None and link.last_sender != peer and (self._locked or not self._candidate(data, now)):
                 self._foreign += 1  # a stranger: unread (and no reason to skip the resend check below)
             elif data is not None:
                 for msg in decoder.decode(data):
@@ -337,6 +345,8 @@ class LockstepServer:
                         if t == frame_time_us:
                             u = msg.motor_cmd
                             if 0.0 <= u[0] <= 1.0 and 0.0 <= u[1] <= 1.0 and 0.0 <= u[2] <= 1.0 and 0.0 <= u[3] <= 1.0:
+                                if not self._locked:
+                                    self._lock(link.last_sender)
                                 self._frames += 1
                                 if not resent:
                                     timer.sample(now - sent_at)
@@ -355,10 +365,30 @@ class LockstepServer:
                         f"(frame t={frame_time_us} us, peer {peer})"
                     )
                 link.send(datagram)
+                if not self._locked:
+                    for candidate in self._candidates:
+                        if candidate != peer:
+                            link.send_to(datagram, candidate)
                 self._resends += 1
                 resent = True
                 wait_s = timer.backoff(wait_s)
                 resend_at = now + wait_s
+
+    def _candidate(self, data: bytes, now: float) -> bool:
+        """Before the lockstep starts, a datagram from another address: True when it is from a candidate (read it
+        like the peer's); a new HEARTBEAT sender becomes one and is sent the current frame."""
+        sender = self._link.last_sender
+        if sender in self._candidates:
+            return True
+        if self._heard_heartbeat(data, sender) and sender in self._candidates:
+            self._link.send_to(self._datagram, sender)
+        return False
+
+    def _lock(self, sender: tuple[str, int] | None) -> None:
+        """``sender`` answered first: it is the peer for the rest of the run."""
+        self._link.set_peer(sender)
+        self._locked = True
+        self._candidates.clear()
 
     def close(self) -> None:
         """Release the socket."""
