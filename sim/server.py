@@ -2,7 +2,8 @@
 
 Loop per control step (``control_hz``, default 250 Hz)::
 
-    sensors(state, t) → frame datagram (one numba call, ``sim.frame_kernel``) → send (HIL_* out)
+    sensors(state, t) → values (one numba call, ``sim.frame_kernel``) → datagram (one numba call,
+    ``mavlink_bridge.frame_writer``) → send (HIL_* out)
     → record the previous step (truth hash, tilt, truth log: overlaps the autopilot's step)
     → wait (HIL_ACTUATOR_CONTROLS back)
     → apply (armed → motors, else 0; gripper release → payload dropped) → physics (substeps RK4)
@@ -32,11 +33,12 @@ import numpy as np
 import yaml
 
 from mavlink_bridge.contract.wire import ActuatorCommand, ObstacleDetection
+from mavlink_bridge.frame_writer import FrameWriter
 from mavlink_bridge.link import LinkUrl
-from mavlink_bridge.lockstep import DEFAULT_SPIN_S, AutopilotLost, LockstepFrame, LockstepInterrupted, LockstepServer
+from mavlink_bridge.lockstep import DEFAULT_SPIN_S, AutopilotLost, LockstepInterrupted, LockstepServer
 from mavlink_bridge.lossy import LossProfile, LossyUdpProxy
 from sim.end_reason import EndReason
-from sim.frame_kernel import FusedFrame
+from sim.frame_kernel import SensorValues
 from sim.sensors import SensorModel
 from sim.vehicle import VehicleSim
 from sim.vehicle_config import load_vehicle
@@ -173,7 +175,8 @@ class SimServer:
         except ValueError as exc:
             raise SimSetupError(str(exc)) from exc
         self.sensors = SensorModel(self.vehicle_config, self.world.home, config.seed, noise=config.sensor_noise)
-        self._fused = FusedFrame(self.vehicle, self.sensors)  # the lockstep frames' bytes (owns their sequence)
+        self._values = SensorValues(self.vehicle, self.sensors)  # this step's measurements and truth
+        self._writer = FrameWriter()  # their lockstep datagram (owns the sequence counter)
         self.obstacle_sensor = _load_obstacle_sensor(self.world, config.seed)
         rate_hz = getattr(getattr(self.obstacle_sensor, "config", None), "rate_hz", 10.0)
         self._detection_period_us = round(1e6 / rate_hz)
@@ -221,18 +224,10 @@ class SimServer:
         self._next_detection_us += self._detection_period_us
         return tuple(self.obstacle_sensor.detect(v.pos_ned, v.q_ned_frd, v.t_us))
 
-    def _frame(self) -> LockstepFrame:
-        """Sensors, GPS (10 Hz), truth and obstacle detections for now, as typed messages (reference path).
-
-        ``run`` sends ``_datagram()`` instead: the same bytes (``tests/test_sim_frame_writer.py``), ~10x cheaper.
-        """
-        v = self.vehicle
-        detections = self._detections()
-        return LockstepFrame(self.sensors.imu_baro_mag(v), self.sensors.gps(v), v.ground_truth(), detections)
-
     def _datagram(self) -> bytes:
-        """What ``encode_frame`` makes of ``_frame()``, written by the fused kernel (``sim.frame_kernel``)."""
-        return self._fused.datagram(self._detections())
+        """Sensors, GPS (10 Hz), truth and obstacle detections of now as the lockstep datagram (two numba calls)."""
+        gps_due = self._values.fill()
+        return self._writer.write(self._values.values, self.vehicle.t_us, gps_due, self._detections())
 
     def _apply(self, cmd: ActuatorCommand) -> None:
         """Motors when armed (else stopped; non-finite commands stop that motor), gripper release."""
