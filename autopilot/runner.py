@@ -131,7 +131,7 @@ class Autopilot:
         bindings.bind(SETPOINT_PARAMS, lambda _n, _v: fc.apply_setpoint_params())
         bindings.bind((s.name for s in controller_param_specs()), self._apply_controller_params)
         bindings.bind(("PLD_MASS_KG",), lambda _n, _v: fc.set_payload_released(fc.payload_released))
-        bindings.bind(("BAT_HOVER_ENDUR",), lambda _n, v: setattr(self.battery, "hover_endurance_s", v))
+        bindings.bind(("BAT_HOVER_ENDUR",), lambda _n, v: self.battery.set_hover_endurance_s(v))
         mission_names = [s.name for s in mission_param_specs()] + ["MIS_TAKEOFF_ALT"]
         bindings.bind(mission_names, lambda _n, _v: nav.apply_mission_params())
         bindings.bind([s.name for s in planner_param_specs()], lambda _n, _v: nav.apply_planner_params())
@@ -294,7 +294,6 @@ class Autopilot:
             offboard_streaming=offboard_age is not None and offboard_age <= p("COM_OF_LOSS_T"),
             manual_fresh=self.links.manual_fresh(p("COM_RC_LOSS_T")),
         )
-        self.failsafe.geofence = self.navigator.geofence
         events = self.failsafe.update(
             FailsafeInputs(
                 armed=commander.armed,
@@ -304,6 +303,7 @@ class Autopilot:
                 battery_remaining=self.battery.remaining,
                 pos_ned_m=state.pos_ned_m,
                 home_ned_m=self.home_ned,
+                geofence=self.navigator.geofence,
             )
         )
         for event in events:
