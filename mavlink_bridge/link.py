@@ -26,6 +26,8 @@ import time
 from dataclasses import dataclass
 from enum import Enum
 
+import numpy as np
+
 Address = tuple[str, int]
 
 _MAX_DATAGRAM_BYTES = 65535
@@ -151,6 +153,7 @@ class UdpLink:
         "_spin_backoff",
         "_spin_skip",
         "_view",
+        "array",
         "follow_sender",
         "last_sender",
         "peer",
@@ -186,6 +189,7 @@ class UdpLink:
         self._poll.register(sock.fileno(), select.POLLIN)
         self._buf = bytearray(_MAX_DATAGRAM_BYTES)
         self._view = memoryview(self._buf)
+        self.array = np.frombuffer(self._buf, dtype=np.uint8)  # the receive buffer, for compiled readers
 
     @classmethod
     def from_url(cls, url: str, *, follow_sender: bool = True, spin_s: float = 0.0) -> UdpLink:
@@ -207,7 +211,14 @@ class UdpLink:
         self.peer = address
 
     def recv(self, timeout_s: float) -> bytes | None:
-        """The next whole datagram, waiting at most ``timeout_s`` (0 = poll); None on timeout.
+        """The next whole datagram (a copy), waiting at most ``timeout_s`` (0 = poll); None on timeout (see
+        ``recv_into_buffer``)."""
+        n = self.recv_into_buffer(timeout_s)
+        return None if n < 0 else bytes(self._view[:n])
+
+    def recv_into_buffer(self, timeout_s: float) -> int:
+        """The next whole datagram's length, its bytes in ``array[:length]`` (no copy, valid until the next
+        receive), waiting at most ``timeout_s`` (0 = poll); -1 on timeout.
 
         ``last_sender`` is set to its source; in LISTEN mode with ``follow_sender`` the
         peer follows it. With ``spin_s`` > 0 the socket is first polled without sleeping for up to
@@ -220,47 +231,47 @@ class UdpLink:
         if timeout_s > 0.0:
             if self.spin_s > 0.0:
                 if self._spin_skip == 0:
-                    data = self._spin(min(self.spin_s, timeout_s))
-                    if data is not None:
+                    n = self._spin(min(self.spin_s, timeout_s))
+                    if n >= 0:
                         self._spin_backoff = 1
-                        return data
+                        return n
                     timeout_s -= self.spin_s
                     self._spin_skip = self._spin_backoff  # the peer is slower than the spin (or busy): back off
                     self._spin_backoff = min(2 * self._spin_backoff, _SPIN_BACKOFF_MAX)
                 else:
                     self._spin_skip -= 1
             if timeout_s > 0.0 and not self._poll.poll(timeout_s * 1000.0):
-                return None
+                return -1
         return self._take()
 
-    def _spin(self, spin_s: float) -> bytes | None:
-        """Busy-poll the socket for up to ``spin_s`` (wall); the datagram or None."""
+    def _spin(self, spin_s: float) -> int:
+        """Busy-poll the socket for up to ``spin_s`` (wall); the datagram's length or -1."""
         take, clock, yield_cpu = self._take, time.perf_counter, _yield_cpu
         end = clock() + spin_s
         while True:
-            data = take()
-            if data is not None or clock() >= end:
-                return data
+            n = take()
+            if n >= 0 or clock() >= end:
+                return n
             yield_cpu()  # polite: another runnable process on this CPU (a peer, another SITL) goes first
 
-    def _take(self) -> bytes | None:
-        """One datagram if the socket has one (never blocks)."""
+    def _take(self) -> int:
+        """One datagram into the buffer if the socket has one (never blocks): its length, else -1."""
         try:
             n, address = self._sock.recvfrom_into(self._buf)
         except OSError as exc:
             if exc.errno not in _TRANSIENT_ERRNOS:
                 raise
-            return None
+            return -1
         self.last_sender = address
         if self.follow_sender and self._listening:
             self.peer = address
-        return bytes(self._view[:n])
+        return n
 
-    def send(self, data: bytes) -> bool:
+    def send(self, data: bytes | memoryview) -> bool:
         """Send one datagram to the peer; False when there is no peer yet or the kernel refused it."""
         return self.send_to(data, self.peer)
 
-    def send_to(self, data: bytes, address: Address | None) -> bool:
+    def send_to(self, data: bytes | memoryview, address: Address | None) -> bool:
         """Send one datagram to ``address`` (not the peer); False when it is None or the kernel refused it."""
         if address is None:
             return False

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import time
 
+from mavlink_bridge.answer_kernel import AnswerWriter
 from mavlink_bridge.codec import AUTOPILOT_COMPONENT_ID, AUTOPILOT_SYSTEM_ID, Decoder, Encoder, Heartbeat
 from mavlink_bridge.contract.wire import ActuatorCommand, GpsSample, GroundTruth, ObstacleDetection, SensorSample
 from mavlink_bridge.link import LinkMode, LinkUrl, LinkUrlError, UdpLink
@@ -114,7 +115,8 @@ class LockstepClient:
         self._detections: list[ObstacleDetection] = []
         self._pending_time_us = -1
         self._answered_time_us = -1
-        self._answer_bytes = b""
+        self._answers = AnswerWriter(AUTOPILOT_SYSTEM_ID, AUTOPILOT_COMPONENT_ID)  # in place, own sequence
+        self._answer_len = 0
         self._frames = 0
         self._reanswered = 0
         self._duplicates = 0
@@ -213,7 +215,7 @@ class LockstepClient:
                 gps, truth = self._gps, self._truth
                 self._gps = None
                 if t == self._answered_time_us:
-                    self._link.send(self._answer_bytes)
+                    self._link.send(self._answers.view[: self._answer_len])
                     self._reanswered += 1
                 elif t == self._pending_time_us:
                     self._duplicates += 1
@@ -238,12 +240,14 @@ class LockstepClient:
         return frame
 
     def answer(self, cmd: ActuatorCommand) -> None:
-        """Send the HIL_ACTUATOR_CONTROLS for the frame with ``cmd.time_us`` (and cache it for re-sends)."""
-        self._answer_bytes = self._encoder.actuators(cmd)
+        """Send the HIL_ACTUATOR_CONTROLS for the frame with ``cmd.time_us``, written in place by one compiled
+        call (kept for re-sends of that frame)."""
+        answers = self._answers
+        self._answer_len = n = answers.write(cmd.time_us, cmd.motor_cmd, cmd.armed, cmd.gripper_release, cmd.lockstep)
         self._answered_time_us = cmd.time_us
         if self._pending_time_us == cmd.time_us:
             self._pending_time_us = -1
-        self._link.send(self._answer_bytes)
+        self._link.send(answers.view[:n])
 
     def close(self) -> None:
         """Release the socket."""

@@ -4,6 +4,19 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
+
+from mavlink_bridge.answer_kernel import (
+    A_ARMED,
+    A_GRIPPER_RELEASE,
+    A_MOTORS,
+    ANSWER_INVALID,
+    ANSWER_OK,
+    ANSWER_OTHER,
+    ANSWER_STALE,
+    N_ANSWER,
+    read_answer,
+)
 from mavlink_bridge.codec import SIM_COMPONENT_ID, SIM_SYSTEM_ID, Decoder, Encoder, Heartbeat
 from mavlink_bridge.contract.wire import ActuatorCommand
 from mavlink_bridge.link import LinkMode, LinkUrl, LinkUrlError, UdpLink
@@ -59,6 +72,8 @@ class LockstepServer:
         self._candidates: list[tuple[str, int]] = []  # HEARTBEAT senders before the first valid answer
         self._locked = False  # the peer answered a frame: nobody else is heard from now on
         self._frame_time_us = -1  # the frame of the last send (what wait_answer waits for)
+        self.answer = np.zeros(N_ANSWER)  # the last valid answer's values (``answer_kernel.A_*``)
+        self._payload = np.zeros(96, dtype=np.uint8)  # read_answer's zero-padded payload scratch
         self._datagram = b""
         self._sent_at_s = 0.0
 
@@ -151,8 +166,20 @@ class LockstepServer:
         ``AutopilotLost`` once ``peer_lost_timeout_s`` passed since that ``send`` (the sim may have been busy
         before it) without a valid answer: HEARTBEATs, stale or invalid answers do not count as one.
         """
+        self.wait_answer_into()
+        a = self.answer
+        motors = (float(a[A_MOTORS]), float(a[A_MOTORS + 1]), float(a[A_MOTORS + 2]), float(a[A_MOTORS + 3]))
+        return ActuatorCommand(self._frame_time_us, motors, bool(a[A_ARMED] == 1.0), bool(a[A_GRIPPER_RELEASE] == 1.0))
+
+    def wait_answer_into(self) -> None:
+        """``wait_answer`` without objects: the answer's values land in ``answer`` (``answer_kernel.A_*``).
+
+        Each datagram from the peer is read in place by one compiled call (``read_answer``); only datagrams
+        that are not a plain HIL_ACTUATOR_CONTROLS go through the Python decoder.
+        """
         frame_time_us, datagram = self._frame_time_us, self._datagram
-        link, decoder, timer = self._link, self._decoder, self.resend_timer
+        link, timer, out, payload = self._link, self.resend_timer, self.answer, self._payload
+        array = link.array
         peer = link.peer
         sent_at = self._sent_at_s
         wait_s = timer.timeout_s
@@ -160,28 +187,26 @@ class LockstepServer:
         resent = False
         now = time.monotonic()
         while True:
-            data = link.recv(resend_at - now)
+            n = link.recv_into_buffer(resend_at - now)
             now = time.monotonic()
-            if data is not None and link.last_sender != peer and (self._locked or not self._candidate(data, now)):
-                self._foreign += 1  # a stranger: unread (and no reason to skip the resend check below)
-            elif data is not None:
-                for msg in decoder.decode(data):
-                    if type(msg) is ActuatorCommand:
-                        t = msg.time_us
-                        if t == frame_time_us:
-                            u = msg.motor_cmd
-                            if 0.0 <= u[0] <= 1.0 and 0.0 <= u[1] <= 1.0 and 0.0 <= u[2] <= 1.0 and 0.0 <= u[3] <= 1.0:
-                                if not self._locked:
-                                    self._lock(link.last_sender)
-                                self._frames += 1
-                                if not resent:
-                                    timer.sample(now - sent_at)
-                                return msg
-                            self._invalid += 1  # NaN or out of range: never applied
-                        elif t > frame_time_us:
-                            self._invalid += 1  # an answer to a frame not sent yet
-                        else:
-                            self._stale += 1
+            if n >= 0:
+                if link.last_sender != peer and (self._locked or not self._candidate(n, now)):
+                    self._foreign += 1  # a stranger: unread (and no reason to skip the resend check below)
+                else:
+                    result = read_answer(array, n, frame_time_us, out, payload)
+                    if result == ANSWER_OTHER:
+                        result = self._decode_other(n, frame_time_us)
+                    if result == ANSWER_OK:
+                        if not self._locked:
+                            self._lock(link.last_sender)
+                        self._frames += 1
+                        if not resent:
+                            timer.sample(now - sent_at)
+                        return
+                    if result == ANSWER_STALE:
+                        self._stale += 1
+                    elif result == ANSWER_INVALID:
+                        self._invalid += 1  # NaN, out of [0, 1] or ahead of the frame: never applied
             if now >= resend_at:
                 if self._interrupted:
                     raise LockstepInterrupted(f"interrupted while waiting for the answer to t={frame_time_us} us")
@@ -200,13 +225,32 @@ class LockstepServer:
                 wait_s = timer.backoff(wait_s)
                 resend_at = now + wait_s
 
-    def _candidate(self, data: bytes, now: float) -> bool:
-        """Before the lockstep starts, a datagram from another address: True when it is from a candidate (read it
-        like the peer's); a new HEARTBEAT sender becomes one and is sent the current frame."""
+    def _decode_other(self, n: int, frame_time_us: int) -> int:
+        """A datagram ``read_answer`` did not take, through the Python decoder (counted there); the answer it
+        holds, if any, as a ``read_answer`` result (values in ``answer``)."""
+        result = ANSWER_OTHER
+        for msg in self._decoder.decode(bytes(self._link.array[:n])):
+            if type(msg) is not ActuatorCommand:
+                continue
+            t, u = msg.time_us, msg.motor_cmd
+            if t < frame_time_us:
+                self._stale += 1
+            elif t > frame_time_us or not all(0.0 <= x <= 1.0 for x in u):
+                self._invalid += 1
+            else:
+                self.answer[A_MOTORS : A_MOTORS + 4] = u
+                self.answer[A_ARMED] = 1.0 if msg.armed else 0.0
+                self.answer[A_GRIPPER_RELEASE] = 1.0 if msg.gripper_release else 0.0
+                result = ANSWER_OK
+        return result
+
+    def _candidate(self, n: int, now: float) -> bool:
+        """Before the lockstep starts, a datagram (``n`` bytes) from another address: True when it is from a
+        candidate (read it like the peer's); a new HEARTBEAT sender becomes one and is sent the current frame."""
         sender = self._link.last_sender
         if sender in self._candidates:
             return True
-        if self._heard_heartbeat(data, sender) and sender in self._candidates:
+        if self._heard_heartbeat(bytes(self._link.array[:n]), sender) and sender in self._candidates:
             self._link.send_to(self._datagram, sender)
         return False
 

@@ -32,7 +32,8 @@ from typing import Any, Protocol
 import numpy as np
 import yaml
 
-from mavlink_bridge.contract.wire import ActuatorCommand, ObstacleDetection
+from mavlink_bridge.answer_kernel import A_ARMED, A_GRIPPER_RELEASE, A_MOTORS
+from mavlink_bridge.contract.wire import ObstacleDetection
 from mavlink_bridge.frame_writer import FrameWriter
 from mavlink_bridge.link import LinkUrl
 from mavlink_bridge.lockstep import DEFAULT_SPIN_S, AutopilotLost, LockstepInterrupted, LockstepServer
@@ -47,7 +48,6 @@ from sim.world import World, empty_world, load_world
 log = logging.getLogger(__name__)
 
 DEFAULT_VEHICLE = "x500"
-_MOTORS_OFF = (0.0, 0.0, 0.0, 0.0)
 SUMMARY_FILE = "sim_summary.json"
 
 
@@ -204,7 +204,8 @@ class SimServer:
                 self.lockstep.close()
                 raise
         self._stop_requested = False
-        self._motor_cmd: tuple[float, ...] = _MOTORS_OFF
+        self._answer_motors = self.lockstep.answer[A_MOTORS : A_MOTORS + 4]  # a view: the answer, in place
+        self._motors_off = np.zeros(4)
 
     @property
     def local_address(self) -> tuple[str, int]:
@@ -229,19 +230,14 @@ class SimServer:
         gps_due = self._values.fill()
         return self._writer.write(self._values.values, self.vehicle.t_us, gps_due, self._detections())
 
-    def _apply(self, cmd: ActuatorCommand) -> None:
-        """Motors when armed (else stopped; non-finite commands stop that motor), gripper release."""
-        if cmd.armed:
-            u = cmd.motor_cmd
-            if math.isfinite(u[0] + u[1] + u[2] + u[3]):  # one check for the usual case
-                self._motor_cmd = u
-            else:
-                self._motor_cmd = tuple(x if math.isfinite(x) else 0.0 for x in u)
-        else:
-            self._motor_cmd = _MOTORS_OFF
-        if cmd.gripper_release and self.vehicle.payload_kg > 0.0:
+    def _apply(self) -> np.ndarray:
+        """The motor commands to integrate from the lockstep's answer (checked finite and in [0, 1] at the edge):
+        its motors when armed, else stopped; a gripper release drops the payload."""
+        answer = self.lockstep.answer
+        if answer[A_GRIPPER_RELEASE] == 1.0 and self.vehicle.payload_kg > 0.0:
             self.vehicle.release_payload()
             log.info("payload released at t=%.3f s", self.vehicle.t_s)
+        return self._answer_motors if answer[A_ARMED] == 1.0 else self._motors_off
 
     def run(self) -> SimSummary:
         """Wait for the autopilot, then step in lockstep until an end condition; always returns a summary."""
@@ -286,7 +282,7 @@ class SimServer:
                         record()
                         unrecorded = False
                     wait_start_s = time.perf_counter()
-                    cmd = lockstep.wait_answer()
+                    lockstep.wait_answer_into()
                     wait_s += time.perf_counter() - wait_start_s
                 except AutopilotLost as exc:
                     log.warning("autopilot lost: %s", exc)
@@ -295,8 +291,7 @@ class SimServer:
                 except LockstepInterrupted:
                     v.end(EndReason.STOPPED)
                     break
-                self._apply(cmd)
-                v.step(self._motor_cmd)
+                v.step(self._apply())
                 unrecorded = True
                 if cfg.speed is not None:
                     ahead_s = wall0 + v.t_s / cfg.speed - time.perf_counter()
