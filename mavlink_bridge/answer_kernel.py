@@ -41,7 +41,10 @@ N_ANSWER = 6
 def write_answer(
     buf: np.ndarray,
     time_us: int,
-    motors: tuple[float, float, float, float],
+    m0: float,
+    m1: float,
+    m2: float,
+    m3: float,
     armed: bool,
     gripper_release: bool,
     lockstep: bool,
@@ -49,19 +52,21 @@ def write_answer(
     system_id: int,
     component_id: int,
 ) -> int:
-    """HIL_ACTUATOR_CONTROLS into ``buf`` (``ANSWER_BUFFER_LEN``); returns the datagram length."""
+    """HIL_ACTUATOR_CONTROLS into ``buf`` (``ANSWER_BUFFER_LEN``); returns the datagram length.
+
+    The motors come as four scalars: numba types a tuple argument element by element on every call.
+    """
     scratch = buf[buf.shape[0] - SCRATCH_LEN :]
     f32 = scratch.view(np.float32)
     p = 10
     _put_int(buf, p, time_us, 8)
     _put_int(buf, p + 8, _FLAG_LOCKSTEP if lockstep else 0, 8)
-    for k in range(16):
-        x = 0.0
-        if k < 4:
-            x = motors[k]
-        elif k == _GRIPPER_CHANNEL:
-            x = 1.0 if gripper_release else 0.0
-        _put_f32(buf, p + 16 + 4 * k, x, f32, scratch)
+    _put_f32(buf, p + 16, m0, f32, scratch)
+    _put_f32(buf, p + 20, m1, f32, scratch)
+    _put_f32(buf, p + 24, m2, f32, scratch)
+    _put_f32(buf, p + 28, m3, f32, scratch)
+    for k in range(4, 16):
+        _put_f32(buf, p + 16 + 4 * k, 1.0 if k == _GRIPPER_CHANNEL and gripper_release else 0.0, f32, scratch)
     buf[p + 80] = _MODE_ARMED if armed else 0
     return _finish(buf, 0, seq, system_id, component_id, _ID_ACTUATORS, _CRC_ACTUATORS, _LEN_ACTUATORS)
 
@@ -124,6 +129,18 @@ class AnswerWriter:
         """The answer's bytes into ``buffer``; their length (send ``view[:length]``)."""
         seq = self.seq
         self.seq = (seq + 1) & 0xFF
+        m = motors
         return write_answer(
-            self.buffer, time_us, motors, armed, gripper, lockstep, seq, self.system_id, self.component_id
+            self.buffer,
+            time_us,
+            m[0],
+            m[1],
+            m[2],
+            m[3],
+            armed,
+            gripper,
+            lockstep,
+            seq,
+            self.system_id,
+            self.component_id,
         )

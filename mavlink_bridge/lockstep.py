@@ -116,6 +116,8 @@ class LockstepClient:
         self._pending_time_us = -1
         self._answered_time_us = -1
         self._answers = AnswerWriter(AUTOPILOT_SYSTEM_ID, AUTOPILOT_COMPONENT_ID)  # in place, own sequence
+        self._answers.write(0, (0.0, 0.0, 0.0, 0.0), False, False, True)  # load the compiled writer now
+        self._answers.seq = 0
         self._answer_len = 0
         self._frames = 0
         self._reanswered = 0

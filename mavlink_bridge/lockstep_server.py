@@ -74,6 +74,7 @@ class LockstepServer:
         self._frame_time_us = -1  # the frame of the last send (what wait_answer waits for)
         self.answer = np.zeros(N_ANSWER)  # the last valid answer's values (``answer_kernel.A_*``)
         self._payload = np.zeros(96, dtype=np.uint8)  # read_answer's zero-padded payload scratch
+        read_answer(self._link.array, 0, 0, self.answer, self._payload)  # load the compiled reader now
         self._datagram = b""
         self._sent_at_s = 0.0
 

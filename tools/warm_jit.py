@@ -71,6 +71,10 @@ def warm() -> dict[str, float]:
     from mavlink_bridge.frame_reader import new_out, read_values
 
     read_values(b"", new_out())  # the lockstep reader both processes use (codec.Decoder)
+    from mavlink_bridge.answer_kernel import N_ANSWER, AnswerWriter, read_answer
+
+    AnswerWriter(1, 1).write(0, (0.5, 0.5, 0.5, 0.5), True, False, True)  # the autopilot's answer
+    read_answer(np.zeros(128, dtype=np.uint8), 0, 0, np.zeros(N_ANSWER), np.zeros(96, dtype=np.uint8))  # the sim's
     timings["bridge_s"] = time.perf_counter() - t0
     return timings
 
