@@ -37,7 +37,7 @@ import math
 from dataclasses import dataclass, replace
 from enum import Enum
 
-from autopilot.estimation import VehicleState
+from autopilot.estimation import Estimator, VehicleState
 from autopilot.failsafe import FailsafeAction, FailsafeEvent
 from autopilot.manual_control import stick_demand
 from autopilot.params import ParamStore
@@ -123,6 +123,8 @@ class Commander:
         self.gripper_release = False
         self.local_frame: LocalNedFrame | None = None
         self.failsafe_reasons: set[str] = set()
+        #: the running estimator (the runner sets it): arming waits for its ``status.healthy`` (PX4's EKF preflight)
+        self.estimator: Estimator | None = None
         self.mission_ready = False  # set by the runner: a valid mission is loaded
         self.offboard_streaming = False  # set by the runner: setpoints arrived within COM_OF_LOSS_T
         self.manual_fresh = False  # set by the runner: joystick input arrived within COM_RC_LOSS_T
@@ -297,9 +299,19 @@ class Commander:
     def arming_refusal(self, state: VehicleState | None) -> str | None:
         """Why arming is refused now, or None (checks: estimate, GPS 3D fix, on ground, failsafe, mode)."""
         if state is None or not state.valid:
-            return "estimator not ready"
-        if state.gps_fix_type < 3 and self.params.get("COM_ARM_WO_GPS") < 0.5:
+            status = self.estimator.status if self.estimator is not None else None
+            return (
+                f"estimator not ready ({status.reason})"
+                if status is not None and status.reason
+                else "estimator not ready"
+            )
+        need_gps = self.params.get("COM_ARM_WO_GPS") < 0.5
+        if state.gps_fix_type < 3 and need_gps:
             return "no 3D GPS fix"
+        if self.estimator is not None and not self.armed:
+            status = self.estimator.status
+            if not status.aligned or (need_gps and not status.healthy):
+                return f"estimator: {status.reason}"
         if self.in_air:
             return "not on the ground"
         if self.failsafe_reasons:
