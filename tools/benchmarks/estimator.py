@@ -1,0 +1,269 @@
+"""The EKF against the truth over the default delivery mission in wind, in one process (issue 12).
+
+``fly_delivery`` flies ``missions/delivery.yaml`` (wind 1.5/−1.0 m/s with 0.5 m/s gusts, 1 kg parcel) with a
+simulated vehicle, its noisy sensors and an in-process :class:`Autopilot` (the composition of
+``tests/autopilot_loop.py``): upload, arm when the estimator allows, MISSION_START, until landed and disarmed.
+Per step it compares the estimate with the sim's truth (position through the estimate's own lat/lon/alt, so the
+origin choice does not count), and the GPS receiver's fixes with the truth at the same instants.
+
+Keys: ``ekf_pos_horiz_rms_m`` vs ``gps_pos_horiz_rms_m`` (target: not worse), ``ekf_vel_rms_m_s`` (<= 0.15),
+``ekf_att_rms_deg`` (<= 1, the rotation angle between estimate and truth), tracking error vs truth with the EKF
+and with ``--estimator truth``, ``ekf_step_us`` (the estimator's own cost per step), ``rtf_ekf`` / ``rtf_truth``
+(whole-flight real-time factor of the in-process loop, the same seed back to back) and the cost share
+``ekf_rtf_cost_fraction = 1 − rtf_ekf / rtf_truth`` (target <= 0.10); and the Monte Carlo: seeded flights in
+wind, divergences (position error > 5 m) and collisions (targets: 0).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from autopilot.estimation import make_estimator
+from autopilot.mission.files import load_mission_file
+from autopilot.runner import Autopilot, AutopilotConfig
+from mavlink_bridge.contract.frames import LocalNedFrame, dcm_from_quat
+from mavlink_bridge.contract.mav_enums import MavCmd
+from mavlink_bridge.contract.vehicle_api import CommandRequest, CommandResult, LandedState, MissionType
+from mavlink_bridge.lockstep import LockstepFrame
+from sim.end_reason import EndReason
+from sim.sensors import SensorModel
+from sim.vehicle import VehicleSim
+from sim.vehicle_config import load_vehicle
+from sim.world import load_world
+from tools.benchmarks import BenchResult
+
+MISSION = Path(__file__).resolve().parents[2] / "missions" / "delivery.yaml"
+CONTROL_HZ = 250
+DIVERGED_M = 5.0
+
+
+@dataclass
+class FlightStats:
+    """Errors of one flight; arrays are per control step while the estimate is valid (rows N, E, D)."""
+
+    estimator: str
+    seed: int
+    completed: bool
+    end_reason: str
+    sim_s: float
+    wall_s: float
+    estimator_s: float
+    steps: int
+    pos_err_ned_m: np.ndarray = field(repr=False)
+    vel_err_ned_m_s: np.ndarray = field(repr=False)
+    att_err_ned_rad: np.ndarray = field(repr=False)  # small-angle rotation vector, NED
+    rate_err_frd_rad_s: np.ndarray = field(repr=False)
+    airborne: np.ndarray = field(repr=False)  # per row: armed and in the air
+    gps_err_ned_m: np.ndarray = field(repr=False)
+    tracking_err_m: np.ndarray = field(repr=False)  # |true position − position setpoint|, 10 Hz, in the mission
+
+    @property
+    def rtf(self) -> float:
+        return self.sim_s / self.wall_s
+
+    @property
+    def max_pos_err_m(self) -> float:
+        return float(np.max(np.linalg.norm(self.pos_err_ned_m, axis=1))) if len(self.pos_err_ned_m) else math.inf
+
+
+def _command(cmd: int, *params: float) -> CommandRequest:
+    full = (*params, *([0.0] * (7 - len(params))))
+    return CommandRequest(cmd, tuple(full), 255, 190)  # type: ignore[arg-type]
+
+
+def fly_delivery(
+    estimator: str = "ekf", seed: int = 1, *, instrument: bool = True, timeout_s: float = 300.0
+) -> FlightStats:
+    """Fly the delivery mission in one process; errors vs truth when ``instrument`` (else timing only)."""
+    plan = load_mission_file(MISSION)
+    world = load_world(MISSION)
+    config = load_vehicle(plan.vehicle)
+    sim = VehicleSim(config, world=world, seed=seed, payload_kg=world.payload_kg)
+    sensors = SensorModel(config, world.home, seed)
+    est = make_estimator(estimator)
+    ap = Autopilot(AutopilotConfig(vehicle=plan.vehicle, estimator=estimator), estimator=est)
+    ap.commander.estimator = est  # what the runner wires (arming waits for a healthy estimate)
+    truth_frame = LocalNedFrame(world.home)
+    rows: list[list[float]] = []
+    gps_rows: list[list[float]] = []
+    tracking: list[float] = []
+    state_phase = 0  # 0 upload, 1 arm, 2 started, 3 done
+    est_s = 0.0
+    update = est.update
+    timed_steps = 0
+
+    def timed_update(frame):  # type: ignore[no-untyped-def]
+        nonlocal est_s, timed_steps
+        t0 = time.perf_counter()
+        out = update(frame)
+        est_s += time.perf_counter() - t0
+        timed_steps += 1
+        return out
+
+    est.update = timed_update  # type: ignore[method-assign]
+    max_steps = round(timeout_s * CONTROL_HZ)
+    wall0 = time.perf_counter()
+    steps = 0
+    for steps in range(1, max_steps + 1):
+        truth = sim.ground_truth()
+        gps = sensors.gps(sim)
+        frame = LockstepFrame(sensors.imu_baro_mag(sim), gps, truth)
+        cmd = ap.step(frame)
+        ap.after_answer()
+        if cmd.gripper_release and sim.payload_kg > 0.0:
+            sim.release_payload()
+        sim.step(cmd.motor_cmd)
+        if sim.end_reason is not EndReason.RUNNING:
+            break
+        commander = ap.commander
+        if state_phase == 0 and ap.state is not None and ap.state.valid:
+            ap.replace_mission(MissionType.MISSION, list(plan.items))
+            ap.replace_mission(MissionType.FENCE, list(plan.fence))
+            state_phase = 1
+        elif state_phase == 1 and steps % 25 == 0:
+            if ap.handle_command(_command(int(MavCmd.COMPONENT_ARM_DISARM), 1.0)) is CommandResult.ACCEPTED:
+                ap.handle_command(_command(int(MavCmd.MISSION_START), 0.0, 0.0))
+                state_phase = 2
+        elif state_phase == 2 and not commander.armed and commander.landed_state is LandedState.ON_GROUND:
+            state_phase = 3
+            break
+        if instrument and ap.state is not None and ap.state.valid:
+            s = ap.state
+            pe = truth_frame.ned_from_geodetic(s.lat_deg, s.lon_deg, s.alt_amsl_m)
+            pt = truth_frame.ned_from_geodetic(truth.lat_deg, truth.lon_deg, truth.alt_amsl_m)
+            e = dcm_from_quat(np.asarray(s.q_ned_frd)) @ dcm_from_quat(np.asarray(truth.q_ned_frd)).T
+            dth = -0.5 * np.array([e[2, 1] - e[1, 2], e[0, 2] - e[2, 0], e[1, 0] - e[0, 1]])
+            airborne = 1.0 if commander.armed and commander.in_air else 0.0
+            rows.append(
+                [*(pe[i] - pt[i] for i in range(3)), *(s.vel_ned_m_s[i] - truth.vel_ned_m_s[i] for i in range(3)),
+                 *dth.tolist(), *(s.rate_frd_rad_s[i] - truth.rate_frd_rad_s[i] for i in range(3)), airborne]
+            )  # fmt: skip
+            if gps is not None:
+                pg = truth_frame.ned_from_geodetic(gps.lat_deg, gps.lon_deg, gps.alt_amsl_m)
+                gps_rows.append([pg[i] - pt[i] for i in range(3)])
+            if state_phase == 2 and airborne and steps % 25 == 0:
+                rec = ap.record(())
+                if rec is not None and ap.estimator.local_frame is not None:
+                    sp = rec.pos_sp_ned_m
+                    geo = ap.estimator.local_frame.geodetic_from_ned(*sp)
+                    psp = truth_frame.ned_from_geodetic(geo.lat_deg, geo.lon_deg, geo.alt_amsl_m)
+                    tracking.append(math.dist(psp, pt))
+    wall_s = time.perf_counter() - wall0
+    a = np.array(rows) if rows else np.zeros((0, 13))
+    return FlightStats(
+        estimator=estimator,
+        seed=seed,
+        completed=state_phase == 3,
+        end_reason=sim.end_reason.name,
+        sim_s=sim.t_us * 1e-6,
+        wall_s=wall_s,
+        estimator_s=est_s,
+        steps=max(timed_steps, 1),
+        pos_err_ned_m=a[:, 0:3],
+        vel_err_ned_m_s=a[:, 3:6],
+        att_err_ned_rad=a[:, 6:9],
+        rate_err_frd_rad_s=a[:, 9:12],
+        airborne=a[:, 12].astype(bool),
+        gps_err_ned_m=np.array(gps_rows) if gps_rows else np.zeros((0, 3)),
+        tracking_err_m=np.array(tracking),
+    )
+
+
+def _r(key: str, value: float, note: str, target: str = "", met: bool | None = None) -> BenchResult:
+    return BenchResult(key, float(value), target, met, note)
+
+
+def rms(x: np.ndarray) -> float:
+    """Root mean square of the row norms (a vector error) or of the values."""
+    if x.ndim == 2:
+        return float(np.sqrt(np.mean(np.sum(x * x, axis=1)))) if len(x) else math.nan
+    return float(np.sqrt(np.mean(x * x))) if len(x) else math.nan
+
+
+def _ekf_vs_gps(stats: FlightStats) -> list[BenchResult]:
+    air = stats.airborne
+    pos_h = rms(stats.pos_err_ned_m[air, :2])
+    gps_h = rms(stats.gps_err_ned_m[:, :2])
+    vel = rms(stats.vel_err_ned_m_s[air])
+    att_deg = math.degrees(rms(stats.att_err_ned_rad[air]))
+    tilt_deg = math.degrees(rms(stats.att_err_ned_rad[air, :2]))
+    yaw_deg = math.degrees(rms(stats.att_err_ned_rad[air, 2]))
+    return [
+        _r("ekf_pos_horiz_rms_m", pos_h, "EKF horizontal position error vs truth, airborne, delivery in wind",
+                    f"<= gps_pos_horiz_rms_m ({gps_h:.3f})", pos_h <= gps_h),
+        _r("gps_pos_horiz_rms_m", gps_h, "the GPS receiver's own horizontal error vs truth, same flight"),
+        _r("ekf_pos_vert_rms_m", rms(stats.pos_err_ned_m[air, 2]), "EKF height error vs truth, airborne"),
+        _r("ekf_vel_rms_m_s", vel, "EKF velocity error (3D) vs truth, airborne", "<= 0.15", vel <= 0.15),
+        _r("ekf_att_rms_deg", att_deg, "EKF attitude error (rotation angle) vs truth, airborne",
+                    "<= 1", att_deg <= 1.0),
+        _r("ekf_tilt_rms_deg", tilt_deg, "EKF roll/pitch error (N, E axes) vs truth, airborne"),
+        _r("ekf_yaw_rms_deg", yaw_deg, "EKF heading error (D axis) vs truth, airborne"),
+    ]  # fmt: skip
+
+
+def run(quick: bool) -> list[BenchResult]:
+    seed = 1
+    ekf = fly_delivery("ekf", seed)
+    truth = fly_delivery("truth", seed)
+    results = _ekf_vs_gps(ekf)
+    results += [
+        _r("tracking_rms_ekf_m", rms(ekf.tracking_err_m),
+                    "delivery mission: |true position − setpoint| RMS, flying on the EKF"),
+        _r("tracking_rms_truth_m", rms(truth.tracking_err_m),
+                    "the same with --estimator truth (same seed)"),
+    ]  # fmt: skip
+    # cost: the same flight uninstrumented, EKF and truth back to back
+    repeats = 1 if quick else 3
+    rtf_ekf, rtf_truth, step_us = [], [], []
+    for _ in range(repeats):
+        e = fly_delivery("ekf", seed, instrument=False)
+        t = fly_delivery("truth", seed, instrument=False)
+        rtf_ekf.append(e.rtf)
+        rtf_truth.append(t.rtf)
+        step_us.append(1e6 * (e.estimator_s / e.steps - t.estimator_s / t.steps))
+    r_e, r_t = float(np.median(rtf_ekf)), float(np.median(rtf_truth))
+    frac = 1.0 - r_e / r_t
+    results += [
+        _r("ekf_step_us", float(np.median(step_us)),
+                    "EKF update per step minus the truth estimator's (wrapper + one numba call)"),
+        _r("rtf_ekf", r_e, "whole delivery flight, in-process loop, flying on the EKF"),
+        _r("rtf_truth", r_t, "the same flight with --estimator truth (same run)"),
+        _r("ekf_rtf_cost_fraction", frac, "1 − rtf_ekf / rtf_truth", "<= 0.10", frac <= 0.10),
+    ]  # fmt: skip
+    n = 20 if quick else 200
+    results += monte_carlo(n)
+    return results
+
+
+def monte_carlo(n: int, first_seed: int = 100) -> list[BenchResult]:
+    """``n`` seeded delivery flights in wind with sensor noise: divergences, collisions, completion."""
+    diverged = collisions = incomplete = 0
+    worst = 0.0
+    pos_h, vel, att = [], [], []
+    for seed in range(first_seed, first_seed + n):
+        s = fly_delivery("ekf", seed)
+        worst = max(worst, s.max_pos_err_m)
+        diverged += s.max_pos_err_m > DIVERGED_M
+        collisions += s.end_reason in (EndReason.COLLISION.name, EndReason.GROUND_IMPACT.name)
+        incomplete += not s.completed
+        air = s.airborne
+        pos_h.append(rms(s.pos_err_ned_m[air, :2]))
+        vel.append(rms(s.vel_err_ned_m_s[air]))
+        att.append(math.degrees(rms(s.att_err_ned_rad[air])))
+    return [
+        _r("ekf_mc_flights", n, "seeded delivery flights in wind with sensor noise (EKF)"),
+        _r("ekf_mc_divergences", diverged, f"flights with a position error > {DIVERGED_M:g} m", "0",
+                    diverged == 0),
+        _r("ekf_mc_collisions", collisions, "flights that ended in a collision or ground impact", "0",
+                    collisions == 0),
+        _r("ekf_mc_incomplete", incomplete, "flights that did not land and disarm after the mission"),
+        _r("ekf_mc_max_pos_err_m", worst, "largest position error over all flights"),
+        _r("ekf_mc_pos_horiz_rms_m", float(np.mean(pos_h)), "mean over flights of the horizontal RMS"),
+        _r("ekf_mc_vel_rms_m_s", float(np.mean(vel)), "mean over flights of the velocity RMS"),
+        _r("ekf_mc_att_rms_deg", float(np.mean(att)), "mean over flights of the attitude RMS"),
+    ]  # fmt: skip
