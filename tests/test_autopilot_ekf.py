@@ -222,3 +222,37 @@ def test_report_and_health_bits_follow_the_status() -> None:
     cleared = apply_estimator_health(all_bits, aligning)
     assert not cleared & (SENSOR_AHRS | SENSOR_GPS | SENSOR_MAG)
     assert estimator_flags(aligning) == EstimatorFlags(0)
+
+
+class _FakeRec:
+    """Records ``log`` calls (path, archetype) like a Rerun recording stream."""
+
+    def __init__(self) -> None:
+        self.logged: list[tuple[str, object]] = []
+
+    def log(self, path: str, value: object, static: bool = False) -> None:
+        self.logged.append((path, value))
+
+    def set_time(self, timeline: str, duration: object) -> None:
+        pass
+
+
+def test_recording_gets_estimate_vs_truth_error_series() -> None:
+    from autopilot.telemetry.estimator_errors import ATT_ERR, POS_ERR, EstimatorErrorLog, attitude_error_ned_rad
+    from mavlink_bridge.contract.wire import GroundTruth
+
+    yaw_err = attitude_error_ned_rad(tuple(quat_from_euler(0.0, 0.0, 0.51)), tuple(quat_from_euler(0.0, 0.0, 0.5)))
+    assert yaw_err == pytest.approx((0.0, 0.0, 0.01), abs=1e-6)
+    vehicle, est = StillVehicle(), EkfEstimator()
+    state = vehicle.run(est, 2.0)
+    assert state is not None
+    rec = _FakeRec()
+    log = EstimatorErrorLog(rec, "sim_time")  # type: ignore[arg-type]
+    geo = FRAME.geodetic_from_ned(0.0, 0.0, 0.0)
+    q = tuple(float(v) for v in vehicle.q)
+    truth = GroundTruth(state.time_us, q, (0, 0, 0), geo.lat_deg, geo.lon_deg, geo.alt_amsl_m, (0, 0, 0), (0, 0, -G))
+    log.log(state, truth, est.status)
+    paths = [p for p, _ in rec.logged[4:]]
+    assert paths[:3] == [POS_ERR, "estimator/vel_err_ned_m_s", ATT_ERR]
+    log.log(state, truth, est.status)  # not due yet: nothing more
+    assert len(rec.logged) == 4 + 4
