@@ -59,6 +59,7 @@ class FlightStats:
     att_err_ned_rad: np.ndarray = field(repr=False)  # small-angle rotation vector, NED
     rate_err_frd_rad_s: np.ndarray = field(repr=False)
     airborne: np.ndarray = field(repr=False)  # per row: armed and in the air
+    speed_h_m_s: np.ndarray = field(repr=False)  # per row: true horizontal speed
     gps_err_ned_m: np.ndarray = field(repr=False)
     tracking_err_m: np.ndarray = field(repr=False)  # |true position − position setpoint|, 10 Hz, in the mission
 
@@ -141,7 +142,8 @@ def fly_delivery(
             airborne = 1.0 if commander.armed and commander.in_air else 0.0
             rows.append(
                 [*(pe[i] - pt[i] for i in range(3)), *(s.vel_ned_m_s[i] - truth.vel_ned_m_s[i] for i in range(3)),
-                 *dth.tolist(), *(s.rate_frd_rad_s[i] - truth.rate_frd_rad_s[i] for i in range(3)), airborne]
+                 *dth.tolist(), *(s.rate_frd_rad_s[i] - truth.rate_frd_rad_s[i] for i in range(3)), airborne,
+                 math.hypot(truth.vel_ned_m_s[0], truth.vel_ned_m_s[1])]
             )  # fmt: skip
             if gps is not None:
                 pg = truth_frame.ned_from_geodetic(gps.lat_deg, gps.lon_deg, gps.alt_amsl_m)
@@ -154,7 +156,7 @@ def fly_delivery(
                     psp = truth_frame.ned_from_geodetic(geo.lat_deg, geo.lon_deg, geo.alt_amsl_m)
                     tracking.append(math.dist(psp, pt))
     wall_s = time.perf_counter() - wall0
-    a = np.array(rows) if rows else np.zeros((0, 13))
+    a = np.array(rows) if rows else np.zeros((0, 14))
     return FlightStats(
         estimator=estimator,
         seed=seed,
@@ -169,6 +171,7 @@ def fly_delivery(
         att_err_ned_rad=a[:, 6:9],
         rate_err_frd_rad_s=a[:, 9:12],
         airborne=a[:, 12].astype(bool),
+        speed_h_m_s=a[:, 13],
         gps_err_ned_m=np.array(gps_rows) if gps_rows else np.zeros((0, 3)),
         tracking_err_m=np.array(tracking),
     )
@@ -267,3 +270,67 @@ def monte_carlo(n: int, first_seed: int = 100) -> list[BenchResult]:
         _r("ekf_mc_vel_rms_m_s", float(np.mean(vel)), "mean over flights of the velocity RMS"),
         _r("ekf_mc_att_rms_deg", float(np.mean(att)), "mean over flights of the attitude RMS"),
     ]  # fmt: skip
+
+
+#: the error model's regimes: airborne and slower than 0.5 m/s (hover), faster than 3 m/s (cruise)
+HOVER_MAX_M_S = 0.5
+CRUISE_MIN_M_S = 3.0
+_SMOOTH_S = 0.5  # the slow part is the centred 0.5 s moving average
+_MIN_RUN_S = 2.0
+
+
+def _runs(mask: np.ndarray, min_len: int) -> list[slice]:
+    """Contiguous True runs of ``mask`` at least ``min_len`` long."""
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], mask.astype(np.int8), [0]))))
+    return [slice(a, b) for a, b in zip(edges[::2], edges[1::2], strict=True) if b - a >= min_len]
+
+
+def _component_model(x: np.ndarray, runs: list[slice], hz: float) -> tuple[float, float, float]:
+    """(white sigma, drift RMS, drift time constant s) of one error component over ``runs``.
+
+    white = the residual about the centred moving average; drift = the moving average (its RMS, bias included);
+    time constant = first lag where the drift's autocorrelation (mean removed) falls below 1/e.
+    """
+    w = max(1, round(_SMOOTH_S * hz))
+    kernel = np.ones(w) / w
+    white, slow_all, taus = [], [], []
+    for r in runs:
+        seg = x[r]
+        slow = np.convolve(seg, kernel, mode="same")[w : len(seg) - w]
+        white.append(seg[w : len(seg) - w] - slow)
+        slow_all.append(slow)
+        d = slow - slow.mean()
+        if len(d) > 2 and float(d @ d) > 0.0:
+            ac = np.correlate(d, d, mode="full")[len(d) - 1 :] / float(d @ d)
+            below = np.flatnonzero(ac < math.exp(-1.0))
+            taus.append((below[0] if len(below) else len(d)) / hz)
+    if not white:
+        return math.nan, math.nan, math.nan
+    wv, sv = np.concatenate(white), np.concatenate(slow_all)
+    return float(np.std(wv)), float(np.sqrt(np.mean(sv * sv))), float(np.median(taus)) if taus else math.nan
+
+
+def error_model(flights: list[FlightStats], hz: float = CONTROL_HZ) -> dict[str, dict[str, dict[str, list[float]]]]:
+    """Per regime (hover, cruise) and quantity (pos m, vel m/s, att rad, rate rad/s): per-axis white sigma, drift
+    RMS and drift time constant of the estimate's error vs truth (a feedback-noise model for controller tuning)."""
+    out: dict[str, dict[str, dict[str, list[float]]]] = {}
+    min_len = round(_MIN_RUN_S * hz)
+    for regime in ("hover", "cruise"):
+        per_q: dict[str, dict[str, list[list[float]]]] = {}
+        for s in flights:
+            speed, air = s.speed_h_m_s, s.airborne
+            mask = air & (speed < HOVER_MAX_M_S) if regime == "hover" else air & (speed > CRUISE_MIN_M_S)
+            runs = _runs(mask, min_len)
+            series = {"pos_ned_m": s.pos_err_ned_m, "vel_ned_m_s": s.vel_err_ned_m_s}
+            series |= {"att_ned_rad": s.att_err_ned_rad, "rate_frd_rad_s": s.rate_err_frd_rad_s}
+            for name, arr in series.items():
+                q = per_q.setdefault(name, {"white_sigma": [], "drift_rms": [], "drift_tau_s": []})
+                models = [_component_model(arr[:, k], runs, hz) for k in range(3)]
+                q["white_sigma"].append([m[0] for m in models])
+                q["drift_rms"].append([m[1] for m in models])
+                q["drift_tau_s"].append([m[2] for m in models])
+        out[regime] = {
+            name: {key: [float(v) for v in np.nanmedian(np.array(vals), axis=0)] for key, vals in q.items()}
+            for name, q in per_q.items()
+        }
+    return out
