@@ -26,14 +26,15 @@ class EkfParams:
     gyro_bias_noise_rad_s2: float = 1.0e-3  # EKF2_GYR_B_NOISE
     accel_bias_noise_m_s3: float = 3.0e-3  # EKF2_ACC_B_NOISE
     gps_pos_noise_m: float = 0.5  # EKF2_GPS_P_NOISE (the receiver's eph is used when larger)
-    gps_vel_noise_m_s: float = 0.3  # EKF2_GPS_V_NOISE
+    gps_vel_noise_m_s: float = 0.1  # EKF2_GPS_V_NOISE (the receiver here reports 0.05 m/s; PX4 default 0.3)
     gps_hgt_noise_m: float = 1.0  # GPS height when it is the height source
     baro_noise_m: float = 1.0  # EKF2_BARO_NOISE
-    heading_noise_rad: float = 0.3  # EKF2_HEAD_NOISE
+    mag_noise_gauss: float = 0.05  # EKF2_MAG_NOISE
+    mag_bias_noise_gauss_s: float = 1.0e-4  # EKF2_MAG_B_NOISE
     gps_pos_gate: float = 5.0  # EKF2_GPS_P_GATE
     gps_vel_gate: float = 5.0  # EKF2_GPS_V_GATE
     baro_gate: float = 5.0  # EKF2_BARO_GATE
-    heading_gate: float = 2.6  # EKF2_HDG_GATE
+    mag_gate: float = 3.0  # EKF2_MAG_GATE
     mag_declination_rad: float = 0.0  # EKF2_MAG_DECL (the sim's field has none)
     align_samples: int = 125  # still IMU samples averaged for the alignment (0.5 s at 250 Hz)
     gps_reset_s: float = 5.0  # GPS rejected this long: reset the position to it (EKF2_RESET_TIMEOUT_MAX-like)
@@ -68,9 +69,10 @@ class EkfEstimator:
             (k.P_GYR_NOISE, p.gyro_noise_rad_s), (k.P_ACC_NOISE, p.accel_noise_m_s2),
             (k.P_GYR_B_NOISE, p.gyro_bias_noise_rad_s2), (k.P_ACC_B_NOISE, p.accel_bias_noise_m_s3),
             (k.P_GPS_P_NOISE, p.gps_pos_noise_m), (k.P_GPS_V_NOISE, p.gps_vel_noise_m_s),
-            (k.P_BARO_NOISE, p.baro_noise_m), (k.P_HEAD_NOISE, p.heading_noise_rad),
+            (k.P_BARO_NOISE, p.baro_noise_m), (k.P_MAG_NOISE, p.mag_noise_gauss),
+            (k.P_MAG_B_NOISE, p.mag_bias_noise_gauss_s), (k.P_MAG_GATE, p.mag_gate),
             (k.P_GPS_P_GATE, p.gps_pos_gate), (k.P_GPS_V_GATE, p.gps_vel_gate), (k.P_BARO_GATE, p.baro_gate),
-            (k.P_HEAD_GATE, p.heading_gate), (k.P_MAG_DECL, p.mag_declination_rad),
+            (k.P_MAG_DECL, p.mag_declination_rad),
             (k.P_ALIGN_SAMPLES, p.align_samples), (k.P_GPS_HGT_NOISE, p.gps_hgt_noise_m),
             (k.P_GPS_RESET_S, p.gps_reset_s), (k.P_FUSE_TIMEOUT_S, p.fuse_timeout_s),
             (k.P_NOAID_S, p.no_aid_dead_reckoning_s), (k.P_NOAID_VALID_S, p.no_aid_valid_s),

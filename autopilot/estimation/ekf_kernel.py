@@ -37,18 +37,19 @@ from mavlink_bridge.contract.frames import (
 )
 
 # nominal state x
-X_Q, X_VEL, X_POS, X_GYRO_BIAS, X_ACCEL_BIAS, N_X = 0, 4, 7, 10, 13, 16
+X_Q, X_VEL, X_POS, X_GYRO_BIAS, X_ACCEL_BIAS, X_MAG_BIAS, N_X = 0, 4, 7, 10, 13, 16, 19
 # error state (rows/columns of P)
-E_ATT, E_VEL, E_POS, E_GYRO_BIAS, E_ACCEL_BIAS, N_E = 0, 3, 6, 9, 12, 15
+E_ATT, E_VEL, E_POS, E_GYRO_BIAS, E_ACCEL_BIAS, E_MAG_BIAS, N_E = 0, 3, 6, 9, 12, 15, 18
 
 # prm: tuning (EstimatorParams) and, from the first fix, the origin's ECEF constants
 P_GYR_NOISE, P_ACC_NOISE, P_GYR_B_NOISE, P_ACC_B_NOISE = 0, 1, 2, 3
-P_GPS_P_NOISE, P_GPS_V_NOISE, P_BARO_NOISE, P_HEAD_NOISE = 4, 5, 6, 7
-P_GPS_P_GATE, P_GPS_V_GATE, P_BARO_GATE, P_HEAD_GATE = 8, 9, 10, 11
+P_GPS_P_NOISE, P_GPS_V_NOISE, P_BARO_NOISE, P_MAG_NOISE = 4, 5, 6, 7
+P_GPS_P_GATE, P_GPS_V_GATE, P_BARO_GATE, P_MAG_GATE = 8, 9, 10, 11
 P_MAG_DECL, P_ALIGN_SAMPLES, P_GPS_HGT_NOISE, P_GPS_RESET_S = 12, 13, 14, 15
 P_FUSE_TIMEOUT_S, P_NOAID_S, P_NOAID_VALID_S, P_GPS_MAX_EPH = 16, 17, 18, 19
 P_ECEF = 20  # 12 values: home ECEF, then the north, east, down rows (LocalNedFrame.ecef_constants)
-N_PRM = 32
+P_MAG_B_NOISE = 32
+N_PRM = 33
 
 # aux: alignment accumulators, timers (sim seconds), test ratios, flags
 A_T, A_ALIGN_N, A_ACC_SUM, A_MAG_SUM, A_GYR_SUM = 0, 1, 2, 5, 8
@@ -57,7 +58,10 @@ A_T_GPS_POS, A_T_GPS_VEL, A_T_BARO, A_T_MAG, A_T_GPS_HGT = 15, 16, 17, 18, 19
 A_POS_TR, A_VEL_TR, A_HGT_TR, A_MAG_TR = 20, 21, 22, 23
 A_T_POS_REJECT, A_T_BARO_SEEN, A_T_MAG_SEEN, A_T_IMU_BAD = 24, 25, 26, 27
 A_FLAGS, A_VERSION, A_T_ALIGNED, A_T_GPS_SEEN, A_T_GPS_START = 28, 29, 30, 31, 32
-N_AUX = 33
+A_MAG_EARTH = 33  # 3 values: the Earth field (gauss, NED) from the alignment's strength and inclination
+A_T_BUMP = 36  # when the status version last changed
+N_AUX = 37
+_STATUS_PERIOD_S = 0.1  # the status version changes at least this often (accuracies, test ratios)
 
 # status flag bits (aux[A_FLAGS])
 F_ALIGNED = 1
@@ -86,7 +90,9 @@ N_OUT = 24
 W_DX = 0
 W_PHI = N_E  # N_E * N_E
 W_TMP = W_PHI + N_E * N_E  # N_E * N_E
-N_WORK = W_TMP + N_E * N_E
+W_H = W_TMP + N_E * N_E  # a measurement Jacobian row
+W_PHT = W_H + N_E  # P Hᵀ
+N_WORK = W_PHT + N_E
 
 _NEVER = -1.0e9
 _G = GRAVITY_M_S2
@@ -161,20 +167,70 @@ def _geodetic_from_ned(prm, n_m, e_m, d_m, out, at):  # pragma: no cover - numba
 
 
 @njit(cache=True)
-def _fuse(P, dx, i, h, y, r_var):  # pragma: no cover - numba kernel
-    """Scalar update of a measurement ``z = h δx_i + v`` (``h = ±1``), innovation ``y`` before this update's dx."""
+def _fuse(P, dx, col, i, h, y, r_var):  # pragma: no cover - numba kernel
+    """Scalar update of a measurement ``z = h δx_i + v`` (``h = ±1``); ``col`` is scratch for ``P e_i``."""
     s = P[i, i] + r_var
     if not (s > 0.0):
         return
+    for k in range(N_E):
+        col[k] = P[k, i]
     resid = y - h * dx[i]
     for k in range(N_E):
-        dx[k] += P[k, i] * h * resid / s
-    # P ← P − (P e_i)(e_iᵀ P) / S (h² = 1)
+        dx[k] += col[k] * h * resid / s
+    # P ← P − (P e_i)(P e_i)ᵀ / S (h² = 1, P symmetric)
     for a in range(N_E):
-        pa = P[a, i] / s
-        if pa != 0.0:
+        ka = col[a] / s
+        if ka != 0.0:
             for b in range(N_E):
-                P[a, b] -= pa * P[i, b]
+                P[a, b] -= ka * col[b]
+
+
+@njit(cache=True)
+def _fuse_row(P, dx, h, pht, y, r_var):  # pragma: no cover - numba kernel
+    """Scalar update with a general Jacobian row ``h``: ``S = h P hᵀ + R``, ``K = P hᵀ / S``, ``P ← P − K h P``."""
+    s = r_var
+    hdx = 0.0
+    for a in range(N_E):
+        acc = 0.0
+        for b in range(N_E):
+            if h[b] != 0.0:
+                acc += P[a, b] * h[b]
+        pht[a] = acc
+        s += h[a] * acc
+        hdx += h[a] * dx[a]
+    if not (s > 0.0):
+        return
+    resid = y - hdx
+    for a in range(N_E):
+        dx[a] += pht[a] * resid / s
+    for a in range(N_E):
+        ka = pht[a] / s
+        if ka != 0.0:
+            for b in range(N_E):
+                P[a, b] -= ka * pht[b]
+
+
+@njit(cache=True)
+def _mag_row(x, aux, j, h):  # pragma: no cover - numba kernel
+    """Jacobian row of body-axis ``j`` of ``m = R̂ᵀ m_ned + b_m`` (``∂/∂δθ = R̂ᵀ [m_ned]×``, ``∂/∂δb_m = e_j``);
+    returns the predicted component."""
+    w, a, b, c = x[X_Q], x[X_Q + 1], x[X_Q + 2], x[X_Q + 3]
+    # column j of R̂ (= row j of R̂ᵀ)
+    if j == 0:
+        r0, r1, r2 = 1 - 2 * (b * b + c * c), 2 * (a * b + w * c), 2 * (a * c - w * b)
+    elif j == 1:
+        r0, r1, r2 = 2 * (a * b - w * c), 1 - 2 * (a * a + c * c), 2 * (b * c + w * a)
+    else:
+        r0, r1, r2 = 2 * (a * c + w * b), 2 * (b * c - w * a), 1 - 2 * (a * a + b * b)
+    mn, me, md = aux[A_MAG_EARTH], aux[A_MAG_EARTH + 1], aux[A_MAG_EARTH + 2]
+    for k in range(N_E):
+        h[k] = 0.0
+    # [m]× = [[0, −md, me], [md, 0, −mn], [−me, mn, 0]]; row = (r0, r1, r2) [m]×
+    h[E_ATT] = r1 * md - r2 * me
+    h[E_ATT + 1] = -r0 * md + r2 * mn
+    h[E_ATT + 2] = r0 * me - r1 * mn
+    h[E_MAG_BIAS + j] = 1.0
+    return r0 * mn + r1 * me + r2 * md + x[X_MAG_BIAS + j]
 
 
 @njit(cache=True)
@@ -199,6 +255,7 @@ def _inject(x, P, dx):  # pragma: no cover - numba kernel
         x[X_POS + k] += dx[E_POS + k]
         x[X_GYRO_BIAS + k] += dx[E_GYRO_BIAS + k]
         x[X_ACCEL_BIAS + k] += dx[E_ACCEL_BIAS + k]
+        x[X_MAG_BIAS + k] += dx[E_MAG_BIAS + k]
     for k in range(N_E):
         dx[k] = 0.0
     for a in range(N_E):
@@ -261,6 +318,12 @@ def _align(x, P, aux, prm, ax, ay, az, gx, gy, gz, mx, my, mz, t_s):  # pragma: 
     m_e = cr * by - sr * bz
     yaw = prm[P_MAG_DECL] - math.atan2(m_e, m_n)
     _set_euler(x, roll, pitch, yaw)
+    # the Earth field: strength and inclination as measured, direction from the declination (PX4 takes them from
+    # the World Magnetic Model); the heading is not taken from the field, so a body bias does not bend it
+    m_h = math.sqrt(m_n * m_n + m_e * m_e)
+    aux[A_MAG_EARTH] = m_h * math.cos(prm[P_MAG_DECL])
+    aux[A_MAG_EARTH + 1] = m_h * math.sin(prm[P_MAG_DECL])
+    aux[A_MAG_EARTH + 2] = -sp * bx + cp * sr * by + cp * cr * bz
     for k in range(3):
         x[X_VEL + k] = 0.0
         x[X_POS + k] = 0.0
@@ -278,6 +341,8 @@ def _align(x, P, aux, prm, ax, ay, az, gx, gy, gz, mx, my, mz, t_s):  # pragma: 
         P[E_POS + k, E_POS + k] = 100.0**2  # unknown until the first fix
         P[E_GYRO_BIAS + k, E_GYRO_BIAS + k] = (prm[P_GYR_NOISE] / math.sqrt(n)) ** 2 + 0.002**2
         P[E_ACCEL_BIAS + k, E_ACCEL_BIAS + k] = 0.1**2
+        x[X_MAG_BIAS + k] = 0.0
+        P[E_MAG_BIAS + k, E_MAG_BIAS + k] = 0.02**2
     aux[A_FLAGS] = int(aux[A_FLAGS]) | F_ALIGNED
     aux[A_T_ALIGNED] = t_s
 
@@ -362,7 +427,9 @@ def _predict(x, P, prm, work, dt, ax, ay, az, gx, gy, gz):  # pragma: no cover -
     q_vel = (prm[P_ACC_NOISE] * dt) ** 2
     q_bg = (prm[P_GYR_B_NOISE] * dt) ** 2
     q_ba = (prm[P_ACC_B_NOISE] * dt) ** 2
+    q_bm = (prm[P_MAG_B_NOISE] * dt) ** 2
     for k in range(3):
+        P[E_MAG_BIAS + k, E_MAG_BIAS + k] += q_bm
         P[E_ATT + k, E_ATT + k] += q_att
         P[E_VEL + k, E_VEL + k] += q_vel
         P[E_GYRO_BIAS + k, E_GYRO_BIAS + k] += q_bg
@@ -395,7 +462,7 @@ def _fuse_gps(x, P, aux, prm, work, t_s, gps3, gvn, gve, gvd, eph_m, epv_m):  # 
     aux[A_VEL_TR] = ratio
     if ratio <= 1.0:
         for k in range(3):
-            _fuse(P, dx, E_VEL + k, 1.0, gv[k] - x[X_VEL + k], r_vel)
+            _fuse(P, dx, work[W_PHT : W_PHT + N_E], E_VEL + k, 1.0, gv[k] - x[X_VEL + k], r_vel)
         aux[A_T_GPS_VEL] = t_s
         flags &= ~F_VEL_REJECTED
     else:
@@ -408,16 +475,17 @@ def _fuse_gps(x, P, aux, prm, work, t_s, gps3, gvn, gve, gvd, eph_m, epv_m):  # 
     aux[A_POS_TR] = ratio
     if ratio <= 1.0:
         for k in range(2):
-            _fuse(P, dx, E_POS + k, 1.0, gps3[k] - x[X_POS + k], r_pos)
+            _fuse(P, dx, work[W_PHT : W_PHT + N_E], E_POS + k, 1.0, gps3[k] - x[X_POS + k], r_pos)
         aux[A_T_GPS_POS] = t_s
         aux[A_T_POS_REJECT] = _NEVER
         flags &= ~F_POS_REJECTED
     else:
         flags |= F_POS_REJECTED
-        if aux[A_T_POS_REJECT] == _NEVER:
+        gps_was_lost = t_s - aux[A_T_GPS_SEEN] > prm[P_NOAID_S]  # GPS back after an outage: restart on it
+        if aux[A_T_POS_REJECT] == _NEVER and not gps_was_lost:
             aux[A_T_POS_REJECT] = t_s
-        elif t_s - aux[A_T_POS_REJECT] > prm[P_GPS_RESET_S]:
-            # rejected for too long (e.g. after dead reckoning): trust the receiver again (PX4's reset)
+        elif gps_was_lost or t_s - aux[A_T_POS_REJECT] > prm[P_GPS_RESET_S]:
+            # back after an outage, or rejected for too long: trust the receiver again (PX4's reset to GPS)
             for k in range(2):
                 x[X_POS + k] = gps3[k]
                 x[X_VEL + k] = gv[k]
@@ -437,7 +505,7 @@ def _fuse_gps(x, P, aux, prm, work, t_s, gps3, gvn, gve, gvd, eph_m, epv_m):  # 
                 x[X_POS + 2] = gps3[2]
                 P[E_POS + 2, E_POS + 2] = r_hgt
             else:
-                _fuse(P, dx, E_POS + 2, 1.0, y, r_hgt)
+                _fuse(P, dx, work[W_PHT : W_PHT + N_E], E_POS + 2, 1.0, y, r_hgt)
             aux[A_T_GPS_HGT] = t_s
     aux[A_FLAGS] = flags
 
@@ -451,7 +519,8 @@ def ekf_step(
 
     Non-finite samples are skipped source by source (an IMU sample with a NaN skips the prediction).
     ``has_gps``: 1 when this step carries a usable 3D fix (the caller checked fix type and set the origin).
-    The version changes when a flag changes or GPS was fused (the caller rebuilds its status then).
+    The version changes when a flag changes, GPS was fused, or every ``_STATUS_PERIOD_S`` (the caller rebuilds
+    its status then).
     """
     t_s = t_us * 1e-6
     dt = t_s - aux[A_T]
@@ -496,24 +565,31 @@ def ekf_step(
             tr = _test_ratio(P, E_POS + 2, y, r_baro, prm[P_BARO_GATE])
             aux[A_HGT_TR] = tr
             if tr <= 1.0:
-                _fuse(P, dx, E_POS + 2, 1.0, y, r_baro)
+                _fuse(P, dx, work[W_PHT : W_PHT + N_E], E_POS + 2, 1.0, y, r_baro)
                 aux[A_T_BARO] = t_s
                 aux[A_FLAGS] = int(aux[A_FLAGS]) & ~F_BARO_REJECTED
             else:
                 aux[A_FLAGS] = int(aux[A_FLAGS]) | F_BARO_REJECTED
-        # magnetometer heading: the field rotated to NED must point to the declination
+        # magnetometer: the three body components, m = R̂ᵀ m_ned + b_m (PX4's 3-axis mag fusion), gated together
         if mag_ok:
-            w, a, b, c = x[X_Q], x[X_Q + 1], x[X_Q + 2], x[X_Q + 3]
-            m_n = (1 - 2 * (b * b + c * c)) * mx + 2 * (a * b - w * c) * my + 2 * (a * c + w * b) * mz
-            m_e = 2 * (a * b + w * c) * mx + (1 - 2 * (a * a + c * c)) * my + 2 * (b * c - w * a) * mz
-            # yaw error of the estimate (R̂ = (I − [δθ]×) R): atan2(m_e, m_n) − decl ≈ −δθ_d
-            y = math.atan2(m_e, m_n) - prm[P_MAG_DECL]
-            y = math.atan2(math.sin(y), math.cos(y))
-            r_head = prm[P_HEAD_NOISE] ** 2
-            tr = _test_ratio(P, E_ATT + 2, y, r_head, prm[P_HEAD_GATE])
-            aux[A_MAG_TR] = tr
-            if tr <= 1.0:
-                _fuse(P, dx, E_ATT + 2, -1.0, y, r_head)
+            h = work[W_H : W_H + N_E]
+            pht = work[W_PHT : W_PHT + N_E]
+            r_mag = prm[P_MAG_NOISE] ** 2
+            meas = (mx, my, mz)
+            ratio = 0.0
+            for j in range(3):
+                y = meas[j] - _mag_row(x, aux, j, h)
+                s_var = r_mag
+                for a in range(N_E):
+                    if h[a] != 0.0:
+                        for b in range(N_E):
+                            s_var += h[a] * P[a, b] * h[b]
+                ratio = max(ratio, y * y / (prm[P_MAG_GATE] ** 2 * s_var))
+            aux[A_MAG_TR] = ratio
+            if ratio <= 1.0:
+                for j in range(3):
+                    y = meas[j] - _mag_row(x, aux, j, h)
+                    _fuse_row(P, dx, h, pht, y, r_mag)
                 aux[A_T_MAG] = t_s
                 aux[A_FLAGS] = int(aux[A_FLAGS]) & ~F_MAG_REJECTED
             else:
@@ -552,8 +628,9 @@ def ekf_step(
     aux[A_FLAGS] = flags
     if flags != old_flags:
         bump = True
-    if bump:
+    if bump or t_s - aux[A_T_BUMP] >= _STATUS_PERIOD_S:
         aux[A_VERSION] += 1.0
+        aux[A_T_BUMP] = t_s
     # output
     for k in range(4):
         out[O_Q + k] = x[X_Q + k]
@@ -592,7 +669,7 @@ def new_arrays() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.nda
     aux = np.zeros(N_AUX)
     for k in (A_T, A_T_GPS_POS, A_T_GPS_VEL, A_T_BARO, A_T_MAG, A_T_GPS_HGT, A_T_POS_REJECT):
         aux[k] = _NEVER
-    for k in (A_T_BARO_SEEN, A_T_MAG_SEEN, A_T_IMU_BAD, A_T_ALIGNED, A_T_GPS_SEEN, A_T_GPS_START):
+    for k in (A_T_BARO_SEEN, A_T_MAG_SEEN, A_T_IMU_BAD, A_T_ALIGNED, A_T_GPS_SEEN, A_T_GPS_START, A_T_BUMP):
         aux[k] = _NEVER
     for k in (A_POS_TR, A_VEL_TR, A_HGT_TR, A_MAG_TR):
         aux[k] = math.nan
