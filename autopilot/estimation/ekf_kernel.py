@@ -1,21 +1,24 @@
 """The EKF's per-step work in one numba call: alignment, IMU prediction, GPS/baro/mag fusion, output.
 
 An error-state (indirect) Kalman filter in the spirit of PX4 EKF2 (``EKF/covariance.cpp``,
-``EKF/gps_fusion.cpp``, ``EKF/baro_height_control.cpp``, ``EKF/mag_heading_control.cpp``); written from the
+``EKF/gps_fusion.cpp``, ``EKF/baro_height_control.cpp``, ``EKF/mag_fusion.cpp``); written from the
 equations, not from that code. Nominal state ``x`` (``X_*``): ``q_ned_frd`` (4), ``vel_ned_m_s`` (3),
-``pos_ned_m`` (3), ``gyro_bias_frd_rad_s`` (3), ``accel_bias_frd_m_s2`` (3). Error state (``E_*``, 15):
-``δθ_ned`` (global attitude error, ``R_true = (I + [δθ]×) R̂``), ``δv``, ``δp``, ``δb_g``, ``δb_a``.
+``pos_ned_m`` (3), ``gyro_bias_frd_rad_s`` (3), ``accel_bias_frd_m_s2`` (3), ``mag_bias_frd_gauss`` (3).
+Error state (``E_*``, 18): ``δθ_ned`` (global attitude error, ``R_true = (I + [δθ]×) R̂``), ``δv``, ``δp``,
+``δb_g``, ``δb_a``, ``δb_m``.
 
 Prediction (``dt`` from the sensor timestamps), with ``ω = ω_m − b_g`` and ``f = f_m − b_a``:
 ``q ← q ⊗ exp(ω dt)``, ``v ← v + (R f + g) dt``, ``p ← p + v dt + ½ (R f + g) dt²``; the error dynamics
 ``δθ' = −R δb_g``, ``δv' = −[R f]× δθ − R δb_a``, ``δp' = δv`` give ``Φ = I + F dt`` and
 ``P ← Φ P Φᵀ + Q`` with ``Q`` from the noise densities (PX4's EKF2_GYR_NOISE, EKF2_ACC_NOISE,
-EKF2_GYR_B_NOISE, EKF2_ACC_B_NOISE as per-sample sigmas times dt).
+EKF2_GYR_B_NOISE, EKF2_ACC_B_NOISE, EKF2_MAG_B_NOISE as per-sample sigmas times dt).
 
-Every measurement here observes one error state with ``H = ±e_i``, so each is a scalar sequential update
-``S = P_ii + R``, ``K = P e_i h / S``, ``P ← P − K h P_i·``; a group (GPS horizontal position, GPS velocity) is
-rejected as a whole when any component's test ratio ``y² / (gate² S)`` exceeds 1 (PX4's innovation
-consistency check). The accumulated error is injected into the nominal state after the step's updates.
+Updates are scalar and sequential (``S = h P hᵀ + R``, ``K = P hᵀ / S``, ``P ← P − K h P``): GPS velocity (3),
+GPS horizontal position (2), baro height (or GPS height while the baro is not fused) observe one error state
+each (``h = e_i``); the magnetometer's three body components ``m = R̂ᵀ m_ned + b_m`` have
+``h = [R̂ᵀ [m_ned]×, 0, …, e_j]``. A group is rejected as a whole when any component's test ratio
+``y² / (gate² S)`` exceeds 1 (PX4's innovation consistency check). The accumulated error is injected into the
+nominal state after the step's updates (``q ← δq(δθ) ⊗ q``).
 
 All state lives in preallocated arrays (``x``, ``P``, ``aux``, ``work``, ``out``); nothing is allocated here.
 """
