@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
@@ -195,15 +195,19 @@ def test_no_state_before_a_fix_and_the_origin_is_the_first_good_fix() -> None:
 def test_arming_is_refused_until_the_filter_is_aligned_and_healthy() -> None:
     vehicle, est = StillVehicle(), EkfEstimator()
     commander = make_commander()
-    commander.estimator = est
+
+    def refusal(state):  # type: ignore[no-untyped-def]
+        commander.context = replace(commander.context, estimator_status=est.status)  # as the runner hands it over
+        return commander.arming_refusal(state)
+
     state = est.update(vehicle.frame())
-    reason = commander.arming_refusal(state)
+    reason = refusal(state)
     assert reason is not None and "aligning" in reason
     state = vehicle.run(est, 0.7)
-    reason = commander.arming_refusal(state)
+    reason = refusal(state)
     assert reason is not None and reason.startswith("estimator:")
     state = vehicle.run(est, 2.0)
-    assert commander.arming_refusal(state) is None
+    assert refusal(state) is None
 
 
 def test_report_and_health_bits_follow_the_status() -> None:

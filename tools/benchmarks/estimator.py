@@ -97,7 +97,6 @@ def fly_delivery(
     sensors = SensorModel(config, world.home, seed)
     est = make_estimator(estimator)
     ap = Autopilot(AutopilotConfig(vehicle=plan.vehicle, estimator=estimator), estimator=est)
-    ap.commander.estimator = est  # what the runner wires (arming waits for a healthy estimate)
     truth_frame = LocalNedFrame(world.home)
     rows: list[list[float]] = []
     gps_rows: list[list[float]] = []
@@ -123,6 +122,7 @@ def fly_delivery(
         truth = sim.ground_truth()
         gps = sensors.gps(sim)
         frame = LockstepFrame(sensors.imu_baro_mag(sim), gps, truth)
+        ap.update_context(estimator_status=est.status)  # the estimator's health for arming and SYS_STATUS
         cmd = ap.step(frame)
         ap.after_answer()
         if cmd.gripper_release and sim.payload_kg > 0.0:
