@@ -1,9 +1,10 @@
 """The sensor-fusion estimator (``--estimator ekf``, the default): IMU, GPS, baro and magnetometer, never the truth.
 
-A thin owner of :mod:`autopilot.estimation.ekf_kernel` (the filter itself, one numba call per step): it picks
-the local origin at the first good fix (PX4 EKF2's ``_pos_ref``), hands the kernel the step's samples as
-scalars and turns its output array into a :class:`VehicleState`, and its flags into an :class:`EstimatorStatus`
-(rebuilt only when the kernel's status version changes: at most at the GPS rate).
+A thin owner of :mod:`autopilot.estimation.ekf_kernel` (the filter itself, one numba call per step; the array
+layout in :mod:`~autopilot.estimation.ekf_layout`): it picks the local origin at the first good fix (PX4 EKF2's
+``_pos_ref``), hands the kernel the step's samples as scalars and turns its output array into a
+:class:`VehicleState`, and its flags into an :class:`EstimatorStatus` (rebuilt only when the kernel's status
+version changes: on a flag change, a GPS fusion, and at most every 0.1 s of sim time otherwise).
 """
 
 from __future__ import annotations
@@ -11,7 +12,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from autopilot.estimation import ekf_kernel as k
+from autopilot.estimation import ekf_layout as k
+from autopilot.estimation.ekf_kernel import ekf_step
 from autopilot.estimation.state import EstimatorStatus, FrameLike, VehicleState
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
 from mavlink_bridge.contract.wire import GpsSample
@@ -130,7 +132,7 @@ class EkfEstimator:
                 gvn, gve, gvd = gps.vel_ned_m_s
                 eph, epv = gps.eph_m, gps.epv_m
         a, g, m = sensor.accel_frd_m_s2, sensor.gyro_frd_rad_s, sensor.mag_frd_gauss
-        self._version = k.ekf_step(
+        self._version = ekf_step(
             self._x, self._p, self._aux, self._prm, self._work, self._out, sensor.time_us,
             a[0], a[1], a[2], g[0], g[1], g[2], m[0], m[1], m[2], sensor.pressure_alt_m,
             has_gps, glat, glon, galt, gvn, gve, gvd, eph, epv,
