@@ -260,3 +260,27 @@ def test_recording_gets_estimate_vs_truth_error_series() -> None:
     assert paths[:3] == [POS_ERR, "estimator/vel_err_ned_m_s", ATT_ERR]
     log.log(state, truth, est.status)  # not due yet: nothing more
     assert len(rec.logged) == 4 + 4
+
+
+def test_the_sparse_covariance_prediction_is_phi_p_phi_transposed() -> None:
+    from autopilot.estimation import ekf_layout as lay
+    from autopilot.estimation.ekf_kernel import _predict
+
+    rng = np.random.default_rng(5)
+    x, _, _, prm, work, _ = lay.new_arrays()
+    x[lay.X_Q : lay.X_Q + 4] = quat_from_euler(0.3, -0.2, 1.1)
+    x[lay.X_GYRO_BIAS : lay.X_GYRO_BIAS + 3] = (0.01, -0.02, 0.005)
+    root = rng.standard_normal((lay.N_E, lay.N_E))
+    p = root @ root.T
+    dt, f_frd, w_frd = 0.004, np.array([0.5, -0.3, -9.5]), np.array([0.2, -0.1, 0.3])
+    r = dcm_from_quat(x[lay.X_Q : lay.X_Q + 4].copy())
+    a_ned = r @ (f_frd - x[lay.X_ACCEL_BIAS : lay.X_ACCEL_BIAS + 3])
+    phi = np.eye(lay.N_E)
+    phi[lay.E_ATT : lay.E_ATT + 3, lay.E_GYRO_BIAS : lay.E_GYRO_BIAS + 3] = -r * dt
+    phi[lay.E_VEL : lay.E_VEL + 3, lay.E_ACCEL_BIAS : lay.E_ACCEL_BIAS + 3] = -r * dt
+    skew = np.array([[0.0, -a_ned[2], a_ned[1]], [a_ned[2], 0.0, -a_ned[0]], [-a_ned[1], a_ned[0], 0.0]])
+    phi[lay.E_VEL : lay.E_VEL + 3, lay.E_ATT : lay.E_ATT + 3] = -skew * dt
+    phi[lay.E_POS : lay.E_POS + 3, lay.E_VEL : lay.E_VEL + 3] = np.eye(3) * dt
+    expected = phi @ p @ phi.T
+    _predict(x, p, prm, work, dt, *f_frd, *w_frd)  # prm zeros: no process noise
+    assert p == pytest.approx(expected, rel=1e-12, abs=1e-12)

@@ -65,8 +65,8 @@ N_OUT = 24
 
 # work: the accumulated error state and the scratch matrices of the covariance prediction
 W_DX = 0
-W_PHI = N_E  # N_E * N_E
-W_TMP = W_PHI + N_E * N_E  # N_E * N_E
+W_PHI = N_E  # N_E * N_E: B = A P of the covariance prediction
+W_TMP = W_PHI + N_E * N_E  # N_E * N_E: A Bᵀ
 W_H = W_TMP + N_E * N_E  # a measurement Jacobian row
 W_PHT = W_H + N_E  # P Hᵀ
 N_WORK = W_PHT + N_E
