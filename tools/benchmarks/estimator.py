@@ -10,15 +10,12 @@ Keys: ``ekf_pos_horiz_rms_m`` vs ``gps_pos_horiz_rms_m`` (target: not worse), ``
 ``ekf_att_rms_deg`` (<= 1, the rotation angle between estimate and truth), tracking error vs truth with the EKF
 and with ``--estimator truth``, ``ekf_update_us`` (the estimator's own cost per step), ``rtf_ekf`` / ``rtf_truth``
 (whole-flight real-time factor of the in-process loop, the same seed back to back) and the cost share
-``ekf_rtf_cost_fraction = 1 − rtf_ekf / rtf_truth`` (target <= 0.10); and the Monte Carlo: seeded flights in
-wind, divergences (position error > 5 m) and collisions (targets: 0).
+``ekf_rtf_cost_fraction = 1 − rtf_ekf / rtf_truth`` (target <= 0.10); and (``estimator_mc``) the Monte Carlo.
 """
 
 from __future__ import annotations
 
-import json
 import math
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -87,9 +84,10 @@ def _command(cmd: int, *params: float) -> CommandRequest:
 
 
 def fly_delivery(
-    estimator: str = "ekf", seed: int = 1, *, instrument: bool = True, timeout_s: float = 300.0
+    estimator: str = "ekf", seed: int = 1, *, instrument: bool = True, sample_every: int = 1, timeout_s: float = 300.0
 ) -> FlightStats:
-    """Fly the delivery mission in one process; errors vs truth when ``instrument`` (else timing only)."""
+    """Fly the delivery mission in one process; errors vs truth every ``sample_every`` steps when ``instrument``
+    (else timing only); the GPS receiver's error at every fix."""
     plan = load_mission_file(MISSION)
     world = load_world(MISSION)
     config = load_vehicle(plan.vehicle)
@@ -142,7 +140,11 @@ def fly_delivery(
         elif state_phase == 2 and not commander.armed and commander.landed_state is LandedState.ON_GROUND:
             state_phase = 3
             break
-        if instrument and ap.state is not None and ap.state.valid:
+        if instrument and gps is not None:
+            pt = truth_frame.ned_from_geodetic(truth.lat_deg, truth.lon_deg, truth.alt_amsl_m)
+            pg = truth_frame.ned_from_geodetic(gps.lat_deg, gps.lon_deg, gps.alt_amsl_m)
+            gps_rows.append([pg[i] - pt[i] for i in range(3)])
+        if instrument and steps % sample_every == 0 and ap.state is not None and ap.state.valid:
             s = ap.state
             pe = truth_frame.ned_from_geodetic(s.lat_deg, s.lon_deg, s.alt_amsl_m)
             pt = truth_frame.ned_from_geodetic(truth.lat_deg, truth.lon_deg, truth.alt_amsl_m)
@@ -154,10 +156,7 @@ def fly_delivery(
                  *dth.tolist(), *(s.rate_frd_rad_s[i] - truth.rate_frd_rad_s[i] for i in range(3)), airborne,
                  math.hypot(truth.vel_ned_m_s[0], truth.vel_ned_m_s[1])]
             )  # fmt: skip
-            if gps is not None:
-                pg = truth_frame.ned_from_geodetic(gps.lat_deg, gps.lon_deg, gps.alt_amsl_m)
-                gps_rows.append([pg[i] - pt[i] for i in range(3)])
-            if state_phase == 2 and airborne and steps % 25 == 0:
+            if state_phase == 2 and airborne and steps % (25 * sample_every) == 0:
                 rec = ap.record(())
                 if rec is not None and ap.estimator.local_frame is not None:
                     sp = rec.pos_sp_ned_m
@@ -187,7 +186,7 @@ def fly_delivery(
     )
 
 
-def _r(key: str, value: float, note: str, target: str = "", met: bool | None = None) -> BenchResult:
+def bench_result(key: str, value: float, note: str, target: str = "", met: bool | None = None) -> BenchResult:
     return BenchResult(key, float(value), target, met, note)
 
 
@@ -207,15 +206,15 @@ def _ekf_vs_gps(stats: FlightStats) -> list[BenchResult]:
     tilt_deg = math.degrees(rms(stats.att_err_ned_rad[air, :2]))
     yaw_deg = math.degrees(rms(stats.att_err_ned_rad[air, 2]))
     return [
-        _r("ekf_pos_horiz_rms_m", pos_h, "EKF horizontal position error vs truth, airborne, delivery in wind",
+        bench_result("ekf_pos_horiz_rms_m", pos_h, "EKF horizontal position error vs truth, airborne, delivery in wind",
                     f"<= gps_pos_horiz_rms_m ({gps_h:.3f})", pos_h <= gps_h),
-        _r("gps_pos_horiz_rms_m", gps_h, "the GPS receiver's own horizontal error vs truth, same flight"),
-        _r("ekf_pos_vert_rms_m", rms(stats.pos_err_ned_m[air, 2]), "EKF height error vs truth, airborne"),
-        _r("ekf_vel_rms_m_s", vel, "EKF velocity error (3D) vs truth, airborne", "<= 0.15", vel <= 0.15),
-        _r("ekf_att_rms_deg", att_deg, "EKF attitude error (rotation angle) vs truth, airborne",
+        bench_result("gps_pos_horiz_rms_m", gps_h, "the GPS receiver's own horizontal error vs truth, same flight"),
+        bench_result("ekf_pos_vert_rms_m", rms(stats.pos_err_ned_m[air, 2]), "EKF height error vs truth, airborne"),
+        bench_result("ekf_vel_rms_m_s", vel, "EKF velocity error (3D) vs truth, airborne", "<= 0.15", vel <= 0.15),
+        bench_result("ekf_att_rms_deg", att_deg, "EKF attitude error (rotation angle) vs truth, airborne",
                     "<= 1", att_deg <= 1.0),
-        _r("ekf_tilt_rms_deg", tilt_deg, "EKF roll/pitch error (N, E axes) vs truth, airborne"),
-        _r("ekf_yaw_rms_deg", yaw_deg, "EKF heading error (D axis) vs truth, airborne"),
+        bench_result("ekf_tilt_rms_deg", tilt_deg, "EKF roll/pitch error (N, E axes) vs truth, airborne"),
+        bench_result("ekf_yaw_rms_deg", yaw_deg, "EKF heading error (D axis) vs truth, airborne"),
     ]  # fmt: skip
 
 
@@ -225,9 +224,9 @@ def run(quick: bool) -> list[BenchResult]:
     truth = fly_delivery("truth", seed)
     results = _ekf_vs_gps(ekf)
     results += [
-        _r("tracking_rms_ekf_m", rms(ekf.tracking_err_m),
+        bench_result("tracking_rms_ekf_m", rms(ekf.tracking_err_m),
                     "delivery mission: |true position − setpoint| RMS, flying on the EKF"),
-        _r("tracking_rms_truth_m", rms(truth.tracking_err_m),
+        bench_result("tracking_rms_truth_m", rms(truth.tracking_err_m),
                     "the same with --estimator truth (same seed)"),
     ]  # fmt: skip
     # cost: the same flight uninstrumented, EKF and truth back to back (CPU time: the machine is shared)
@@ -243,62 +242,17 @@ def run(quick: bool) -> list[BenchResult]:
     r_e, r_t = float(np.median(rtf_ekf)), float(np.median(rtf_truth))
     frac = 1.0 - r_e / r_t
     results += [
-        _r(
+        bench_result(
             "ekf_update_us",
             float(np.median(ekf_us)),
             "EkfEstimator.update per step in flight (wrapper + one numba call)",
         ),
-        _r("truth_update_us", float(np.median(truth_us)), "TruthEstimator.update per step, same flight"),
-        _r("rtf_ekf", r_e, "whole delivery flight, in-process loop (sim + autopilot), CPU-time RTF, on the EKF"),
-        _r("rtf_truth", r_t, "the same flight with --estimator truth, same run"),
-        _r("ekf_rtf_cost_fraction", frac, "1 − rtf_ekf / rtf_truth", "<= 0.10", frac <= 0.10),
+        bench_result("truth_update_us", float(np.median(truth_us)), "TruthEstimator.update per step, same flight"),
+        bench_result("rtf_ekf", r_e, "delivery flight, in-process sim + autopilot, CPU-time RTF, on the EKF"),
+        bench_result("rtf_truth", r_t, "the same flight with --estimator truth, same run"),
+        bench_result("ekf_rtf_cost_fraction", frac, "1 − rtf_ekf / rtf_truth", "<= 0.10", frac <= 0.10),
     ]
-    n = 20 if quick else 200
-    kept: list[FlightStats] = []
-    results += monte_carlo(n, keep=kept)
-    model = error_model([ekf, *kept])
-    seeds = [ekf.seed, *(k.seed for k in kept)]
-    ERROR_MODEL_PATH.parent.mkdir(parents=True, exist_ok=True)
-    doc = {"mission": "missions/delivery.yaml", "seeds": seeds, "method": error_model.__doc__, **model}
-    ERROR_MODEL_PATH.write_text(json.dumps(doc, indent=2) + "\n")
     return results
-
-
-def monte_carlo(n: int, first_seed: int = 100, keep: list[FlightStats] | None = None) -> list[BenchResult]:
-    """``n`` seeded delivery flights in wind with sensor noise: divergences, collisions, completion (the first
-    ten flights' stats are appended to ``keep`` when given)."""
-    diverged = collisions = incomplete = worse_than_gps = 0
-    worst = 0.0
-    pos_h, vel, att = [], [], []
-    for seed in range(first_seed, first_seed + n):
-        s = fly_delivery("ekf", seed)
-        if keep is not None and len(keep) < 10:
-            keep.append(s)
-        worst = max(worst, s.max_pos_err_m)
-        diverged += s.max_pos_err_m > DIVERGED_M
-        collisions += s.end_reason in (EndReason.COLLISION.name, EndReason.GROUND_IMPACT.name)
-        incomplete += not s.completed
-        air = s.airborne
-        pos_h.append(rms(s.pos_err_ned_m[air, :2]))
-        worse_than_gps += pos_h[-1] > rms(s.gps_err_ned_m[:, :2])
-        if (seed - first_seed + 1) % 10 == 0:
-            print(f"[estimator] {seed - first_seed + 1}/{n} flights, {diverged} diverged, {collisions} collided",
-                  file=sys.stderr, flush=True)  # fmt: skip
-        vel.append(rms(s.vel_err_ned_m_s[air]))
-        att.append(math.degrees(rms(s.att_err_ned_rad[air])))
-    return [
-        _r("ekf_mc_flights", n, "seeded delivery flights in wind with sensor noise (EKF)"),
-        _r("ekf_mc_divergences", diverged, f"flights with a position error > {DIVERGED_M:g} m", "0",
-                    diverged == 0),
-        _r("ekf_mc_collisions", collisions, "flights that ended in a collision or ground impact", "0",
-                    collisions == 0),
-        _r("ekf_mc_incomplete", incomplete, "flights that did not land and disarm after the mission"),
-        _r("ekf_mc_worse_than_gps", worse_than_gps, "flights whose EKF horizontal RMS exceeds the receiver's own"),
-        _r("ekf_mc_max_pos_err_m", worst, "largest position error over all flights"),
-        _r("ekf_mc_pos_horiz_rms_m", float(np.mean(pos_h)), "mean over flights of the horizontal RMS"),
-        _r("ekf_mc_vel_rms_m_s", float(np.mean(vel)), "mean over flights of the velocity RMS"),
-        _r("ekf_mc_att_rms_deg", float(np.mean(att)), "mean over flights of the attitude RMS"),
-    ]  # fmt: skip
 
 
 #: the error model's regimes: airborne and slower than 0.5 m/s (hover), faster than 3 m/s (cruise)
