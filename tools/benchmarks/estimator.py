@@ -25,6 +25,7 @@ import numpy as np
 from autopilot.estimation import make_estimator
 from autopilot.mission.files import load_mission_file
 from autopilot.runner import Autopilot, AutopilotConfig
+from autopilot.vehicle_adapter import VehicleAdapter
 from mavlink_bridge.contract.frames import LocalNedFrame, dcm_from_quat
 from mavlink_bridge.contract.mav_enums import MavCmd
 from mavlink_bridge.contract.vehicle_api import CommandRequest, CommandResult, LandedState, MissionType
@@ -95,6 +96,7 @@ def fly_delivery(
     sensors = SensorModel(config, world.home, seed)
     est = make_estimator(estimator)
     ap = Autopilot(AutopilotConfig(vehicle=plan.vehicle, estimator=estimator), estimator=est)
+    vehicle = VehicleAdapter(ap)  # what a GCS talks to
     truth_frame = LocalNedFrame(world.home)
     rows: list[list[float]] = []
     gps_rows: list[list[float]] = []
@@ -130,12 +132,12 @@ def fly_delivery(
             break
         commander = ap.commander
         if state_phase == 0 and ap.state is not None and ap.state.valid:
-            ap.replace_mission(MissionType.MISSION, list(plan.items))
-            ap.replace_mission(MissionType.FENCE, list(plan.fence))
+            vehicle.replace_mission(MissionType.MISSION, list(plan.items))
+            vehicle.replace_mission(MissionType.FENCE, list(plan.fence))
             state_phase = 1
         elif state_phase == 1 and steps % 25 == 0:
-            if ap.handle_command(_command(int(MavCmd.COMPONENT_ARM_DISARM), 1.0)) is CommandResult.ACCEPTED:
-                ap.handle_command(_command(int(MavCmd.MISSION_START), 0.0, 0.0))
+            if vehicle.handle_command(_command(int(MavCmd.COMPONENT_ARM_DISARM), 1.0)) is CommandResult.ACCEPTED:
+                vehicle.handle_command(_command(int(MavCmd.MISSION_START), 0.0, 0.0))
                 state_phase = 2
         elif state_phase == 2 and not commander.armed and commander.landed_state is LandedState.ON_GROUND:
             state_phase = 3
