@@ -31,27 +31,36 @@ from tools.benchmarks.estimator import (
 SAMPLE_EVERY = 5
 
 
+#: flights compared with the truth at every step for the error model: the seed-1 delivery and the first MC ones
+KEEP_FLIGHTS = 5
+#: running counts, rewritten every 10 flights (what a run stopped early has shown)
+PROGRESS_PATH = ERROR_MODEL_PATH.parent / "estimator_mc_progress.json"
+
+
 def run(quick: bool) -> list[BenchResult]:
-    kept: list[FlightStats] = [fly_delivery("ekf", 1)]
-    results = monte_carlo(20 if quick else 200, keep=kept)
-    model = error_model(kept)
+    return monte_carlo(20 if quick else 200, keep=[fly_delivery("ekf", 1)])
+
+
+def write_error_model(flights: list[FlightStats]) -> None:
+    """``bench/estimator_error_model.json``: :func:`error_model` of ``flights`` with their seeds and the method."""
+    doc = {"mission": "missions/delivery.yaml", "seeds": [k.seed for k in flights], "method": error_model.__doc__}
     ERROR_MODEL_PATH.parent.mkdir(parents=True, exist_ok=True)
-    doc = {"mission": "missions/delivery.yaml", "seeds": [k.seed for k in kept], "method": error_model.__doc__}
-    ERROR_MODEL_PATH.write_text(json.dumps({**doc, **model}, indent=2) + "\n")
-    return results
+    ERROR_MODEL_PATH.write_text(json.dumps({**doc, **error_model(flights)}, indent=2) + "\n")
 
 
 def monte_carlo(n: int, first_seed: int = 100, keep: list[FlightStats] | None = None) -> list[BenchResult]:
-    """``n`` seeded delivery flights in wind with sensor noise: divergences, collisions, completion (the first
-    flights' stats are appended to ``keep`` until it holds eleven)."""
+    """``n`` seeded delivery flights in wind with sensor noise: divergences, collisions, completion. The first
+    flights' stats are appended to ``keep`` until it holds ``KEEP_FLIGHTS``; then the error model is written."""
     diverged = collisions = incomplete = worse_than_gps = 0
     worst = 0.0
     pos_h, vel, att = [], [], []
     for seed in range(first_seed, first_seed + n):
-        keeping = keep is not None and len(keep) < 11
+        keeping = keep is not None and len(keep) < KEEP_FLIGHTS
         s = fly_delivery("ekf", seed, sample_every=1 if keeping else SAMPLE_EVERY)
-        if keeping:
+        if keep is not None and keeping:
             keep.append(s)
+            if len(keep) == KEEP_FLIGHTS:
+                write_error_model(keep)
         worst = max(worst, s.max_pos_err_m)
         diverged += s.max_pos_err_m > DIVERGED_M
         collisions += s.end_reason in (EndReason.COLLISION.name, EndReason.GROUND_IMPACT.name)
@@ -59,11 +68,14 @@ def monte_carlo(n: int, first_seed: int = 100, keep: list[FlightStats] | None = 
         air = s.airborne
         pos_h.append(rms(s.pos_err_ned_m[air, :2]))
         worse_than_gps += pos_h[-1] > rms(s.gps_err_ned_m[:, :2])
-        if (seed - first_seed + 1) % 10 == 0:
-            print(f"[estimator] {seed - first_seed + 1}/{n} flights, {diverged} diverged, {collisions} collided",
-                  file=sys.stderr, flush=True)  # fmt: skip
         vel.append(rms(s.vel_err_ned_m_s[air]))
         att.append(math.degrees(rms(s.att_err_ned_rad[air])))
+        done = seed - first_seed + 1
+        if done % 10 == 0:
+            counts = {"flights": done, "divergences": diverged, "collisions": collisions, "incomplete": incomplete,
+                      "worse_than_gps": worse_than_gps, "max_pos_err_m": worst}  # fmt: skip
+            PROGRESS_PATH.write_text(json.dumps(counts, indent=2) + "\n")
+            print(f"[estimator_mc] {counts}", file=sys.stderr, flush=True)
     return [
         bench_result("ekf_mc_flights", n, "seeded delivery flights in wind with sensor noise (EKF)"),
         bench_result("ekf_mc_divergences", diverged, f"flights with a position error > {DIVERGED_M:g} m", "0",
