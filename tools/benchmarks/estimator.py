@@ -63,6 +63,7 @@ class FlightStats:
     rate_err_frd_rad_s: np.ndarray = field(repr=False)
     airborne: np.ndarray = field(repr=False)  # per row: armed and in the air
     speed_h_m_s: np.ndarray = field(repr=False)  # per row: true horizontal speed
+    vel_d_m_s: np.ndarray = field(repr=False)  # per row: true vertical velocity (down)
     gps_err_ned_m: np.ndarray = field(repr=False)
     tracking_err_m: np.ndarray = field(repr=False)  # |true position − position setpoint|, 10 Hz, in the mission
 
@@ -163,7 +164,7 @@ def fly_delivery(
             rows.append(
                 [*(pe[i] - pt[i] for i in range(3)), *(s.vel_ned_m_s[i] - truth.vel_ned_m_s[i] for i in range(3)),
                  *dth.tolist(), *(s.rate_frd_rad_s[i] - truth.rate_frd_rad_s[i] for i in range(3)), airborne,
-                 math.hypot(truth.vel_ned_m_s[0], truth.vel_ned_m_s[1])]
+                 math.hypot(truth.vel_ned_m_s[0], truth.vel_ned_m_s[1]), truth.vel_ned_m_s[2]]
             )  # fmt: skip
             if state_phase == 2 and airborne and steps % (25 * sample_every) == 0:
                 rec = ap.record(())
@@ -173,7 +174,7 @@ def fly_delivery(
                     psp = truth_frame.ned_from_geodetic(geo.lat_deg, geo.lon_deg, geo.alt_amsl_m)
                     tracking.append(math.dist(psp, pt))
     wall_s, cpu_s = time.perf_counter() - wall0, time.process_time() - cpu0
-    a = np.array(rows) if rows else np.zeros((0, 14))
+    a = np.array(rows) if rows else np.zeros((0, 15))
     return FlightStats(
         estimator=estimator,
         seed=seed,
@@ -190,6 +191,7 @@ def fly_delivery(
         rate_err_frd_rad_s=a[:, 9:12],
         airborne=a[:, 12].astype(bool),
         speed_h_m_s=a[:, 13],
+        vel_d_m_s=a[:, 14],
         gps_err_ned_m=np.array(gps_rows) if gps_rows else np.zeros((0, 3)),
         tracking_err_m=np.array(tracking),
     )
@@ -263,8 +265,10 @@ def run(quick: bool) -> list[BenchResult]:
     return results
 
 
-#: the error model's regimes: airborne and slower than 0.5 m/s (hover), faster than 3 m/s (cruise)
+#: the error model's regimes: airborne, slower than 0.5 m/s horizontally and 0.3 m/s vertically (hover), faster
+#: than 3 m/s horizontally (cruise)
 HOVER_MAX_M_S = 0.5
+HOVER_MAX_VERT_M_S = 0.3
 CRUISE_MIN_M_S = 3.0
 _SMOOTH_S = 0.5  # the slow part is the centred 0.5 s moving average
 _MIN_RUN_S = 2.0
@@ -310,7 +314,8 @@ def error_model(flights: list[FlightStats], hz: float = CONTROL_HZ) -> dict[str,
         per_q: dict[str, dict[str, list[list[float]]]] = {}
         for s in flights:
             speed, air = s.speed_h_m_s, s.airborne
-            mask = air & (speed < HOVER_MAX_M_S) if regime == "hover" else air & (speed > CRUISE_MIN_M_S)
+            still = (speed < HOVER_MAX_M_S) & (np.abs(s.vel_d_m_s) < HOVER_MAX_VERT_M_S)
+            mask = air & still if regime == "hover" else air & (speed > CRUISE_MIN_M_S)
             runs = _runs(mask, min_len)
             series = {"pos_ned_m": s.pos_err_ned_m, "vel_ned_m_s": s.vel_err_ned_m_s}
             series |= {"att_ned_rad": s.att_err_ned_rad, "rate_frd_rad_s": s.rate_err_frd_rad_s}
