@@ -32,6 +32,7 @@ from pathlib import Path
 from types import FrameType
 
 from autopilot.control.airframe import AirframeError
+from autopilot.estimation import DEFAULT_ESTIMATOR, ESTIMATORS
 from autopilot.io_loop import Links, run_loop
 from autopilot.params import ParamError
 from autopilot.reporting import AutopilotEndReason
@@ -95,7 +96,12 @@ def add_autopilot_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--require-signing", action="store_true", help="reject unsigned or wrongly signed messages on GCS and API links"
     )
-    p.add_argument("--estimator", default="truth", choices=["truth"], help="state estimator")
+    p.add_argument(
+        "--estimator",
+        default=DEFAULT_ESTIMATOR,
+        choices=sorted(ESTIMATORS),
+        help="state estimator: ekf (sensor fusion, default) or truth (the sim's ground truth, controller studies)",
+    )
     p.add_argument("--script", default=None, metavar="FILE", help="commands at fixed sim times (YAML)")
     p.add_argument("--sim-timeout-s", type=float, default=3.0, help="wall s of sim silence that ends the run")
     p.add_argument("--connect-timeout-s", type=float, default=60.0, help="wall s to wait for the first frame")

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
+from autopilot.estimation import DEFAULT_ESTIMATOR, ESTIMATORS
 from autopilot.launcher import stop_process
 
 EXIT_OK = 0
@@ -185,6 +186,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--speed", default="max", help="'max' or a real-time factor such as 1 or 10")
     parser.add_argument("--vehicle", default=None, help="vehicle config name (default: the mission's)")
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--estimator", default=DEFAULT_ESTIMATOR, choices=sorted(ESTIMATORS), help="state estimator")
     parser.add_argument("--out-dir", default=None, help="default runs/<timestamp>")
     parser.add_argument("--timeout-s", type=float, default=600.0, help="wall-clock limit for the flight")
     parser.add_argument("--rerun", default=None, help="override --rerun (default save:<out-dir>/flight.rrd)")
@@ -207,7 +209,7 @@ def main(argv: list[str] | None = None) -> int:
     up_cmd = [
         sys.executable, "-m", "quadsitl_cli", "up",
         "--world", str(mission), "--seed", str(args.seed), "--speed", args.speed,
-        "--instance", str(instance), "--log-dir", str(out_dir), "--rerun", rerun,
+        "--instance", str(instance), "--log-dir", str(out_dir), "--rerun", rerun, "--estimator", args.estimator,
     ]  # fmt: skip
     if args.vehicle:
         up_cmd += ["--vehicle", args.vehicle]

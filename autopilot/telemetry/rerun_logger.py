@@ -24,12 +24,15 @@ import numpy as np
 import rerun as rr
 
 from autopilot.control.cascade import ControlSample
+from autopilot.estimation.state import EstimatorStatus, VehicleState
 from autopilot.setpoints import TargetKind
 from autopilot.telemetry import entities as ent
 from autopilot.telemetry.blueprint import flight_blueprint
+from autopilot.telemetry.estimator_errors import EstimatorErrorLog
 from autopilot.telemetry.scene import TrueObstacle, fence_outlines, route_points_ned, true_obstacles
 from mavlink_bridge.contract.frames import GeoPoint
 from mavlink_bridge.contract.vehicle_api import FlightMode, MissionItem, Severity
+from mavlink_bridge.contract.wire import GroundTruth
 
 if TYPE_CHECKING:
     from autopilot.reporting import StepRecord
@@ -123,6 +126,7 @@ class RerunTelemetry:
         rotor_pos_frd_m: Sequence[Sequence[float]] | None = None,
         obstacle_period_s: float = 0.5,
     ) -> None:
+        self._estimator_errors: EstimatorErrorLog | None = None
         if not (rate_3d_hz > 0.0 and batch_rows >= 1 and trail_segment_points >= 2):
             raise ValueError("need rate_3d_hz > 0, batch_rows >= 1 and trail_segment_points >= 2")
         self.rec = rec
@@ -315,6 +319,12 @@ class RerunTelemetry:
                 self.on_obstacles(obstacles, t_us)
 
     # ------------------------------------------------------------------ events and scene
+    def on_truth(self, state: VehicleState, truth: GroundTruth, status: EstimatorStatus | None = None) -> None:
+        """The estimate against the sim's truth (``estimator/`` error series, 25 Hz of sim time)."""
+        if self._estimator_errors is None:
+            self._estimator_errors = EstimatorErrorLog(self.rec, ent.TIMELINE)
+        self._estimator_errors.log(state, truth, status)
+
     def _set_time(self, t_us: int) -> None:
         self.rec.set_time(ent.TIMELINE, duration=np.timedelta64(int(t_us), "us"))
 
