@@ -581,8 +581,9 @@ def _write_yaml(plan: MissionPlan, path: Path) -> None:
     doc: dict[str, Any] = {
         "name": plan.name,
         "home": {"lat_deg": plan.home.lat_deg, "lon_deg": plan.home.lon_deg, "alt_m": plan.home.alt_amsl_m},
-        "vehicle": plan.vehicle,
     }
+    if plan.vehicle:  # empty: not known (a downloaded mission): no line rather than a wrong name
+        doc["vehicle"] = plan.vehicle
     if plan.speed_m_s is not None:
         doc["speed_m_s"] = plan.speed_m_s
     doc["mission"] = _yaml_mission_entries(plan, path)
