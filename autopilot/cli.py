@@ -119,13 +119,17 @@ def _offset(url: str, instance: int) -> str:
     return str(LinkUrl.parse(url).with_port_offset(instance))
 
 
-def _make_listener(spec: str, vehicle: str, world: str | None, safety_radius_m: float) -> object | None:
+def _make_listener(
+    spec: str, vehicle: str, world: str | None, safety_radius_m: float, rtl_alt_m: float | None = None
+) -> object | None:
     """The Rerun telemetry listener for ``--rerun`` (None for ``off``); ``world`` is drawn only."""
     if spec == "off":
         return None
     from autopilot.telemetry import make_listener  # imports rerun: only when a recording is asked for
 
-    return make_listener(spec, vehicle=vehicle, mission_file=world, safety_radius_m=safety_radius_m)
+    return make_listener(
+        spec, vehicle=vehicle, mission_file=world, safety_radius_m=safety_radius_m, rtl_alt_m=rtl_alt_m
+    )
 
 
 def _signing_key(args: argparse.Namespace) -> bytes | None:
@@ -158,7 +162,11 @@ def main(argv: list[str] | None = None) -> int:
         key = _signing_key(args)
         autopilot = Autopilot(config, script=script)
         autopilot.listener = _make_listener(  # type: ignore[assignment]
-            args.rerun, args.vehicle, args.rerun_world, autopilot.params.get("CA_RSAFE_M")
+            args.rerun,
+            args.vehicle,
+            args.rerun_world,
+            autopilot.params.get("CA_RSAFE_M"),
+            autopilot.params.get("MIS_RTL_ALT"),
         )
         client = LockstepClient(
             _offset(args.sim, args.instance),

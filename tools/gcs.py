@@ -12,6 +12,7 @@ a GPS fix, arming) goes to stderr as it happens.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 import time
@@ -336,8 +337,10 @@ def failsafes_since(client: GcsClient, serial: int) -> list[str]:
 def cmd_fly(client: GcsClient, args: argparse.Namespace) -> str:
     t0 = time.monotonic()
     plan: MissionPlan | None = None
-    start_sim_s = client.telemetry().sim_time_s
     serial = client.statustext_serial
+    with contextlib.suppress(GcsError):  # the flight's own sim time counts from here (SYSTEM_TIME comes at 1 Hz)
+        client.wait_until(lambda s: s.sim_time_s is not None, min(3.0, args.timeout_s))
+    start_sim_s = client.telemetry().sim_time_s
     try:
         plan = load_mission_file(args.file)
         summary = fly(client, plan, args.timeout_s, progress=not args.no_progress)
