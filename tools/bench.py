@@ -39,7 +39,11 @@ def _print_table(rows: list[tuple[str, BenchResult]]) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tools.bench", description=__doc__)
+    parser = argparse.ArgumentParser(
+        prog="python -m tools.bench",
+        description="Run the benchmark suites, print one table and write bench/results.json (make bench).",
+        epilog="Numbers are measured in one run on one machine: compare ratios, not absolutes.",
+    )
     parser.add_argument("--quick", action="store_true", help="shorter runs (smoke check, noisier numbers)")
     parser.add_argument("--only", nargs="*", default=None, help=f"suites to run (default all: {_suites()})")
     parser.add_argument(

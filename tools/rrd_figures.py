@@ -279,7 +279,10 @@ def make_figures(recording_path: str | Path, out_dir: str | Path) -> list[Path]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tools.rrd_figures", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m tools.rrd_figures",
+        description="Turn a flight recording into paper-style PNG figures and a CSV of its series.",
+    )
     parser.add_argument("recording", help="a .rrd written by the autopilot (--rerun save:PATH)")
     parser.add_argument("--out", default=None, help="output directory (default: beside the recording, <name>_figures)")
     args = parser.parse_args(argv)

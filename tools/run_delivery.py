@@ -204,11 +204,14 @@ def _num(value: object, digits: int, unit: str, missing: str = "n/a") -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tools.run_delivery", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m tools.run_delivery",
+        description="Fly a mission end to end (make run): simulator, autopilot, ground station; summary + recording.",
+    )
     parser.add_argument("--mission", default="missions/delivery.yaml", help="mission file (YAML, .waypoints, .plan)")
     parser.add_argument("--speed", default="max", help="'max' or a real-time factor such as 1 or 10")
     parser.add_argument("--vehicle", default=None, help="vehicle config name (default: the mission's)")
-    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--seed", type=int, default=1, help="seed of sensor noise and gusts (default 1)")
     parser.add_argument("--out-dir", default=None, help="default runs/<timestamp>")
     parser.add_argument("--timeout-s", type=float, default=600.0, help="wall-clock limit for the flight")
     parser.add_argument("--rerun", default=None, help="override --rerun (default save:<out-dir>/flight.rrd)")
