@@ -93,4 +93,8 @@ def test_run_delivery_ends_when_the_sim_ends_the_run_mid_flight(tmp_path: Path) 
 def test_run_delivery_refuses_a_missing_mission(tmp_path: Path) -> None:
     proc = _run_delivery("--mission", str(tmp_path / "none.yaml"), "--out-dir", str(tmp_path), timeout_s=60.0)
     assert proc.returncode == 2
-    assert proc.stderr.strip() == f"run_delivery: error: mission file {tmp_path / 'none.yaml'} not found"
+    missing = tmp_path / "none.yaml"
+    assert (
+        proc.stderr.strip()
+        == f"run_delivery: error: {missing}: no such file; fix: check the path (missions/ holds the examples)"
+    )

@@ -157,7 +157,7 @@ def _problems(outcome: FlightOutcome, gcs: dict[str, object], sim: dict[str, obj
         lines.append(f"ground station: mission failed: {reason}")
     collisions = sim.get("collisions")
     if isinstance(collisions, int) and collisions != 0:
-        lines.append(f"simulator: {collisions} collision(s)")
+        lines.append(f"simulator: collisions = {collisions}")
     elif not sim and not lines:  # nothing else explains it: the flight cannot be called good without the sim's word
         lines.append(f"the simulator wrote no summary (see {out_dir / 'up.log'})")
     return lines
@@ -223,7 +223,6 @@ def main(argv: list[str] | None = None) -> int:
         print(f"run_delivery: error: {problem}", file=sys.stderr)
         return EXIT_USAGE
     out_dir = Path(args.out_dir or Path("runs") / datetime.now().strftime("%Y%m%d-%H%M%S"))
-    out_dir.mkdir(parents=True, exist_ok=True)
     rerun = args.rerun or f"save:{out_dir / 'flight.rrd'}"
     recording = Path(rerun[len("save:") :]) if rerun.startswith("save:") else None
     try:
@@ -231,6 +230,7 @@ def main(argv: list[str] | None = None) -> int:
     except RuntimeError as exc:
         print(f"run_delivery: error: {exc}", file=sys.stderr)
         return EXIT_SITL_DIED
+    out_dir.mkdir(parents=True, exist_ok=True)  # only now: a refused start leaves no empty run folder
 
     up_cmd = [
         sys.executable, "-m", "quadsitl_cli", "up",
