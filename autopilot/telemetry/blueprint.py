@@ -56,13 +56,10 @@ def tick_spacing_m(span_m: float) -> float:
 
 
 def _whole_flight() -> dict[str, object]:
-    """Time-series options: the whole flight on the x axis (not a trailing window), the y range following
-    the data (the default of a view without a fixed ``axis_y``)."""
+    """Time-series options: the whole flight on the x axis (not a trailing window); the query range (every
+    time) and the y range following the data are the defaults of a view that fixes neither."""
     everything = rrb.TimeRange(start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.infinite())
-    return {
-        "axis_x": rrb.TimeAxis(link=LinkAxis.LinkToGlobal, view_range=everything),
-        "time_ranges": rrb.VisibleTimeRange(ent.TIMELINE, range=everything),
-    }
+    return {"axis_x": rrb.TimeAxis(link=LinkAxis.LinkToGlobal, view_range=everything)}
 
 
 def _series(origin: str, name: str) -> rrb.TimeSeriesView:
