@@ -107,7 +107,7 @@ def _stop(proc: subprocess.Popen[bytes]) -> None:
             proc.wait()
 
 
-def screenshot(recording: Path, out: Path, *, size: tuple[int, int] = (1600, 1000), wait_s: float = 40.0) -> Path:
+def screenshot(recording: Path, out: Path, *, size: tuple[int, int] = (1600, 1000), wait_s: float = 90.0) -> Path:
     """Render ``recording`` in the web viewer headless and write the PNG to ``out``."""
     chromium = find_chromium()
     if not recording.is_file():
@@ -166,7 +166,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--recording", type=Path, default=None, help="a .rrd (default: fly the city-block delivery)")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"PNG to write (default {DEFAULT_OUT})")
-    parser.add_argument("--wait-s", type=float, default=40.0, help="wall s the viewer gets to draw (default 40)")
+    parser.add_argument(
+        "--wait-s",
+        type=float,
+        default=90.0,
+        help="wall s the viewer gets to load and draw (default 90; more on a busy machine)",
+    )
     args = parser.parse_args(argv)
     try:
         find_chromium()  # before a minute of flying
