@@ -39,6 +39,7 @@ from autopilot.reporting import AutopilotEndReason
 from autopilot.runner import Autopilot, AutopilotConfig
 from autopilot.scripted_commands import CommandScript, ScriptError, load_script
 from autopilot.vehicle_adapter import VehicleAdapter
+from mavlink_bridge.contract.about import version_text
 from mavlink_bridge.gcs_server import GcsServer
 from mavlink_bridge.link import LinkUrlError, resolve_url
 from mavlink_bridge.lockstep import LockstepClient, add_spin_option
@@ -103,19 +104,34 @@ def add_autopilot_options(p: argparse.ArgumentParser) -> None:
         help="state estimator: ekf (sensor fusion, default) or truth (the sim's ground truth, controller studies)",
     )
     p.add_argument("--script", default=None, metavar="FILE", help="commands at fixed sim times (YAML)")
-    p.add_argument("--sim-timeout-s", type=float, default=3.0, help="wall s of sim silence that ends the run")
-    p.add_argument("--connect-timeout-s", type=float, default=60.0, help="wall s to wait for the first frame")
+    p.add_argument(
+        "--sim-timeout-s", type=float, default=3.0, metavar="S", help="wall s of sim silence that ends the run"
+    )
+    p.add_argument(
+        "--connect-timeout-s", type=float, default=60.0, metavar="S", help="wall s to wait for the first frame"
+    )
     add_spin_option(p, "the next frame")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="quadsitl autopilot", description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(
+        prog="quadsitl autopilot",
+        description="The autopilot: flies the simulator's vehicle (lockstep client) and serves ground stations.",
+        epilog="Usually started by 'quadsitl up' together with the simulator. --gcs off / --api off disable a link.",
+    )
+    p.add_argument("--version", action="version", version=version_text("quadsitl autopilot"))
     add_autopilot_options(p)
     p.add_argument("--instance", type=int, default=0, metavar="N", help="add N to every default port")
     p.add_argument("--vehicle", default="x500", metavar="NAME", help="airframe the controller assumes")
     p.add_argument("--log-dir", type=Path, default=None, metavar="DIR", help="where autopilot_summary.json goes")
-    p.add_argument("--speed", type=_speed, default=0.0, metavar="{max|FLOAT}", help="the sim's speed (GCS timeouts)")
-    p.add_argument("-v", "--verbose", action="store_true")
+    p.add_argument(
+        "--speed",
+        type=_speed,
+        default=0.0,
+        metavar="{max|FLOAT}",
+        help="the simulator's pace, to scale the ground-station link timeouts (default max)",
+    )
+    p.add_argument("-v", "--verbose", action="store_true", help="log link and mission events")
     return p
 
 
@@ -144,13 +160,17 @@ def add_lockstep_stats(summary_path: Path | None, stats: dict[str, int]) -> None
     summary_path.write_text(json.dumps(summary, indent=2) + "\n")
 
 
-def _make_listener(spec: str, vehicle: str, world: str | None, safety_radius_m: float) -> object | None:
+def _make_listener(
+    spec: str, vehicle: str, world: str | None, safety_radius_m: float, rtl_alt_m: float | None = None
+) -> object | None:
     """The Rerun telemetry listener for ``--rerun`` (None for ``off``); ``world`` is drawn only."""
     if spec == "off":
         return None
     from autopilot.telemetry import make_listener  # imports rerun: only when a recording is asked for
 
-    return make_listener(spec, vehicle=vehicle, mission_file=world, safety_radius_m=safety_radius_m)
+    return make_listener(
+        spec, vehicle=vehicle, mission_file=world, safety_radius_m=safety_radius_m, rtl_alt_m=rtl_alt_m
+    )
 
 
 def _signing_key(args: argparse.Namespace) -> bytes | None:
@@ -184,7 +204,11 @@ def main(argv: list[str] | None = None) -> int:
         key = _signing_key(args)
         autopilot = Autopilot(config, script=script)
         autopilot.listener = _make_listener(  # type: ignore[assignment]
-            args.rerun, args.vehicle, args.rerun_world, autopilot.params.get("CA_RSAFE_M")
+            args.rerun,
+            args.vehicle,
+            args.rerun_world,
+            autopilot.params.get("CA_RSAFE_M"),
+            autopilot.params.get("MIS_RTL_ALT"),
         )
         client = LockstepClient(
             urls["sim"],
@@ -222,6 +246,11 @@ def main(argv: list[str] | None = None) -> int:
         stop["requested"] = True
 
     previous = {sig: signal.signal(sig, _stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+    links = ", ".join(f"{name} {urls[key]}" for name, key in (("GCS", "gcs"), ("API", "api")) if urls[key] != "off")
+    print(
+        f"quadsitl autopilot: {args.vehicle}, simulator at {urls['sim']}{', ' + links if links else ''}; Ctrl-C stops",
+        flush=True,
+    )
     t0 = time.monotonic()
     try:
         reason = run_loop(
