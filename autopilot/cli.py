@@ -23,7 +23,6 @@ Exit status: 0 stopped by a signal, 3 the simulator was lost or never came, 2 ba
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import signal
 import sys
@@ -151,15 +150,6 @@ def link_urls(args: argparse.Namespace) -> dict[str, str]:
     }
 
 
-def add_lockstep_stats(summary_path: Path | None, stats: dict[str, int]) -> None:
-    """Put the lockstep client's counters (``LockstepClient.stats``) under ``lockstep`` in the written summary."""
-    if summary_path is None:
-        return
-    summary = json.loads(summary_path.read_text())
-    summary["lockstep"] = stats
-    summary_path.write_text(json.dumps(summary, indent=2) + "\n")
-
-
 def _make_listener(
     spec: str, vehicle: str, world: str | None, safety_radius_m: float, rtl_alt_m: float | None = None
 ) -> object | None:
@@ -263,7 +253,7 @@ def main(argv: list[str] | None = None) -> int:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
         wall_s = time.monotonic() - t0
-        add_lockstep_stats(autopilot.write_summary(wall_s), client.stats.as_dict())
+        autopilot.write_summary(wall_s, lockstep=client.stats.as_dict())
         close = getattr(autopilot.listener, "close", None)
         if close is not None:
             close()
