@@ -11,7 +11,13 @@ one command; altitudes are metres above home, positions metres north/east of hom
     - {at_s: 25.0, cmd: land}
 
 Commands: ``arm``, ``disarm``, ``takeoff`` (alt_m), ``land``, ``rtl``, ``mission_start``, ``hold``,
-``goto`` (north_m, east_m, alt_m). Each runs through the same commander path as a GCS command.
+``goto`` (north_m, east_m, alt_m), ``inject_failure`` (unit, type, optional instance: MAV_CMD_INJECT_FAILURE,
+``SYS_FAILURE_EN`` must be 1). Each runs through the same commander path as a GCS command. Failure units and
+types are FAILURE_UNIT / FAILURE_TYPE names without their prefix (``gps``, ``baro``, ``mag``, ``gyro``,
+``accel``, ``motor``; ``off``, ``stuck``, ``ok``) or their numbers; a motor instance is 1-based, 0 = all::
+
+    - {at_s: 30, cmd: inject_failure, unit: gps, type: off}
+    - {at_s: 32, cmd: inject_failure, unit: motor, type: off, instance: 2}
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ from pathlib import Path
 
 import yaml
 
+from mavlink_bridge.contract.mav_enums import FailureType, FailureUnit, MavCmd
 from mavlink_bridge.contract.vehicle_api import CommandRequest
 
 _ARGS = {
@@ -34,6 +41,14 @@ _ARGS = {
     "mission_start": (),
     "hold": (),
     "goto": ("north_m", "east_m", "alt_m"),
+    "inject_failure": ("unit", "type", "instance"),
+}
+#: Arguments that may be left out, with their value.
+_OPTIONAL = {"instance": 0.0}
+#: Arguments that may be given by name: ``gps`` for FailureUnit.SENSOR_GPS, ``off`` for FailureType.OFF.
+_NAMED: dict[str, dict[str, int]] = {
+    "unit": {unit.name.split("_", 1)[1].lower(): int(unit) for unit in FailureUnit},
+    "type": {kind.name.lower(): int(kind) for kind in FailureType},
 }
 _GLOBAL_RELATIVE_ALT_INT = 6
 
@@ -61,8 +76,10 @@ class ScriptStep:
             "rtl": (),
             "mission_start": (0.0, 0.0),
             "hold": (1.0, 4.0, 3.0),
+            "inject_failure": self.args,
         }.get(self.cmd)
         number = {"arm": 400, "disarm": 400, "takeoff": 22, "land": 21, "rtl": 20, "mission_start": 300, "hold": 176}
+        number["inject_failure"] = MavCmd.INJECT_FAILURE
         if params is None:
             return None
         full = (*params, *([0.0] * (7 - len(params))))
@@ -86,7 +103,9 @@ def parse_script(entries: object, origin: str = "<script>") -> list[ScriptStep]:
             raise ScriptError(f"{where}: unknown keys {sorted(unknown)} for {cmd}")
         try:
             at_s = float(entry["at_s"])
-            args = tuple(float(entry[k]) for k in _ARGS[cmd])
+            args = tuple(_argument(entry, k, where) for k in _ARGS[cmd])
+        except ScriptError:
+            raise
         except KeyError as exc:
             raise ScriptError(f"{where}: missing {exc.args[0]}") from None
         except (TypeError, ValueError):
@@ -95,6 +114,19 @@ def parse_script(entries: object, origin: str = "<script>") -> list[ScriptStep]:
             raise ScriptError(f"{where}: times and arguments must be finite, at_s >= 0")
         steps.append(ScriptStep(round(at_s * 1e6), cmd, args))
     return sorted(steps, key=lambda s: s.at_us)
+
+
+def _argument(entry: dict[object, object], key: str, where: str) -> float:
+    """The number of ``entry[key]`` (a name where ``_NAMED`` allows one; ``_OPTIONAL`` when absent)."""
+    if key not in entry and key in _OPTIONAL:
+        return _OPTIONAL[key]
+    value = entry[key]
+    names = _NAMED.get(key)
+    if names is not None and isinstance(value, str):
+        if value.lower() not in names:
+            raise ScriptError(f"{where}: {key} must be a number or one of {sorted(names)}, got {value!r}")
+        return float(names[value.lower()])
+    return float(value)  # type: ignore[arg-type]
 
 
 def load_script(path: str | Path) -> list[ScriptStep]:
