@@ -182,8 +182,8 @@ class SetpointGenerator:
         elif kind is TargetKind.DESCEND:  # no horizontal error: level flight with the integrators' trim
             pos[0], pos[1] = vehicle_pos_ned[0], vehicle_pos_ned[1]
             pos[2] = min(p2, vehicle_pos_ned[2] + LAND_MAX_LEAD_M)
-            self.vel_ned[0], self.vel_ned[1] = target.vel_ned_m_s[0], target.vel_ned_m_s[1]
-            self.acc_ned[0] = self.acc_ned[1] = 0.0
+            v0, v1, a0, a1 = target.vel_ned_m_s[0], target.vel_ned_m_s[1], 0.0, 0.0
+            self.vel_ned[0], self.vel_ned[1], self.acc_ned[0], self.acc_ned[1] = v0, v1, a0, a1
         # yaw: rate-limited turn toward the target heading along the shorter way
         if not math.isnan(target.yaw_rad):
             err = (target.yaw_rad - self.yaw_rad + math.pi) % (2.0 * math.pi) - math.pi
