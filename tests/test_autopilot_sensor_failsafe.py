@@ -190,3 +190,39 @@ def test_warn_and_cleared_gps_events_change_nothing_but_the_log() -> None:
     commander.apply_failsafe(FailsafeEvent(FailsafeKind.GPS_LOSS, FailsafeAction.NONE, "GPS regained", True))
     assert commander.mode is FlightMode.AUTO_LOITER
     assert [t.severity for t in commander.drain_texts()] == [Severity.WARNING, Severity.NOTICE]
+
+
+# ---- the cascade on the simulator (in-process closed loop): a blind descent in wind ---------------------------
+def test_blind_descent_in_wind_stays_level_and_lands_on_the_vertical_alone() -> None:
+    """The position-loss landing on the real cascade and physics: the horizontal reference follows the estimate,
+    so the vehicle holds the attitude its integrators trimmed for the wind (no position correction: it drifts
+    at most with the wind), descends at the land speeds and touches down gently; the land detector disarms it."""
+    from autopilot_loop import SimLoop
+
+    from sim.world import WindConfig, World, empty_world
+
+    calm = empty_world()
+    world = World(calm.home, (), WindConfig((2.0, -1.0, 0.0), 0.3, 7), 0.0)
+    loop = SimLoop("x500", world=world)
+    loop.take_off(10.0, settle_s=6.0)
+    commander = loop.ap.commander
+    start_ne = (float(loop.sim.pos_ned[0]), float(loop.sim.pos_ned[1]))
+    tilts: list[float] = []
+
+    def tilt() -> None:
+        q = loop.sim.q_ned_frd
+        tilts.append(math.degrees(math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (q[1] ** 2 + q[2] ** 2))))))
+
+    tilt()
+    hover_tilt_deg = tilts.pop()  # the wind trim (~2 deg here)
+    commander.apply_failsafe(FailsafeEvent(FailsafeKind.POSITION_LOSS, FailsafeAction.LAND, "Failsafe: position lost"))
+    assert commander.mode is FlightMode.AUTO_LAND
+    t0 = loop.sim.t_us
+    assert loop.run_until(lambda: (tilt(), not commander.armed)[1], 40.0), loop.texts
+    landed_after_s = (loop.sim.t_us - t0) * 1e-6
+    assert landed_after_s <= 10.0 / 0.7 + 2.5  # at worst all of it at MPC_LAND_SPEED, detection, COM_DISARM_LAND
+    assert max(tilts) < hover_tilt_deg + 1.5  # held its wind trim: no position correction, no manoeuvre
+    drift_m = math.dist(start_ne, (float(loop.sim.pos_ned[0]), float(loop.sim.pos_ned[1])))
+    assert drift_m < 2.3 * landed_after_s  # at most carried by the 2.2 m/s wind
+    assert "Landing detected" in loop.texts and loop.alt_m < 0.2
+    assert loop.sim.end_reason.name == "RUNNING"  # a touchdown, not a ground impact
