@@ -211,7 +211,7 @@ class SensorFailsafe:
         events: list[FailsafeEvent] = []
         self._gps(time_us, status, in_air, events)
         self._baro_mag(status, events)
-        return events
+        return events if events else _NO_EVENTS
 
     def _gps(self, time_us: int, status: EstimatorStatus, in_air: bool, events: list[FailsafeEvent]) -> None:
         p = self._params.get

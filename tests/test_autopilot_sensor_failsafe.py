@@ -42,16 +42,16 @@ def _kinds(events: object) -> list[tuple[FailsafeKind, FailsafeAction, bool]]:
 
 def test_gps_loss_dead_reckons_for_the_delay_then_lands_and_recovery_gives_position_back() -> None:
     fs = _failsafe(COM_POS_FS_DELAY=5.0)
-    assert fs.update(0, OK, armed=True, in_air=True) == []
+    assert fs.update(0, OK, armed=True, in_air=True) == ()
     (lost,) = fs.update(10 * S, NO_GPS, armed=True, in_air=True)
     assert (lost.kind, lost.action) == (FailsafeKind.GPS_LOSS, FailsafeAction.WARN)
     assert "dead reckoning" in lost.message and "in 5 s" in lost.message
     for t in (11 * S, 12 * S, 14 * S + 900_000):  # within the delay: nothing more
-        assert fs.update(t, NO_GPS, armed=True, in_air=True) == []
+        assert fs.update(t, NO_GPS, armed=True, in_air=True) == ()
     (land,) = fs.update(15 * S, NO_GPS, armed=True, in_air=True)
     assert (land.kind, land.action) == (FailsafeKind.POSITION_LOSS, FailsafeAction.LAND)
     assert "no GPS for 5.0 s" in land.message and "baro height" in land.message
-    assert fs.update(16 * S, NO_GPS, armed=True, in_air=True) == []  # once
+    assert fs.update(16 * S, NO_GPS, armed=True, in_air=True) == ()  # once
     (back,) = fs.update(20 * S, OK, armed=True, in_air=True)
     assert _kinds([back]) == [(FailsafeKind.POSITION_LOSS, FailsafeAction.NONE, True)]
     assert "GPS regained after 10.0 s" in back.message
@@ -86,15 +86,15 @@ def test_an_invalid_horizontal_position_lands_at_once_and_act_0_only_warns() -> 
 
 def test_no_position_action_on_the_ground_nothing_before_first_fusion_and_reset_at_disarm() -> None:
     fs = _failsafe(COM_POS_FS_DELAY=1.0)
-    assert fs.update(0, NO_GPS, armed=True, in_air=True) == []  # never fused since arming: not "lost"
+    assert fs.update(0, NO_GPS, armed=True, in_air=True) == ()  # never fused since arming: not "lost"
     fs.update(S, OK, armed=True, in_air=False)
     assert _kinds(fs.update(2 * S, NO_GPS, armed=True, in_air=False)) == [
         (FailsafeKind.GPS_LOSS, FailsafeAction.WARN, False)
     ]
-    assert fs.update(10 * S, NO_GPS, armed=True, in_air=False) == []  # landed: no position action
+    assert fs.update(10 * S, NO_GPS, armed=True, in_air=False) == ()  # landed: no position action
     assert fs.update(11 * S, NO_GPS, armed=False, in_air=False) == ()
     assert fs.gps_lost_since_us is None and not fs.position_action_taken
-    assert fs.update(12 * S, NO_GPS, armed=True, in_air=True) == []  # re-armed: waits for GPS to be fused
+    assert fs.update(12 * S, NO_GPS, armed=True, in_air=True) == ()  # re-armed: waits for GPS to be fused
 
 
 def test_baro_and_mag_loss_are_reported_with_their_fallback_and_recovery() -> None:
