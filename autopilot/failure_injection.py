@@ -24,6 +24,7 @@ Every injection and clearance is a :class:`StatusText` (``drain_texts``).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 from autopilot.estimation.state import FrameLike
@@ -52,6 +53,7 @@ SUPPORTED_FAILURES: dict[FailureUnit, frozenset[FailureType]] = {
 SENSOR_MOTOR_OUTPUTS = 0x8000
 MOTOR_COUNT = len(MOTOR_CHANNELS)
 _NAN3: Vec3 = (math.nan, math.nan, math.nan)
+_NO_TEXTS: tuple[StatusText, ...] = ()
 _UNIT_TEXT = {
     FailureUnit.SENSOR_GYRO: "gyro",
     FailureUnit.SENSOR_ACCEL: "accel",
@@ -107,8 +109,10 @@ class FailureInjector:
         """MAV_SYS_STATUS_SENSOR bits to clear from SYS_STATUS health (motor outputs while a motor is off)."""
         return SENSOR_MOTOR_OUTPUTS if self._any_motor_off else 0
 
-    def drain_texts(self) -> list[StatusText]:
-        """Injection and clearance events since the last call."""
+    def drain_texts(self) -> Sequence[StatusText]:
+        """Injection and clearance events since the last call (a shared empty tuple when none: no allocation)."""
+        if not self._texts:
+            return _NO_TEXTS
         out, self._texts = self._texts, []
         return out
 

@@ -2,8 +2,9 @@
 
 Per frame (:meth:`Autopilot.step`), in sim time only::
 
-    estimator -> failsafes (10 Hz) -> navigator (AUTO_MISSION) -> commander -> setpoint generator
-    -> [navigator's avoidance override] -> NLVG-PID cascade -> ActuatorCommand (armed flag, gripper)
+    [injected sensor failures] -> estimator -> failsafes (10 Hz) -> navigator (AUTO_MISSION) -> commander
+    -> setpoint generator -> [navigator's avoidance override] -> NLVG-PID cascade -> [injected motor failures]
+    -> ActuatorCommand (armed flag, gripper)
 
 The command is answered *before* the bookkeeping (:meth:`Autopilot.after_answer`: truth hash, battery model,
 tracking statistics, the next step's reference prepared), so the simulator integrates the next step while the
@@ -14,6 +15,8 @@ autopilot does the rest. The modules (one job each):
 - ``commander.Commander``: arming, modes, failsafe actions, one :class:`CommanderInputs` per step;
 - ``setpoints.SetpointGenerator`` -> :class:`Reference`; ``control.cascade`` -> motor commands;
 - ``link_health.LinkHealth``: wall-clock freshness of offboard, joystick and GCS peers;
+- ``failure_injection.FailureInjector``: MAV_CMD_INJECT_FAILURE on what the estimator sees and the motors get;
+  ``failsafe.SensorFailsafe``: GPS/baro/mag loss from the ``EstimatorStatus`` (with ``FailsafeMonitor``);
 - ``param_binding.ParamBindings``: which component re-reads which parameter;
 - ``reporting``: step records, tracking, truth hash, mission progress; ``telemetry_report`` the snapshot and
   summary; ``io_loop.run_loop`` the sockets; ``vehicle_adapter.VehicleAdapter`` the GCS-facing API.
@@ -35,7 +38,8 @@ from autopilot.control.cascade import CascadeController, SingleStep
 from autopilot.control.gains import CascadeGains
 from autopilot.control.param_decls import controller_param_specs
 from autopilot.estimation import Estimator, FrameLike, VehicleState, make_estimator
-from autopilot.failsafe import BatteryModel, FailsafeInputs, FailsafeMonitor
+from autopilot.failsafe import BatteryModel, FailsafeInputs, FailsafeMonitor, SensorFailsafe
+from autopilot.failure_injection import FailureInjector
 from autopilot.flight_control import SETPOINT_PARAMS, FlightControl
 from autopilot.link_health import LinkHealth
 from autopilot.mission.param_decls import mission_param_specs
@@ -108,8 +112,11 @@ class Autopilot:
         self.script = script
         self.links = LinkHealth(self.config.speed_factor, wall_clock)
         self.commander = Commander(self.params)
+        self.failures = FailureInjector(self.params)  # what the estimator sees and the motors get (SYS_FAILURE_EN)
+        self.commander.command_handlers[MavCmd.INJECT_FAILURE] = self.failures.handle_command
         self.control = FlightControl(self.params, self.airframe)
         self.failsafe = FailsafeMonitor(self.params)
+        self.sensor_failsafe = SensorFailsafe(self.params)
         self.battery = BatteryModel(self.params.get("BAT_HOVER_ENDUR"))
         self.state: VehicleState | None = None
         self.tracking = Tracking()
@@ -222,7 +229,7 @@ class Autopilot:
         self._prev_time_us = t_us
         self.frames += 1
         self.frame_detections = getattr(frame, "detections", ())
-        state = self.estimator.update(frame)
+        state = self.estimator.update(self.failures.apply_to_frame(frame))
         self._pending_truth = frame.truth
         commander = self.commander
         if state is None:
@@ -251,7 +258,7 @@ class Autopilot:
             self.navigator.mode_changed(commander.mode, self._last_mode, state.time_us)
             self._last_mode = commander.mode
         self._target = target
-        motor = self._control(state, target)
+        motor = self.failures.apply_to_motors(self._control(state, target))
         self._motor = motor
         return ActuatorCommand(t_us, motor, commander.armed, commander.gripper_release)
 
@@ -318,6 +325,9 @@ class Autopilot:
         )
         for event in events:
             commander.apply_failsafe(event)
+        status = self.estimator.status
+        for event in self.sensor_failsafe.update(state.time_us, status, commander.armed, commander.in_air):
+            commander.apply_failsafe(event)
         self.update_context(failsafe_reasons=frozenset(kind.value for kind in self.failsafe.active))
 
     def _control(self, state: VehicleState, target: NavTarget) -> tuple[float, float, float, float]:
@@ -359,6 +369,7 @@ class Autopilot:
         """Events (commander, navigator, runner) since the last call."""
         texts = self.commander.drain_texts()
         texts += self.navigator.drain_texts()
+        texts += self.failures.drain_texts()
         if self._texts:
             texts += self._texts
             self._texts = []
@@ -398,9 +409,11 @@ class Autopilot:
         self.after_answer()
         if self.state is None:
             return None
-        return reporting.snapshot(
+        snap = reporting.snapshot(
             self.state, self.commander, self.navigator, self.control, self.battery, self.progress, self.estimator.origin
         )
+        failed = self.failures.unhealthy_bits  # a failed motor clears the motor-outputs bit
+        return replace(snap, sensors_health=snap.sensors_health & ~failed) if failed else snap
 
     def summary(self, wall_time_s: float) -> dict[str, object]:
         """``autopilot_summary.json`` (SPEC §12): mission progress, modes, landing, tracking errors."""

@@ -51,7 +51,7 @@ def test_refused_while_sys_failure_en_is_0_and_nothing_changes() -> None:
     result, reason = _inject(inj, FailureUnit.SENSOR_GPS, FailureType.OFF)
     assert result is CommandResult.DENIED and "SYS_FAILURE_EN" in reason
     frame = _Frame(1)
-    assert inj.apply_to_frame(frame) is frame and not inj.active and inj.drain_texts() == []
+    assert inj.apply_to_frame(frame) is frame and not inj.active and not inj.drain_texts()
 
 
 @pytest.mark.parametrize(
@@ -79,7 +79,7 @@ def test_bad_or_unsupported_requests_get_an_honest_result_and_reason(
     inj = _injector()
     got, reason = _inject(inj, *params)
     assert got is result and words in reason
-    assert not inj.active and inj.drain_texts() == []
+    assert not inj.active and not inj.drain_texts()
 
 
 def test_nothing_injected_passes_frames_and_motor_commands_through_unchanged() -> None:

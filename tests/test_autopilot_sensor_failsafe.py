@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from autopilot_fakes import KinematicLoop, command, make_commander
+from autopilot_fakes import KinematicLoop, command, make_commander, update
 
 from autopilot.estimation import EstimatorStatus
 from autopilot.failsafe import FailsafeAction, FailsafeEvent, FailsafeKind, SensorFailsafe
@@ -150,7 +150,7 @@ def test_position_loss_lands_blind_and_a_regained_position_lands_with_position_c
     (text,) = commander.drain_texts()[:1]
     assert text.severity is Severity.CRITICAL and commander.mode is FlightMode.AUTO_LAND
     loop.vel = (3.0, 0.0, 0.0)  # dead-reckoned drift: the land detector must not wait for it
-    target = commander.update(loop.state(), 1.0)
+    target = update(commander, loop.state(), 1.0)
     assert target.kind is TargetKind.DESCEND and target.vel_ned_m_s == (3.0, 0.0, 0.0)
     assert commander.landed_state is LandedState.LANDING
     loop.run_s(2.0)
@@ -158,7 +158,7 @@ def test_position_loss_lands_blind_and_a_regained_position_lands_with_position_c
     commander.apply_failsafe(FailsafeEvent(FailsafeKind.POSITION_LOSS, FailsafeAction.NONE, "GPS regained", True))
     assert commander.drain_texts()[-1].severity is Severity.NOTICE
     spot = loop.pos[:2]
-    target = commander.update(loop.state(), 1.0)
+    target = update(commander, loop.state(), 1.0)
     assert target.kind is TargetKind.LAND and target.pos_ned_m[:2] == pytest.approx(spot)
     assert loop.run_until(lambda: not commander.armed, 60.0)
 
