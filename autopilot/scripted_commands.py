@@ -121,6 +121,10 @@ def _argument(entry: dict[object, object], key: str, where: str) -> float:
     if key not in entry and key in _OPTIONAL:
         return _OPTIONAL[key]
     value = entry[key]
+    if isinstance(value, bool):  # YAML 1.1 reads an unquoted off/no as false, on/yes as true
+        if key == "type" and value is False:
+            return float(FailureType.OFF)
+        raise ScriptError(f"{where}: {key} must be a number{' or a name' if key in _NAMED else ''}, got {value!r}")
     names = _NAMED.get(key)
     if names is not None and isinstance(value, str):
         if value.lower() not in names:

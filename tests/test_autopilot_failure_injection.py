@@ -4,6 +4,7 @@ type on what the estimator sees (truth untouched), motor outputs, clearing, scri
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import pytest
 from autopilot_fakes import command, make_commander
@@ -11,7 +12,7 @@ from autopilot_fakes import command, make_commander
 from autopilot.failure_injection import SENSOR_MOTOR_OUTPUTS, SUPPORTED_FAILURES, FailureInjector, InjectedFrame
 from autopilot.nav_params import nav_param_specs
 from autopilot.params import ParamStore
-from autopilot.scripted_commands import ScriptError, parse_script
+from autopilot.scripted_commands import ScriptError, load_script, parse_script
 from mavlink_bridge.contract.mav_enums import FailureType, FailureUnit, MavCmd
 from mavlink_bridge.contract.vehicle_api import CommandResult, Severity
 from mavlink_bridge.contract.wire import GpsSample, GroundTruth, SensorSample
@@ -221,7 +222,7 @@ def test_the_commander_routes_the_command_and_reports_refusals() -> None:
     assert commander.handle_command(req) is not CommandResult.ACCEPTED
 
 
-def test_script_schedules_failures_by_name_or_number() -> None:
+def test_script_schedules_failures_by_name_or_number(tmp_path: Path) -> None:
     steps = parse_script(
         [
             {"at_s": 30, "cmd": "inject_failure", "unit": "gps", "type": "off"},
@@ -232,6 +233,13 @@ def test_script_schedules_failures_by_name_or_number() -> None:
     requests = [s.request() for s in steps]
     assert all(r is not None and r.command == MavCmd.INJECT_FAILURE for r in requests)
     assert [r.params[:3] for r in requests if r is not None] == [(4.0, 1.0, 0.0), (101.0, 1.0, 2.0), (3.0, 2.0, 0.0)]
+    yaml_text = tmp_path / "script.yaml"  # YAML reads an unquoted `off` as false: still OFF
+    yaml_text.write_text("- {at_s: 12, cmd: inject_failure, unit: motor, type: off, instance: 1}\n")
+    (step,) = load_script(yaml_text)
+    assert step.args == (101.0, 1.0, 1.0)
+    yaml_text.write_text("- {at_s: 12, cmd: inject_failure, unit: gps, type: on}\n")
+    with pytest.raises(ScriptError, match="type must be a number or a name, got True"):
+        load_script(yaml_text)
     with pytest.raises(ScriptError, match="unit must be a number or one of"):
         parse_script([{"at_s": 1, "cmd": "inject_failure", "unit": "lidar", "type": "off"}])
     with pytest.raises(ScriptError, match="missing type"):
