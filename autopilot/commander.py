@@ -16,7 +16,8 @@ does); ``gripper_release``. Modes:
 - AUTO_LAND: descend (``MPC_Z_VEL_MAX_DN``, then ``MPC_LAND_SPEED`` below ``MPC_LAND_ALT2``)
   until the land detector sees touchdown, then auto-disarm after ``COM_DISARM_LAND``. After a position-loss
   failsafe (``FailsafeKind.POSITION_LOSS``) it descends without horizontal position control (a DESCEND
-  target; the land detector ignores the dead-reckoned horizontal speed) until the position comes back.
+  target: it brakes on its dead-reckoned velocity and descends level; the land detector ignores that
+  velocity's horizontal part) until the position comes back.
 - AUTO_RTL: climb to ``MIS_RTL_ALT`` (if lower), fly home, wait ``RTL_LAND_DELAY``, land.
 - AUTO_MISSION: the target comes from the mission executor (:meth:`set_mission_target`).
 - OFFBOARD: the target is the latest external position or velocity setpoint (:meth:`set_offboard_target`,
@@ -168,6 +169,8 @@ class Commander:
         self._land_key: tuple[object, ...] = ()
         self._land_nav: NavTarget | None = None
         self._land_blind = False  # AUTO_LAND without a horizontal position (position-loss failsafe)
+        self._descend_nav: NavTarget | None = None
+        self._descend_version = -1
         self._rtl_phase = RtlPhase.CLIMB
         self._rtl_down_m = 0.0
         self._rtl_loiter_until_us = 0
@@ -619,6 +622,17 @@ class Commander:
             )
         return nav
 
+    def _descend_target(self, state: VehicleState) -> NavTarget:
+        """DESCEND (position lost): stop and descend at the land speeds; one object while they and the parameters
+        stay (no allocation per step)."""
+        speed_dn = self.land_speed_m_s(state)
+        nav = self._descend_nav
+        if nav is None or nav.speed_down_m_s != speed_dn or self._descend_version != self.params.version:
+            self._descend_version = self.params.version
+            speeds = (self.speed_xy_m_s, self.params.get("MPC_Z_VEL_MAX_UP"), speed_dn)
+            nav = self._descend_nav = NavTarget(TargetKind.DESCEND, _NO_POSITION, math.nan, *speeds)
+        return nav
+
     def _mode_target(self, state: VehicleState) -> NavTarget:
         """The target of the current mode, as if airborne."""
         p = self.params.get
@@ -631,9 +645,8 @@ class Commander:
                 vxy = self.speed_xy_m_s
                 return NavTarget(TargetKind.POSITION, self._hold_ned, math.nan, vxy, p("MPC_TKO_SPEED"), vxy)
         if mode is FlightMode.AUTO_LAND:
-            if self._land_blind:  # no horizontal position: level descent (see autopilot.setpoints DESCEND)
-                speeds = (self.speed_xy_m_s, p("MPC_Z_VEL_MAX_UP"), self.land_speed_m_s(state))
-                return NavTarget(TargetKind.DESCEND, state.pos_ned_m, math.nan, *speeds, state.vel_ned_m_s)
+            if self._land_blind:  # no horizontal position: brake and descend level (autopilot.setpoints DESCEND)
+                return self._descend_target(state)
             return self._land_target(state)
         if mode is FlightMode.AUTO_RTL:
             return self._rtl_target(state)

@@ -20,9 +20,10 @@ Per step (horizontal plane and vertical axis shaped separately, as PX4 does):
 ``LAND`` targets descend at a fixed speed instead of stopping; the reference is kept at
 most :data:`LAND_MAX_LEAD_M` below the vehicle so that, on the ground, the controller asks
 for less-than-hover thrust (what the land detector looks for) without winding up. ``DESCEND``
-(landing without a horizontal position, PX4's "descend") descends the same way, but its horizontal
-reference *is* the vehicle (the estimate's position and the target's ``vel_ned_m_s``, no acceleration):
-the cascade sees no horizontal error and holds its attitude (its integrators keep the wind trim).
+(landing without a horizontal position) descends the same way with no position control: the horizontal
+position reference stays on the vehicle (no position error, ever) while the velocity reference brakes to
+``vel_ned_m_s`` (zero) within the acceleration and jerk limits, so the cascade stops the vehicle on its
+(dead-reckoned) velocity and then holds its attitude level with the integrators' wind trim.
 
 ``VELOCITY`` targets (OFFBOARD velocity setpoints, POSCTL sticks) replace step 1 by the commanded velocity within the
 speed limits; the position reference integrates it but stays within :data:`VELOCITY_MAX_LEAD_M` of the
@@ -58,7 +59,7 @@ class TargetKind(Enum):
     POSITION = "position"  # reach ``pos_ned_m`` and hold it
     LAND = "land"  # hold xy of ``pos_ned_m``, descend at ``speed_down_m_s`` until touchdown
     VELOCITY = "velocity"  # fly at ``vel_ned_m_s`` (within the speed limits); ``pos_ned_m`` is not used
-    DESCEND = "descend"  # no horizontal control (``vel_ned_m_s`` = the vehicle's); descend at ``speed_down_m_s``
+    DESCEND = "descend"  # no position control: brake to ``vel_ned_m_s``, descend at ``speed_down_m_s``
 
 
 @fast_frozen_init
@@ -72,7 +73,7 @@ class NavTarget:
     speed_xy_m_s: float = 5.0
     speed_up_m_s: float = 3.0
     speed_down_m_s: float = 1.5
-    vel_ned_m_s: Vec3 = (0.0, 0.0, 0.0)  # VELOCITY; DESCEND: the vehicle's velocity
+    vel_ned_m_s: Vec3 = (0.0, 0.0, 0.0)  # VELOCITY and DESCEND (horizontal part only)
     yaw_rate_rad_s: float = math.nan  # VELOCITY only, used when ``yaw_rad`` is NaN (NaN: keep the heading)
 
 
@@ -195,11 +196,9 @@ class SetpointGenerator:
             pos[2] = vehicle_pos_ned[2] + LAND_MAX_LEAD_M
         elif kind is TargetKind.VELOCITY:
             self._leash(vehicle_pos_ned)
-        elif kind is TargetKind.DESCEND:  # no horizontal error: level flight with the integrators' trim
+        elif kind is TargetKind.DESCEND:  # no position error, ever: only the velocity reference acts
             pos[0], pos[1] = vehicle_pos_ned[0], vehicle_pos_ned[1]
             pos[2] = min(p2, vehicle_pos_ned[2] + LAND_MAX_LEAD_M)
-            v0, v1, a0, a1 = target.vel_ned_m_s[0], target.vel_ned_m_s[1], 0.0, 0.0
-            self.vel_ned[0], self.vel_ned[1], self.acc_ned[0], self.acc_ned[1] = v0, v1, a0, a1
         # yaw: rate-limited turn toward the target heading along the shorter way
         if not math.isnan(target.yaw_rad):
             err = (target.yaw_rad - self.yaw_rad + math.pi) % (2.0 * math.pi) - math.pi
@@ -234,7 +233,7 @@ class SetpointGenerator:
         acc_xy, jerk = lim.acc_xy_m_s2, lim.jerk_m_s3
         kind = target.kind
         tn, te, td = target.pos_ned_m
-        if kind is TargetKind.VELOCITY:  # the commanded velocity, within the speed limits
+        if kind is TargetKind.VELOCITY or kind is TargetKind.DESCEND:  # the commanded velocity, within the limits
             vn_des, ve_des, vd_cmd = target.vel_ned_m_s
             s_xy = math.hypot(vn_des, ve_des)
             if s_xy > target.speed_xy_m_s:

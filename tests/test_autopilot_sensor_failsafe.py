@@ -4,6 +4,7 @@ commander's blind descent (DESCEND target, land detection on the vertical only).
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import pytest
@@ -122,15 +123,22 @@ def test_the_same_status_object_costs_nothing() -> None:
 
 
 # ---- the commander's side: a blind descent ------------------------------------------------------------------
-def test_setpoint_descend_follows_the_vehicle_horizontally_and_descends() -> None:
+def test_setpoint_descend_brakes_without_position_control_and_descends() -> None:
     gen = SetpointGenerator()
-    gen.reset((5.0, 5.0, -10.0), (1.0, -0.5, 0.0), 0.3)
-    for _ in range(500):
-        target = NavTarget(TargetKind.DESCEND, (8.0, 3.0, -9.0), math.nan, 5.0, 3.0, 0.7, (1.5, -0.2, 0.0))
-        gen.update(target, 0.004, (8.0, 3.0, -9.0))
-    assert gen.pos_ned[:2] == [8.0, 3.0] and gen.vel_ned[:2] == [1.5, -0.2] and gen.acc_ned[:2] == [0.0, 0.0]
-    assert gen.vel_ned[2] == pytest.approx(0.7, abs=0.01)  # descends at speed_down
-    assert gen.pos_ned[2] <= -9.0 + 1.0 and gen.yaw_rad == pytest.approx(0.3)  # within the LAND lead, yaw kept
+    gen.reset((5.0, 5.0, -10.0), (4.0, -2.0, 0.0), 0.3)  # cruising when the position was lost
+    target = NavTarget(TargetKind.DESCEND, (math.nan, math.nan, math.nan), math.nan, 5.0, 3.0, 0.7)
+    vehicle = (5.0, 5.0, -10.0)
+    speeds = []
+    for k in range(750):
+        vehicle = (5.0 + 0.01 * k, 5.0 - 0.005 * k, -10.0 + 0.002 * k)  # wherever the estimate says it is
+        ref = gen.update(target, 0.004, vehicle)
+        assert (ref.pos_ned_m[0], ref.pos_ned_m[1]) == vehicle[:2]  # no position error, ever
+        assert math.hypot(ref.acc_ned_m_s2[0], ref.acc_ned_m_s2[1]) <= 3.0 + 1e-9  # MPC_ACC_HOR
+        speeds.append(math.hypot(ref.vel_ned_m_s[0], ref.vel_ned_m_s[1]))
+    assert all(b <= a + 1e-12 for a, b in itertools.pairwise(speeds))  # braking only
+    assert speeds[-1] < 0.01 and speeds[250] > 0.5  # stopped within 3 s, not at once
+    assert ref.vel_ned_m_s[2] == pytest.approx(0.7, abs=0.01)  # descends at speed_down
+    assert ref.pos_ned_m[2] <= vehicle[2] + 1.0 and ref.yaw_rad == pytest.approx(0.3)  # LAND lead, yaw kept
 
 
 def _fly(loop: KinematicLoop) -> None:
@@ -151,7 +159,8 @@ def test_position_loss_lands_blind_and_a_regained_position_lands_with_position_c
     assert text.severity is Severity.CRITICAL and commander.mode is FlightMode.AUTO_LAND
     loop.vel = (3.0, 0.0, 0.0)  # dead-reckoned drift: the land detector must not wait for it
     target = update(commander, loop.state(), 1.0)
-    assert target.kind is TargetKind.DESCEND and target.vel_ned_m_s == (3.0, 0.0, 0.0)
+    assert target.kind is TargetKind.DESCEND and target.vel_ned_m_s == (0.0, 0.0, 0.0)  # brake
+    assert update(commander, loop.state(), 1.0) is target  # one object while nothing changes
     assert commander.landed_state is LandedState.LANDING
     loop.run_s(2.0)
     assert -loop.pos[2] < 9.0  # descending
@@ -194,9 +203,10 @@ def test_warn_and_cleared_gps_events_change_nothing_but_the_log() -> None:
 
 # ---- the cascade on the simulator (in-process closed loop): a blind descent in wind ---------------------------
 def test_blind_descent_in_wind_stays_level_and_lands_on_the_vertical_alone() -> None:
-    """The position-loss landing on the real cascade and physics: the horizontal reference follows the estimate,
-    so the vehicle holds the attitude its integrators trimmed for the wind (no position correction: it drifts
-    at most with the wind), descends at the land speeds and touches down gently; the land detector disarms it."""
+    """The position-loss landing on the real cascade and physics: the horizontal position reference follows the
+    estimate and the velocity reference is zero, so the vehicle holds the attitude its integrators trimmed for
+    the wind (no position correction; at most carried by the wind), descends at the land speeds and touches
+    down gently; the land detector disarms it."""
     from autopilot_loop import SimLoop
 
     from sim.world import WindConfig, World, empty_world
