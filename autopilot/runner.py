@@ -2,9 +2,9 @@
 
 Per frame (:meth:`Autopilot.step`), in sim time only::
 
-    [injected sensor failures] -> estimator -> failsafes (10 Hz) -> navigator (AUTO_MISSION) -> commander
-    -> setpoint generator -> [navigator's avoidance override] -> NLVG-PID cascade -> [injected motor failures]
-    -> ActuatorCommand (armed flag, gripper)
+    [injected sensor failures] -> [stale-data check] -> estimator -> failsafes (10 Hz) -> navigator (AUTO_MISSION)
+    -> commander -> setpoint generator -> [navigator's avoidance override] -> NLVG-PID cascade
+    -> [injected motor failures] -> ActuatorCommand (armed flag, gripper)
 
 The command is answered *before* the bookkeeping (:meth:`Autopilot.after_answer`: truth hash, battery model,
 tracking statistics, the next step's reference prepared), so the simulator integrates the next step while the
@@ -16,6 +16,7 @@ autopilot does the rest. The modules (one job each):
 - ``setpoints.SetpointGenerator`` -> :class:`Reference`; ``control.cascade`` -> motor commands;
 - ``link_health.LinkHealth``: wall-clock freshness of offboard, joystick and GCS peers;
 - ``failure_injection.FailureInjector``: MAV_CMD_INJECT_FAILURE on what the estimator sees and the motors get;
+  ``sensor_validation.StaleSensorCheck``: a stuck mag/baro dropped before the estimator (PX4's stale data);
   ``failsafe.SensorFailsafe``: GPS/baro/mag loss from the ``EstimatorStatus`` (with ``FailsafeMonitor``);
 - ``param_binding.ParamBindings``: which component re-reads which parameter;
 - ``reporting``: step records, tracking, truth hash, mission progress; ``telemetry_report`` the snapshot and
@@ -51,6 +52,7 @@ from autopilot.planner.param_decls import PlannerParams, planner_param_specs
 from autopilot.planner.planner import AvoidancePlanner
 from autopilot.reporting import AutopilotEndReason, MissionProgress, StepListener, StepRecord, Tracking, TruthHash
 from autopilot.scripted_commands import CommandScript
+from autopilot.sensor_validation import StaleSensorCheck
 from autopilot.setpoints import NavTarget, SetpointGenerator, TargetKind
 from mavlink_bridge.contract.frames import GeoPoint, Vec3
 from mavlink_bridge.contract.mav_enums import MavCmd
@@ -114,6 +116,7 @@ class Autopilot:
         self.commander = Commander(self.params)
         self.failures = FailureInjector(self.params)  # what the estimator sees and the motors get (SYS_FAILURE_EN)
         self.commander.command_handlers[MavCmd.INJECT_FAILURE] = self.failures.handle_command
+        self.sensor_check = StaleSensorCheck()  # a stuck mag/baro is dropped before the estimator
         self.control = FlightControl(self.params, self.airframe)
         self.failsafe = FailsafeMonitor(self.params)
         self.sensor_failsafe = SensorFailsafe(self.params)
@@ -229,7 +232,8 @@ class Autopilot:
         self._prev_time_us = t_us
         self.frames += 1
         self.frame_detections = getattr(frame, "detections", ())
-        state = self.estimator.update(self.failures.apply_to_frame(frame))
+        seen = self.sensor_check.apply(self.failures.apply_to_frame(frame), self.commander.in_air)
+        state = self.estimator.update(seen)
         self._pending_truth = frame.truth
         commander = self.commander
         if state is None:
@@ -370,6 +374,7 @@ class Autopilot:
         texts = self.commander.drain_texts()
         texts += self.navigator.drain_texts()
         texts += self.failures.drain_texts()
+        texts += self.sensor_check.drain_texts()
         if self._texts:
             texts += self._texts
             self._texts = []
