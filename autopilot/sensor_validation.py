@@ -5,9 +5,10 @@ exactly the same for :data:`STALE_AFTER_US` is a stuck sensor (a frozen driver, 
 MAV_CMD_INJECT_FAILURE ... STUCK). :class:`StaleSensorCheck` sits between the frame and the estimator: a stale
 magnetometer or barometer is dropped (NaN: "no sample", the estimator falls back to GPS height or gyro heading
 and its status says so); a stale gyro or accelerometer is reported only (the IMU clocks the prediction and has
-no fallback here). It checks only in the air: on the ground a resting vehicle in a noise-free sim
-(``--no-sensor-noise``) reads exactly the same, and that is not a failure (a noise-free sim can still trip
-it in a perfectly steady hover: real sensors, and the sim's default, are never noise-free). Every transition
+no fallback here). A sensor becomes stale only in the air (its clock restarts at takeoff): on the ground a
+resting vehicle in a noise-free sim (``--no-sensor-noise``) reads exactly the same, and that is not a failure
+(a noise-free sim can still trip it in a perfectly steady hover: real sensors, and the sim's default, are
+never noise-free); a stale sensor stays stale, on the ground too, until its readings change. Every transition
 is a STATUSTEXT. While no mag or baro is stale the frame goes through unchanged (no allocation).
 """
 
@@ -38,6 +39,7 @@ class StaleSensorCheck:
         self._since_us = [0, 0, 0, 0]
         self.stale = [False, False, False, False]
         self._any_stale = False
+        self._in_air = False
         self._texts: list[StatusText] = []
 
     def drain_texts(self) -> Sequence[StatusText]:
@@ -47,11 +49,11 @@ class StaleSensorCheck:
         out, self._texts = self._texts, []
         return out
 
-    def _check(self, k: int, value: object, finite: bool, time_us: int) -> None:
+    def _check(self, k: int, value: object, finite: bool, time_us: int, judge: bool) -> None:
         if not finite:  # no sample (already dropped upstream): nothing to judge
             return
         if value == self._last[k]:
-            if not self.stale[k] and time_us - self._since_us[k] >= STALE_AFTER_US:
+            if judge and not self.stale[k] and time_us - self._since_us[k] >= STALE_AFTER_US:
                 self.stale[k] = self._any_stale = True
                 action = _DROPPED[k] or "no fallback: the estimate will degrade"
                 severity = Severity.WARNING if _DROPPED[k] else Severity.CRITICAL
@@ -66,21 +68,20 @@ class StaleSensorCheck:
             self._texts.append(StatusText(Severity.NOTICE, f"{_NAMES[k]} readings change again: back in use"))
 
     def apply(self, frame: FrameLike, in_air: bool) -> FrameLike:
-        """``frame`` as the estimator should see it (``frame`` itself unless a mag or baro is stale)."""
+        """``frame`` as the estimator should see it (``frame`` itself unless a mag or baro is stale). On the ground
+        nothing becomes stale, but a stale sensor stays so (and dropped) until its readings change."""
         s = frame.sensor
         t = s.time_us
-        if not in_air:
-            if self._any_stale:
-                self.stale = [False, False, False, False]
-                self._any_stale = False
-            last = self._last
-            last[GYRO] = last[ACCEL] = last[MAG] = last[BARO] = None  # the clocks restart in the air
+        if in_air and not self._in_air:  # takeoff: every clock restarts (resting readings may be exact repeats)
+            self._since_us[GYRO] = self._since_us[ACCEL] = self._since_us[MAG] = self._since_us[BARO] = t
+        self._in_air = in_air
+        if not (in_air or self._any_stale):
             return frame
         g, a, m, p = s.gyro_frd_rad_s, s.accel_frd_m_s2, s.mag_frd_gauss, s.pressure_alt_m
-        self._check(GYRO, g, True, t)
-        self._check(ACCEL, a, True, t)
-        self._check(MAG, m, math.isfinite(m[0] + m[1] + m[2]), t)
-        self._check(BARO, p, math.isfinite(p), t)
+        self._check(GYRO, g, True, t, in_air)
+        self._check(ACCEL, a, True, t, in_air)
+        self._check(MAG, m, math.isfinite(m[0] + m[1] + m[2]), t, in_air)
+        self._check(BARO, p, math.isfinite(p), t, in_air)
         stale = self.stale
         if not (stale[MAG] or stale[BARO]):
             return frame

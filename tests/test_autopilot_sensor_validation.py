@@ -1,5 +1,5 @@
 """Stale-data check (PX4 DataValidator's stale test): a stuck mag/baro is dropped before the estimator and comes
-back when its readings change; a stuck gyro/accel is reported; nothing is judged on the ground."""
+back when its readings change; a stuck gyro/accel is reported; nothing becomes stale on the ground."""
 
 from __future__ import annotations
 
@@ -75,8 +75,13 @@ def test_nothing_is_judged_on_the_ground_and_the_clock_restarts_in_the_air() -> 
     assert not isinstance(seen, InjectedFrame)  # 0.3 s in the air: not stale yet
     seen, t = _run(check, frozenset({"baro"}), 0.3, t0=t)
     assert isinstance(seen, InjectedFrame)
-    seen, _ = _run(check, frozenset({"baro"}), 0.1, in_air=False, t0=t)  # landed: no longer dropped
+    seen, t = _run(check, frozenset({"baro"}), 2.0, in_air=False, t0=t)  # landed, still stuck: still dropped
+    assert isinstance(seen, InjectedFrame) and check.stale[3]
+    seen, t = _run(check, frozenset(), 0.1, in_air=False, t0=t)  # its readings change: back, on the ground too
     assert not isinstance(seen, InjectedFrame) and not any(check.stale)
+    seen, t = _run(check, frozenset({"gyro"}), 3.0, in_air=False, t0=t)  # resting: exact repeats on the ground
+    seen, _ = _run(check, frozenset({"gyro"}), 0.45, t0=t)  # the clock restarted at takeoff
+    assert not any(check.stale)
 
 
 def test_a_dropped_nan_reading_is_not_judged() -> None:

@@ -147,12 +147,12 @@ def test_a_motor_off_is_reported_and_no_process_dies(tmp_path: Path) -> None:
     params = tmp_path / "params.yaml"
     params.write_text("SYS_FAILURE_EN: 1\n")
     script = tmp_path / "script.yaml"
-    script.write_text(
-        "- {at_s: 0.5, cmd: arm}\n- {at_s: 0.6, cmd: takeoff, alt_m: 10}\n"
-        "- {at_s: 12.0, cmd: inject_failure, unit: motor, type: off, instance: 1}\n"
+    script.write_text(  # armed once the estimator is healthy (ARM_S), the motor fails in the hover
+        f"- {{at_s: {ARM_S}, cmd: arm}}\n- {{at_s: {ARM_S + 0.1}, cmd: takeoff, alt_m: 10}}\n"
+        f"- {{at_s: {INJECT_S}, cmd: inject_failure, unit: motor, type: off, instance: 1}}\n"
     )
     ports = Ports.free()
-    sim = start_sim(tmp_path, ports.sim, "--seed", "4", "--autopilot-timeout-s", "30", "--duration-s", "60")
+    sim = start_sim(tmp_path, ports.sim, "--seed", "4", "--autopilot-timeout-s", "30", "--duration-s", "90")
     ap = start_autopilot(tmp_path, ports.sim, ports, "--params", str(params), "--script", str(script))
     try:
         with connect_gcs(f"udpin:127.0.0.1:{ports.gcs_target}") as gcs:
@@ -167,5 +167,6 @@ def test_a_motor_off_is_reported_and_no_process_dies(tmp_path: Path) -> None:
     assert (sim_rc, sim_summary["end_reason"]) == (4, "GROUND_IMPACT"), logs(tmp_path)
     assert (ap_rc, ap_summary["end_reason"]) == (3, "sim_lost"), logs(tmp_path)
     assert ap_summary["frames"] == sim_summary["frames"]  # it answered every frame to the end
-    assert float(sim_summary["sim_time_s"]) > 12.0 and math.isfinite(float(ap_summary["sim_time_s"]))
+    assert float(sim_summary["sim_time_s"]) > INJECT_S and math.isfinite(float(ap_summary["sim_time_s"]))
+    assert [m["mode"] for m in ap_summary["mode_history"]][:2] == ["AUTO_TAKEOFF", "AUTO_LOITER"]  # it was flying
     assert "Traceback" not in logs(tmp_path)
