@@ -78,6 +78,12 @@ class StaleSensorCheck:
         if not (in_air or self._any_stale):
             return frame
         g, a, m, p = s.gyro_frd_rad_s, s.accel_frd_m_s2, s.mag_frd_gauss, s.pressure_alt_m
+        last = self._last
+        if not self._any_stale and g != last[GYRO] and a != last[ACCEL] and m != last[MAG] and p != last[BARO]:
+            last[GYRO], last[ACCEL], last[MAG], last[BARO] = g, a, m, p  # the usual step: every reading moved
+            since = self._since_us
+            since[GYRO] = since[ACCEL] = since[MAG] = since[BARO] = t
+            return frame
         self._check(GYRO, g, True, t, in_air)
         self._check(ACCEL, a, True, t, in_air)
         self._check(MAG, m, math.isfinite(m[0] + m[1] + m[2]), t, in_air)
