@@ -6,7 +6,8 @@ scheduled at fixed sim times from the ``--script`` file (MAV_CMD_INJECT_FAILURE,
 - GPS off and back before the delay: the mission continues and completes.
 - Baro stuck mid-mission: reported, the mission completes and the vehicle lands.
 - One motor off in the air: reported; the quad crash-lands (the sim ends the run on the ground impact) and
-  both processes exit with their documented status and write their summaries.
+  both processes exit with their documented status and write their summaries. Before it, bad
+  MAV_CMD_INJECT_FAILURE requests over MAVLink get an honest COMMAND_ACK and their reason.
 
 The sensor failures need a filter that fuses the sensors (``--estimator ekf``); the truth estimator reads the
 sim's ground truth, which no failure reaches. The ground station only uploads the mission before the scripted
@@ -24,7 +25,8 @@ from sitl_procs import STARTUP_TIMEOUT_S, Ports, connect_gcs, logs, read_json, s
 from autopilot.estimation import ESTIMATORS
 from autopilot.mission.files import load_mission_file
 from autopilot.telemetry.recording_reader import read_recording
-from mavlink_bridge.contract.vehicle_api import MissionType
+from mavlink_bridge.contract.mav_enums import FailureUnit, MavCmd
+from mavlink_bridge.contract.vehicle_api import CommandResult, MissionType
 from tools.sitl import SitlRun, sitl_run
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
@@ -156,6 +158,15 @@ def test_a_motor_off_is_reported_and_no_process_dies(tmp_path: Path) -> None:
     ap = start_autopilot(tmp_path, ports.sim, ports, "--params", str(params), "--script", str(script))
     try:
         with connect_gcs(f"udpin:127.0.0.1:{ports.gcs_target}") as gcs:
+            # bad requests over MAVLink: an honest COMMAND_ACK and the reason in a STATUSTEXT, nothing breaks
+            for params, result, reason in (
+                ((42, 1, 0), CommandResult.DENIED, "unknown failure unit 42"),
+                ((math.nan, 1, 0), CommandResult.DENIED, "unit must be a whole number"),
+                ((FailureUnit.SENSOR_VIO, 1, 0), CommandResult.UNSUPPORTED, "SENSOR_VIO cannot fail here"),
+            ):
+                serial = gcs.statustext_serial
+                assert gcs.command(MavCmd.INJECT_FAILURE, *params) is result
+                gcs.wait_until(lambda s, r=reason, n=serial: any(r in t.text for t in gcs.statustexts_since(n)), 20.0)
             status = gcs.wait_until(lambda s: any("motor 1 off" in t.text for t in s.statustexts), 120.0)
             assert any(t.text.startswith("Failure injected: motor 1 off") for t in status.statustexts)
         sim_rc = sim.wait(timeout=120)
