@@ -5,6 +5,7 @@ scheduled at fixed sim times from the ``--script`` file (MAV_CMD_INJECT_FAILURE,
   control; disarmed within the delay plus the descent, no collision.
 - GPS off and back before the delay: the mission continues and completes.
 - Baro stuck mid-mission: reported, the mission completes and the vehicle lands.
+- Mag off mid-mission: "heading from the gyro" warned, the mission completes.
 - One motor off in the air: reported; the quad crash-lands (the sim ends the run on the ground impact) and
   both processes exit with their documented status and write their summaries. Before it, bad
   MAV_CMD_INJECT_FAILURE requests over MAVLink get an honest COMMAND_ACK and their reason.
@@ -141,6 +142,16 @@ def test_baro_stuck_mid_mission_is_reported_and_the_vehicle_lands(tmp_path: Path
     assert t_inject < t_lost < _first(texts, "Landing detected")  # while the vehicle descends onto it
     _no_collision(run)
     assert run.autopilot_summary["items_reached"] == run.autopilot_summary["items_total"]
+
+
+@needs_ekf
+def test_mag_off_mid_mission_warns_heading_from_the_gyro_and_the_mission_completes(tmp_path: Path) -> None:
+    run, texts = _fly(tmp_path, f"- {{at_s: {INJECT_S}, cmd: inject_failure, unit: mag, type: off}}")
+    t_inject = _first(texts, "Failure injected: mag off")
+    assert t_inject < _first(texts, "Mag lost: heading from the gyro") < t_inject + 2.0
+    _no_collision(run)
+    summary = run.autopilot_summary
+    assert summary["items_reached"] == summary["items_total"] and summary["mission_state"] == "COMPLETE"
 
 
 def test_a_motor_off_is_reported_and_no_process_dies(tmp_path: Path) -> None:
