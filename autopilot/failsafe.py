@@ -190,13 +190,14 @@ class SensorFailsafe:
         self._seen = [False, False, False]  # GPS, baro, mag fused since arming
         self.gps_lost_since_us: int | None = None
         self.position_action_taken = False
+        self._landing = False  # the position-loss action taken was LAND
         self.baro_lost = False
         self.mag_lost = False
 
     def _reset(self) -> None:
         self._seen = [False, False, False]
         self.gps_lost_since_us = None
-        self.position_action_taken = False
+        self.position_action_taken = self._landing = False
         self.baro_lost = self.mag_lost = False
 
     def update(self, time_us: int, status: EstimatorStatus, armed: bool, in_air: bool) -> Sequence[FailsafeEvent]:
@@ -226,8 +227,9 @@ class SensorFailsafe:
                 return
             self.gps_lost_since_us = None
             after_s = (time_us - lost_since) * 1e-6
-            if self.position_action_taken:
-                self.position_action_taken = False
+            landing = self.position_action_taken and self._landing
+            self.position_action_taken = self._landing = False
+            if landing:
                 message = f"GPS regained after {after_s:.1f} s: position control back, landing continues"
                 events.append(FailsafeEvent(FailsafeKind.POSITION_LOSS, FailsafeAction.NONE, message, cleared=True))
             else:
@@ -249,7 +251,8 @@ class SensorFailsafe:
             return
         self.position_action_taken = True
         why = f"no GPS for {lost_s:.1f} s" if lost_s >= delay_s else "horizontal position invalid"
-        if round(p("COM_POS_LOSS_ACT")) == PositionLossAction.LAND:
+        self._landing = round(p("COM_POS_LOSS_ACT")) == PositionLossAction.LAND
+        if self._landing:
             height = "baro height" if status.baro_fused else "no height source"
             message = f"Failsafe: position lost ({why}): landing without position control on {height}"
             events.append(FailsafeEvent(FailsafeKind.POSITION_LOSS, FailsafeAction.LAND, message))

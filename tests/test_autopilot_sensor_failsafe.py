@@ -83,6 +83,8 @@ def test_an_invalid_horizontal_position_lands_at_once_and_act_0_only_warns() -> 
     fs.update(S, NO_GPS, armed=True, in_air=True)
     (warn,) = fs.update(2 * S, NO_GPS, armed=True, in_air=True)
     assert (warn.kind, warn.action) == (FailsafeKind.POSITION_LOSS, FailsafeAction.WARN)
+    (back,) = fs.update(3 * S, OK, armed=True, in_air=True)  # it never stopped flying: nothing to give back
+    assert _kinds([back]) == [(FailsafeKind.GPS_LOSS, FailsafeAction.NONE, True)] and "continues" in back.message
 
 
 def test_no_position_action_on_the_ground_nothing_before_first_fusion_and_reset_at_disarm() -> None:
