@@ -31,12 +31,14 @@ from pathlib import Path
 from types import FrameType
 
 from autopilot.control.airframe import AirframeError
+from autopilot.estimation import DEFAULT_ESTIMATOR, ESTIMATORS
 from autopilot.io_loop import Links, run_loop
 from autopilot.params import ParamError
 from autopilot.reporting import AutopilotEndReason
 from autopilot.runner import Autopilot, AutopilotConfig
 from autopilot.scripted_commands import CommandScript, ScriptError, load_script
 from autopilot.vehicle_adapter import VehicleAdapter
+from mavlink_bridge.contract.about import version_text
 from mavlink_bridge.gcs_server import GcsServer
 from mavlink_bridge.link import LinkUrl, LinkUrlError
 from mavlink_bridge.lockstep import LockstepClient, add_spin_option
@@ -84,21 +86,41 @@ def add_autopilot_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--require-signing", action="store_true", help="reject unsigned or wrongly signed messages on GCS and API links"
     )
-    p.add_argument("--estimator", default="truth", choices=["truth"], help="state estimator")
+    p.add_argument(
+        "--estimator",
+        default=DEFAULT_ESTIMATOR,
+        choices=sorted(ESTIMATORS),
+        help="state estimator: ekf (sensor fusion, default) or truth (the sim's ground truth, controller studies)",
+    )
     p.add_argument("--script", default=None, metavar="FILE", help="commands at fixed sim times (YAML)")
-    p.add_argument("--sim-timeout-s", type=float, default=3.0, help="wall s of sim silence that ends the run")
-    p.add_argument("--connect-timeout-s", type=float, default=60.0, help="wall s to wait for the first frame")
+    p.add_argument(
+        "--sim-timeout-s", type=float, default=3.0, metavar="S", help="wall s of sim silence that ends the run"
+    )
+    p.add_argument(
+        "--connect-timeout-s", type=float, default=60.0, metavar="S", help="wall s to wait for the first frame"
+    )
     add_spin_option(p, "the next frame")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="quadsitl autopilot", description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(
+        prog="quadsitl autopilot",
+        description="The autopilot: flies the simulator's vehicle (lockstep client) and serves ground stations.",
+        epilog="Usually started by 'quadsitl up' together with the simulator. --gcs off / --api off disable a link.",
+    )
+    p.add_argument("--version", action="version", version=version_text("quadsitl autopilot"))
     add_autopilot_options(p)
     p.add_argument("--instance", type=int, default=0, metavar="N", help="add N to every port")
     p.add_argument("--vehicle", default="x500", metavar="NAME", help="airframe the controller assumes")
     p.add_argument("--log-dir", type=Path, default=None, metavar="DIR", help="where autopilot_summary.json goes")
-    p.add_argument("--speed", type=_speed, default=0.0, metavar="{max|FLOAT}", help="the sim's speed (GCS timeouts)")
-    p.add_argument("-v", "--verbose", action="store_true")
+    p.add_argument(
+        "--speed",
+        type=_speed,
+        default=0.0,
+        metavar="{max|FLOAT}",
+        help="the simulator's pace, to scale the ground-station link timeouts (default max)",
+    )
+    p.add_argument("-v", "--verbose", action="store_true", help="log link and mission events")
     return p
 
 
@@ -106,13 +128,17 @@ def _offset(url: str, instance: int) -> str:
     return str(LinkUrl.parse(url).with_port_offset(instance))
 
 
-def _make_listener(spec: str, vehicle: str, world: str | None, safety_radius_m: float) -> object | None:
+def _make_listener(
+    spec: str, vehicle: str, world: str | None, safety_radius_m: float, rtl_alt_m: float | None = None
+) -> object | None:
     """The Rerun telemetry listener for ``--rerun`` (None for ``off``); ``world`` is drawn only."""
     if spec == "off":
         return None
     from autopilot.telemetry import make_listener  # imports rerun: only when a recording is asked for
 
-    return make_listener(spec, vehicle=vehicle, mission_file=world, safety_radius_m=safety_radius_m)
+    return make_listener(
+        spec, vehicle=vehicle, mission_file=world, safety_radius_m=safety_radius_m, rtl_alt_m=rtl_alt_m
+    )
 
 
 def _signing_key(args: argparse.Namespace) -> bytes | None:
@@ -145,7 +171,11 @@ def main(argv: list[str] | None = None) -> int:
         key = _signing_key(args)
         autopilot = Autopilot(config, script=script)
         autopilot.listener = _make_listener(  # type: ignore[assignment]
-            args.rerun, args.vehicle, args.rerun_world, autopilot.params.get("CA_RSAFE_M")
+            args.rerun,
+            args.vehicle,
+            args.rerun_world,
+            autopilot.params.get("CA_RSAFE_M"),
+            autopilot.params.get("MIS_RTL_ALT"),
         )
         client = LockstepClient(
             _offset(args.sim, args.instance),
@@ -183,6 +213,14 @@ def main(argv: list[str] | None = None) -> int:
         stop["requested"] = True
 
     previous = {sig: signal.signal(sig, _stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+    links = ", ".join(
+        f"{name} {_offset(url, args.instance)}" for name, url in (("GCS", args.gcs), ("API", args.api)) if url != "off"
+    )
+    print(
+        f"quadsitl autopilot: {args.vehicle}, simulator at {_offset(args.sim, args.instance)}"
+        f"{', ' + links if links else ''}; Ctrl-C stops",
+        flush=True,
+    )
     t0 = time.monotonic()
     try:
         reason = run_loop(

@@ -41,7 +41,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from enum import Enum
 
-from autopilot.estimation import VehicleState
+from autopilot.estimation import EstimatorStatus, VehicleState
 from autopilot.failsafe import FailsafeAction, FailsafeEvent, FailsafeKind
 from autopilot.manual_control import stick_demand
 from autopilot.params import ParamStore
@@ -125,6 +125,7 @@ class CommandContext:
     offboard_streaming: bool = False  # offboard setpoints arrived within COM_OF_LOSS_T
     manual_fresh: bool = False  # joystick input arrived within COM_RC_LOSS_T
     failsafe_reasons: frozenset[str] = frozenset()  # the failsafes in force (arming is refused meanwhile)
+    estimator_status: EstimatorStatus | None = None  # arming waits until it is aligned and healthy (None: unchecked)
 
 
 @fast_frozen_init
@@ -327,10 +328,18 @@ class Commander:
     # ------------------------------------------------------------------ arming
     def arming_refusal(self, state: VehicleState | None) -> str | None:
         """Why arming is refused now, or None (checks: estimate, GPS 3D fix, on ground, failsafe, mode)."""
+        status = self.context.estimator_status
         if state is None or not state.valid:
-            return "estimator not ready"
-        if state.gps_fix_type < 3 and self.params.get("COM_ARM_WO_GPS") < 0.5:
+            return (
+                f"estimator not ready ({status.reason})"
+                if status is not None and status.reason
+                else "estimator not ready"
+            )
+        need_gps = self.params.get("COM_ARM_WO_GPS") < 0.5
+        if state.gps_fix_type < 3 and need_gps:
             return "no 3D GPS fix"
+        if status is not None and not self.armed and (not status.aligned or (need_gps and not status.healthy)):
+            return f"estimator: {status.reason}"
         if self.in_air:
             return "not on the ground"
         if self.context.failsafe_reasons:

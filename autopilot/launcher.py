@@ -1,10 +1,12 @@
-"""``quadsitl up``: the simulator and the autopilot as two processes (SPEC §3, §12).
+"""``quadsitl up``: the simulator and the autopilot as two processes.
 
-Starts ``python -m sim`` and ``python -m autopilot`` with the options of both (``--instance``
-offsets every port of both), forwards SIGINT/SIGTERM to them, and when either one exits
-stops the other. Exit status: 0 when both ended cleanly (a signal, ``--duration-s``), else the
-simulator's non-zero status if it had one (3 autopilot lost, 4 vehicle ended the run), else
-the autopilot's; 2 for bad options.
+Checks every input file first (mission or world, ``--params``, ``--script``, the vehicle; one line
+naming the file, the line and the fix), then starts ``python -m sim`` and ``python -m autopilot`` with
+the options of both (``--instance`` offsets every port of both), prints where they listen, forwards
+SIGINT/SIGTERM to them, and when either one exits stops the other. Real time by default, like PX4
+SITL (``--speed max``: as fast as the machine goes). Exit status: 0 when both ended cleanly (a signal,
+``--duration-s``), else the simulator's non-zero status if it had one (3 autopilot lost, 4 vehicle
+ended the run), else the autopilot's; 2 for bad options or input files.
 """
 
 from __future__ import annotations
@@ -19,6 +21,8 @@ from pathlib import Path
 from types import FrameType
 
 from autopilot.cli import add_autopilot_options
+from autopilot.preflight import InputFileError, check_autopilot_inputs
+from mavlink_bridge.contract.about import version_text
 from mavlink_bridge.link import LinkMode, LinkUrl, LinkUrlError
 
 EXIT_USAGE = 2
@@ -26,22 +30,91 @@ EXIT_USAGE = 2
 STOP_TIMEOUT_S = 15.0
 
 
+#: ``quadsitl up``'s default pace: real time, like PX4 SITL (a person flies it from a ground station).
+DEFAULT_SPEED = "1"
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="quadsitl up", description="Start sim and autopilot as two processes.")
-    p.add_argument("--world", default=None, metavar="MISSION.yaml", help="mission/world YAML for the simulator")
-    p.add_argument("--vehicle", default=None, metavar="NAME", help="vehicle (sim model and autopilot airframe)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--speed", default="max", metavar="{max|FLOAT}", help="sim s per wall s (default max)")
+    p = argparse.ArgumentParser(
+        prog="quadsitl up",
+        description="Start the simulator and the autopilot as two processes; Ctrl-C stops both.",
+        epilog="Example: quadsitl up --world missions/delivery.yaml --log-dir runs/me --rerun save:runs/me/flight.rrd",
+    )
+    p.add_argument("--version", action="version", version=version_text("quadsitl up"))
+    p.add_argument(
+        "--world", default=None, metavar="MISSION.yaml", help="mission file whose world: (obstacles, wind) is simulated"
+    )
+    p.add_argument(
+        "--vehicle", default=None, metavar="NAME", help="vehicle for both sides (default: the mission's, else x500)"
+    )
+    p.add_argument("--seed", type=int, default=0, metavar="N", help="seed of sensor noise and gusts (default 0)")
+    p.add_argument(
+        "--speed",
+        default=DEFAULT_SPEED,
+        metavar="{max|FLOAT}",
+        help="sim seconds per wall second: 1 is real time (default), max as fast as possible",
+    )
     p.add_argument("--instance", type=int, default=0, metavar="N", help="add N to every port of both processes")
     p.add_argument("--listen", default="udp:127.0.0.1:14560", metavar="URL", help="the simulator's lockstep address")
-    p.add_argument("--log-dir", default=None, metavar="DIR", help="both summaries and the processes' logs")
-    p.add_argument("--duration-s", type=float, default=None, help="stop after this much sim time")
-    p.add_argument("--physics-hz", type=int, default=None)
-    p.add_argument("--control-hz", type=int, default=None)
-    p.add_argument("--no-sensor-noise", action="store_true")
+    p.add_argument("--log-dir", default=None, metavar="DIR", help="where both processes write their summaries (JSON)")
+    p.add_argument("--duration-s", type=float, default=None, metavar="S", help="stop after this much sim time")
+    p.add_argument("--physics-hz", type=int, default=None, metavar="HZ", help="physics rate (default 1000)")
+    p.add_argument("--control-hz", type=int, default=None, metavar="HZ", help="lockstep/control rate (default 250)")
+    p.add_argument("--no-sensor-noise", action="store_true", help="noiseless sensors (truth plus quantisation)")
     add_autopilot_options(p)
     p.set_defaults(sim=None)
     return p
+
+
+def preflight(args: argparse.Namespace, sim_cmd: list[str]) -> str | None:
+    """Check every input file before anything starts; the one-line error, or None when all are fine."""
+    try:
+        check_autopilot_inputs(mission=args.world, params=args.params, script=args.script, vehicle=args.vehicle)
+        if args.rerun_world and args.rerun_world != args.world:
+            check_autopilot_inputs(mission=args.rerun_world)
+    except InputFileError as exc:
+        return str(exc)
+    if args.world is None and args.vehicle is None:
+        return None
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    check = subprocess.run([*sim_cmd, "--check"], env=env, capture_output=True, text=True, check=False)
+    if check.returncode != 0:
+        lines = check.stderr.strip().splitlines()
+        return (
+            lines[-1].removeprefix("quadsitl sim: ")
+            if lines
+            else f"the simulator refused the inputs ({check.returncode})"
+        )
+    return None
+
+
+def _port_text(url: str, instance: int) -> str:
+    if url == "off":
+        return "off"
+    link = LinkUrl.parse(url).with_port_offset(instance)
+    return f"{link.host}:{link.port}"
+
+
+def banner(args: argparse.Namespace, vehicle: str) -> str:
+    """What ``quadsitl up`` prints at start: speed, ports, world, where the logs go, how to stop."""
+    listen = LinkUrl.parse(args.listen).with_port_offset(args.instance)
+    speed = "as fast as possible (--speed max)" if args.speed == "max" else f"{args.speed}x real time"
+    gcs_in, gcs_out = _port_text(args.gcs, args.instance), _port_text(args.gcs_target, args.instance)
+    api_in, api_out = _port_text(args.api, args.instance), _port_text(args.api_target, args.instance)
+    gcs = "off" if gcs_in == "off" else f"listens on {gcs_in}, sends to {gcs_out} (QGroundControl, tools.gcs)"
+    api = "off" if api_in == "off" else f"listens on {api_in}, sends to {api_out} (MAVSDK, scripts)"
+    recording = "off (--rerun save:PATH.rrd to record)" if args.rerun == "off" else args.rerun
+    lines = [
+        f"{version_text('quadsitl up')}: simulator + autopilot, {speed}",
+        f"  world      {args.world or 'empty (no --world)'}, vehicle {vehicle}",
+        f"  simulator  lockstep on udp {listen.host}:{listen.port}",
+        f"  GCS link   {gcs}",
+        f"  API link   {api}",
+        f"  summaries  {args.log_dir or 'not written (--log-dir DIR)'}",
+        f"  recording  {recording}",
+        "  Ctrl-C stops both processes.",
+    ]
+    return "\n".join(lines)
 
 
 def _world_vehicle(world: str | None) -> str | None:
@@ -125,6 +198,11 @@ def main(argv: list[str] | None = None) -> int:
     except LinkUrlError as exc:
         print(f"quadsitl up: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    problem = preflight(args, sim_cmd)
+    if problem is not None:
+        print(f"quadsitl up: {problem}", file=sys.stderr)
+        return EXIT_USAGE
+    print(banner(args, sim_cmd[sim_cmd.index("--vehicle") + 1]), flush=True)
     if args.log_dir:
         Path(args.log_dir).mkdir(parents=True, exist_ok=True)
     stop = {"signal": 0}

@@ -27,9 +27,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import yaml
-
 from mavlink_bridge.contract.mav_enums import FailureType, FailureUnit, MavCmd
+from mavlink_bridge.contract.source_lines import YamlSource, YamlSyntaxError, did_you_mean, read_yaml
 from mavlink_bridge.contract.vehicle_api import CommandRequest
 
 _ARGS = {
@@ -86,32 +85,42 @@ class ScriptStep:
         return CommandRequest(number[self.cmd], full, 0, 0, is_int=True, frame=_GLOBAL_RELATIVE_ALT_INT)  # type: ignore[arg-type]
 
 
-def parse_script(entries: object, origin: str = "<script>") -> list[ScriptStep]:
-    """Validate a list of ``{at_s, cmd, ...}`` mappings into steps sorted by time."""
+def parse_script(entries: object, origin: str = "<script>", source: YamlSource | None = None) -> list[ScriptStep]:
+    """Validate a list of ``{at_s, cmd, ...}`` mappings into steps sorted by time.
+
+    ``source`` (the parsed file) adds the line to each message: ``FILE:LINE: step N: ...; fix: ...``.
+    """
+
+    def place(*path: str | int) -> str:
+        return source.where(*path) if source is not None else origin
+
     if not isinstance(entries, list):
-        raise ScriptError(f"{origin}: expected a list of steps")
+        raise ScriptError(f"{place()}: expected a list of steps; fix: write '- {{at_s: 5, cmd: takeoff, alt_m: 10}}'")
     steps = []
     for i, entry in enumerate(entries):
-        where = f"{origin}: step {i}"
+        where = f"{place(i)}: step {i}"
         if not isinstance(entry, dict):
-            raise ScriptError(f"{where}: expected a mapping with at_s and cmd")
+            raise ScriptError(f"{where}: expected a mapping with at_s and cmd; fix: write '- {{at_s: 5, cmd: arm}}'")
         cmd = entry.get("cmd")
         if cmd not in _ARGS:
-            raise ScriptError(f"{where}: cmd must be one of {sorted(_ARGS)}, got {cmd!r}")
-        unknown = set(entry) - {"at_s", "cmd", *_ARGS[cmd]}
+            where = f"{place(i, 'cmd')}: step {i}"
+            fix = did_you_mean(cmd, sorted(_ARGS))
+            raise ScriptError(f"{where}: cmd must be one of {sorted(_ARGS)}, got {cmd!r}; fix: {fix}")
+        unknown = sorted(str(k) for k in set(entry) - {"at_s", "cmd", *_ARGS[cmd]})
         if unknown:
-            raise ScriptError(f"{where}: unknown keys {sorted(unknown)} for {cmd}")
+            fix = f"{cmd} takes at_s{''.join(', ' + a for a in _ARGS[cmd])}"
+            raise ScriptError(f"{place(i, unknown[0])}: step {i}: unknown keys {unknown} for {cmd}; fix: {fix}")
         try:
             at_s = float(entry["at_s"])
             args = tuple(_argument(entry, k, where) for k in _ARGS[cmd])
         except ScriptError:
             raise
         except KeyError as exc:
-            raise ScriptError(f"{where}: missing {exc.args[0]}") from None
+            raise ScriptError(f"{where}: missing {exc.args[0]}; fix: add '{exc.args[0]}: <number>'") from None
         except (TypeError, ValueError):
-            raise ScriptError(f"{where}: at_s and the arguments must be numbers") from None
+            raise ScriptError(f"{where}: at_s and the arguments must be numbers; fix: write plain numbers") from None
         if not (math.isfinite(at_s) and at_s >= 0.0) or not all(math.isfinite(a) for a in args):
-            raise ScriptError(f"{where}: times and arguments must be finite, at_s >= 0")
+            raise ScriptError(f"{where}: times and arguments must be finite, at_s >= 0; fix: use finite numbers")
         steps.append(ScriptStep(round(at_s * 1e6), cmd, args))
     return sorted(steps, key=lambda s: s.at_us)
 
@@ -124,11 +133,13 @@ def _argument(entry: dict[object, object], key: str, where: str) -> float:
     if isinstance(value, bool):  # YAML 1.1 reads an unquoted off/no as false, on/yes as true
         if key == "type" and value is False:
             return float(FailureType.OFF)
-        raise ScriptError(f"{where}: {key} must be a number{' or a name' if key in _NAMED else ''}, got {value!r}")
+        named = " or a name" if key in _NAMED else ""
+        raise ScriptError(f"{where}: {key} must be a number{named}, got {value!r}; fix: write a number{named}")
     names = _NAMED.get(key)
     if names is not None and isinstance(value, str):
         if value.lower() not in names:
-            raise ScriptError(f"{where}: {key} must be a number or one of {sorted(names)}, got {value!r}")
+            fix = did_you_mean(value.lower(), sorted(names))
+            raise ScriptError(f"{where}: {key} must be a number or one of {sorted(names)}, got {value!r}; fix: {fix}")
         return float(names[value.lower()])
     return float(value)  # type: ignore[arg-type]
 
@@ -136,10 +147,12 @@ def _argument(entry: dict[object, object], key: str, where: str) -> float:
 def load_script(path: str | Path) -> list[ScriptStep]:
     """Read a script YAML file (ScriptError on any problem)."""
     try:
-        data = yaml.safe_load(Path(path).read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise ScriptError(f"{path}: {exc}") from None
-    return parse_script(data, str(path))
+        source = read_yaml(path)
+    except OSError as exc:
+        raise ScriptError(f"{path}: cannot read: {exc.strerror}; fix: check the path given to --script") from None
+    except YamlSyntaxError as exc:
+        raise ScriptError(str(exc)) from None
+    return parse_script(source.data, str(path), source)
 
 
 class CommandScript:

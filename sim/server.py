@@ -123,7 +123,8 @@ def _load_obstacle_sensor(world: World, seed: int) -> ObstacleSensorLike | None:
     return module.ObstacleSensor(world, seed)
 
 
-def _mission_vehicle(world_path: Path | None) -> str | None:
+def mission_vehicle(world_path: Path | None) -> str | None:
+    """The ``vehicle:`` of a mission YAML (None: no file, or none named)."""
     if world_path is None:
         return None
     doc: Any = yaml.safe_load(world_path.read_text())
@@ -152,7 +153,7 @@ class SimServer:
         if config.world_path is not None and not config.world_path.is_file():
             raise SimSetupError(f"world: no such file {str(config.world_path)!r}")
         self.world = load_world(config.world_path) if config.world_path else empty_world()
-        vehicle_name = config.vehicle or _mission_vehicle(config.world_path) or DEFAULT_VEHICLE
+        vehicle_name = config.vehicle or mission_vehicle(config.world_path) or DEFAULT_VEHICLE
         self.vehicle_config = load_vehicle(vehicle_name)
         try:
             self.vehicle = VehicleSim(

@@ -12,10 +12,11 @@ from mavlink_bridge.lossy import LossProfile, LossyUdpProxy
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 
+#: The EKF is healthy (aligned, GPS fused for 1 s) 1.5 s after start: the script arms at 2 s.
 SCRIPT = """
-- {at_s: 0.2, cmd: arm}
-- {at_s: 0.3, cmd: takeoff, alt_m: 5}
-- {at_s: 2.5, cmd: goto, north_m: 4, east_m: 2, alt_m: 6}
+- {at_s: 2.0, cmd: arm}
+- {at_s: 2.1, cmd: takeoff, alt_m: 5}
+- {at_s: 4.3, cmd: goto, north_m: 4, east_m: 2, alt_m: 6}
 """
 
 
@@ -53,8 +54,8 @@ def test_lossy_link_gives_the_identical_flight(tmp_path: Path) -> None:
         proxies.append(proxy)
         return proxy.listen_address[1]
 
-    clean = _start_pair(tmp_path / "clean", script, 4.0, "max")
-    lossy = _start_pair(tmp_path / "lossy", script, 4.0, "max", via_proxy)
+    clean = _start_pair(tmp_path / "clean", script, 6.0, "max")
+    lossy = _start_pair(tmp_path / "lossy", script, 6.0, "max", via_proxy)
     try:
         clean_hashes = _finish(tmp_path / "clean", *clean)
         lossy_hashes = _finish(tmp_path / "lossy", *lossy)
@@ -72,8 +73,8 @@ def test_lossy_link_gives_the_identical_flight(tmp_path: Path) -> None:
 def test_speed_1_and_speed_max_give_the_identical_flight(tmp_path: Path) -> None:
     script = tmp_path / "flight.yaml"
     script.write_text(SCRIPT)
-    paced = _start_pair(tmp_path / "paced", script, 1.2, "1")
-    fast = _start_pair(tmp_path / "fast", script, 1.2, "max")
+    paced = _start_pair(tmp_path / "paced", script, 3.0, "1")
+    fast = _start_pair(tmp_path / "fast", script, 3.0, "max")
     try:
         paced_hashes = _finish(tmp_path / "paced", *paced)
         fast_hashes = _finish(tmp_path / "fast", *fast)

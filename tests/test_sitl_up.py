@@ -20,7 +20,7 @@ pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 def _up(tmp_path: Path, ports: Ports, *extra: str) -> subprocess.Popen[bytes]:
     args = [sys.executable, "-m", "quadsitl_cli", "up", "--listen", f"udp:127.0.0.1:{ports.sim}", "--api", "off"]
     args += ["--gcs", f"udpin:127.0.0.1:{ports.gcs}", "--gcs-target", f"udpout:127.0.0.1:{ports.gcs_target}"]
-    args += ["--log-dir", str(tmp_path), *extra]
+    args += ["--log-dir", str(tmp_path), "--speed", "max", *extra]
     with open(tmp_path / "up.log", "wb") as log:  # the child keeps its own copy of the descriptor
         return subprocess.Popen(args, cwd=REPO_ROOT, env=dict(os.environ, PYTHONUNBUFFERED="1"), stdout=log, stderr=log)
 

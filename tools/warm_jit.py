@@ -74,6 +74,11 @@ def warm() -> dict[str, float]:
 
 
 def main() -> int:
+    print(
+        "[setup] compiling the numba kernels (physics, controller, codec): about 1 min the first time, "
+        "a few seconds once cached...",
+        flush=True,
+    )
     t0 = time.perf_counter()
     timings = warm()
     parts = ", ".join(f"{k} {v:.1f}" for k, v in timings.items())
