@@ -407,8 +407,9 @@ class Autopilot:
         failed = self.failures.unhealthy_bits  # a failed motor clears the motor-outputs bit
         return replace(snap, sensors_health=snap.sensors_health & ~failed) if failed else snap
 
-    def summary(self, wall_time_s: float) -> dict[str, object]:
-        """``autopilot_summary.json`` (SPEC §12): mission progress, modes, landing, tracking errors."""
+    def summary(self, wall_time_s: float, lockstep: dict[str, int] | None = None) -> dict[str, object]:
+        """``autopilot_summary.json`` (SPEC §12): mission progress, modes, landing, tracking errors; ``lockstep``:
+        the link's counters (frames, strangers and invalid frames dropped), from the I/O edge."""
         self.after_answer()
         flight = {
             "end_reason": (self.end_reason or AutopilotEndReason.STOPPED).value,
@@ -417,15 +418,18 @@ class Autopilot:
             "frames": self.frames,
             "vehicle": self.airframe.name,
         }
+        if lockstep is not None:
+            flight["lockstep"] = lockstep
         return reporting.summary(
             self.commander, self.navigator, self.battery, self.progress, self.tracking, self.truth_hash, flight
         )
 
-    def write_summary(self, wall_time_s: float) -> Path | None:
+    def write_summary(self, wall_time_s: float, lockstep: dict[str, int] | None = None) -> Path | None:
         """Write ``LOG_DIR/autopilot_summary.json`` (None without a log dir)."""
         if not self.config.log_dir:
             return None
-        return reporting.write_json(Path(self.config.log_dir) / "autopilot_summary.json", self.summary(wall_time_s))
+        summary = self.summary(wall_time_s, lockstep)
+        return reporting.write_json(Path(self.config.log_dir) / "autopilot_summary.json", summary)
 
     @property
     def controller(self) -> CascadeController:

@@ -16,8 +16,9 @@ from pathlib import Path
 from types import FrameType
 
 from mavlink_bridge.contract.about import version_text
-from mavlink_bridge.link import LinkMode, LinkUrl, LinkUrlError
+from mavlink_bridge.link import LinkMode, LinkUrl, LinkUrlError, resolve_url
 from mavlink_bridge.lockstep import DEFAULT_SIM_PORT, add_spin_option
+from mavlink_bridge.lossy import loss_fraction
 from sim.end_reason import EndReason
 from sim.server import DEFAULT_VEHICLE, SimConfig, SimServer, SimSetupError, mission_vehicle
 from sim.vehicle_config import load_vehicle
@@ -27,6 +28,7 @@ EXIT_OK = 0
 EXIT_USAGE = 2
 EXIT_AUTOPILOT_LOST = 3
 EXIT_VEHICLE_ENDED = 4
+DEFAULT_LISTEN = f"udp:127.0.0.1:{DEFAULT_SIM_PORT}"
 
 
 def _speed(text: str) -> float | None:
@@ -69,9 +71,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--instance", type=int, default=0, metavar="N", help="offset of the listen port (14560 + N)")
     p.add_argument(
         "--listen",
-        default=f"udp:127.0.0.1:{DEFAULT_SIM_PORT}",
+        default=None,
         metavar="udp:HOST:PORT",
-        help="lockstep server address (udp: or udpin:); --instance is added to its port",
+        help=f"lockstep server address (udp: or udpin:; default {DEFAULT_LISTEN}, + --instance), used as typed",
+    )
+    p.add_argument(
+        "--sim-loss",
+        type=loss_fraction,
+        default=0.0,
+        metavar="FRACTION",
+        help="drop this share of lockstep datagrams each way (a lossy relay on the listen address; default 0)",
     )
     p.add_argument("--log-dir", type=Path, default=None, metavar="DIR", help="where sim_summary.json is written")
     p.add_argument("--duration-s", type=float, default=None, metavar="S", help="stop after this much sim time")
@@ -101,14 +110,15 @@ def check_inputs(args: argparse.Namespace) -> None:
 
 
 def config_from_args(args: argparse.Namespace) -> SimConfig:
-    """Validate the parsed options into a ``SimConfig``; ``--instance`` offsets the listen port."""
-    url = LinkUrl.parse(args.listen)
-    if url.mode is not LinkMode.LISTEN:
-        raise LinkUrlError(f"--listen: the simulator listens, use udp:HOST:PORT or udpin:HOST:PORT, got {args.listen}")
+    """Validate the parsed options into a ``SimConfig``; ``--instance`` offsets the default listen port only."""
     if args.instance < 0:
         raise SimSetupError(f"--instance: expected N >= 0, got {args.instance}")
+    listen = resolve_url(args.listen, DEFAULT_LISTEN, args.instance)
+    url = LinkUrl.parse(listen)
+    if url.mode is not LinkMode.LISTEN:
+        raise LinkUrlError(f"--listen: the simulator listens, use udp:HOST:PORT or udpin:HOST:PORT, got {args.listen}")
     return SimConfig(
-        listen_url=str(url.with_port_offset(args.instance)),
+        listen_url=str(url),
         world_path=args.world,
         vehicle=args.vehicle,
         seed=args.seed,
@@ -121,6 +131,7 @@ def config_from_args(args: argparse.Namespace) -> SimConfig:
         sensor_noise=not args.no_sensor_noise,
         truth_log=args.truth_log,
         lockstep_spin_s=args.lockstep_spin_us * 1e-6,
+        loss_fraction=args.sim_loss,
     )
 
 

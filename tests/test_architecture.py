@@ -34,7 +34,7 @@ LONG_MODULES: dict[str, str] = {
     "mavlink_bridge.gcs_client": "being split",
 }
 #: Bridge internals still imported outside the I/O edges (a ratchet, like LONG_MODULES).
-KNOWN_BRIDGE_IMPORTS = {("sim.frame_kernel", "mavlink_bridge.frame_writer")}
+KNOWN_BRIDGE_IMPORTS: set[tuple[str, str]] = set()
 
 
 def _modules() -> dict[str, Path]:

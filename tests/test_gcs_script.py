@@ -140,4 +140,5 @@ def test_no_vehicle_is_a_one_line_error(capsys) -> None:
     err = capsys.readouterr().err
     errors = [line for line in err.splitlines() if line.startswith("gcs: error:")]
     assert len(errors) == 1 and "no vehicle heard" in errors[0]
-    assert gcs.connect_url("udpin:127.0.0.1:14550", 3) == "udpin:127.0.0.1:14553"
+    assert gcs.connect_url(None, 3) == "udpin:127.0.0.1:14553"  # the default port follows --instance
+    assert gcs.connect_url("udpin:127.0.0.1:24550", 3) == "udpin:127.0.0.1:24550"  # a typed URL is used as typed

@@ -31,6 +31,15 @@ def test_up_runs_both_and_stops_both_on_sigterm(tmp_path: Path) -> None:
     try:
         with GcsClient(f"udpin:127.0.0.1:{ports.gcs_target}", timeout_s=20.0) as gcs:
             gcs.wait_until(lambda s: (s.sim_time_s or 0.0) > 1.0, 120.0)  # the lockstep runs
+            second_dir = tmp_path / "second"
+            second_dir.mkdir()
+            second = _up(second_dir, ports)  # the same ports again: refused at once, the first pair undisturbed
+            assert second.wait(timeout=60) == 2
+            second_log = (second_dir / "up.log").read_text(errors="replace").strip()
+            assert f"UDP port {ports.sim} " in second_log and "--instance N" in second_log, second_log
+            assert second_log.count("\n") == 0 and not (second_dir / "sim_summary.json").exists()
+            before = gcs.telemetry().sim_time_s or 0.0
+            gcs.wait_until(lambda s: (s.sim_time_s or 0.0) > before + 1.0, 60.0)  # still flying
         up.send_signal(signal.SIGTERM)
         rc = up.wait(timeout=60)
     finally:

@@ -33,7 +33,7 @@ from mavlink_bridge.contract.vehicle_api import (
     Severity,
 )
 from mavlink_bridge.gcs_client import CommandFailedError, GcsClient, GcsError, MissionUploadError, VehicleStatus
-from mavlink_bridge.link import LinkUrl, LinkUrlError
+from mavlink_bridge.link import LinkUrlError, resolve_url
 from mavlink_bridge.signing import SigningKeyError, signing_key_from_text
 
 DEFAULT_CONNECT = "udpin:127.0.0.1:14550"
@@ -78,9 +78,10 @@ class FlySummary:
         return json.dumps(asdict(self), indent=2) + "\n"
 
 
-def connect_url(url: str, instance: int) -> str:
-    """``url`` with its port offset by ``instance`` (SPEC §3 ``--instance N``)."""
-    return str(LinkUrl.parse(url).with_port_offset(instance))
+def connect_url(url: str | None, instance: int) -> str:
+    """The link to use: ``url`` exactly as typed, else the default GCS port shifted by ``instance`` (like
+    ``quadsitl --instance N``, which shifts default ports only)."""
+    return resolve_url(url, DEFAULT_CONNECT, instance)
 
 
 # ---- commands ----------------------------------------------------------------------------------------------
@@ -378,8 +379,10 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Example: python -m tools.gcs fly missions/delivery.yaml --summary fly.json",
     )
     parser.add_argument("--version", action="version", version=version_text("tools.gcs"))
-    parser.add_argument("--connect", default=DEFAULT_CONNECT, help=f"link URL (default {DEFAULT_CONNECT})")
-    parser.add_argument("--instance", type=int, default=0, help="offset the link port by N (quadsitl --instance)")
+    parser.add_argument(
+        "--connect", default=None, help=f"link URL, used as typed (default {DEFAULT_CONNECT}, shifted by --instance)"
+    )
+    parser.add_argument("--instance", type=int, default=0, help="the quadsitl --instance N to talk to (port + N)")
     parser.add_argument("--signing-key", default=None, help="MAVLink 2 signing key: 64 hex digits or a passphrase")
     parser.add_argument("--wait-s", type=float, default=60.0, help="how long to wait for the vehicle's heartbeat")
     parser.add_argument("--timeout-step-s", type=float, default=5.0, help="timeout of one protocol exchange")
