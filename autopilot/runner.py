@@ -2,8 +2,9 @@
 
 Per frame (:meth:`Autopilot.step`), in sim time only::
 
-    estimator -> failsafes (10 Hz) -> navigator (AUTO_MISSION) -> commander -> setpoint generator
-    -> [navigator's avoidance override] -> NLVG-PID cascade -> ActuatorCommand (armed flag, gripper)
+    [injected sensor failures] -> [stale-data check] -> estimator -> failsafes (10 Hz) -> navigator (AUTO_MISSION)
+    -> commander -> setpoint generator -> [navigator's avoidance override] -> NLVG-PID cascade
+    -> [injected motor failures] -> ActuatorCommand (armed flag, gripper)
 
 The command is answered *before* the bookkeeping (:meth:`Autopilot.after_answer`: truth hash, battery,
 tracking, the next step's reference prepared), so the simulator integrates while the autopilot does the rest.
@@ -25,7 +26,8 @@ from autopilot.control.cascade import CascadeController, SingleStep
 from autopilot.control.gains import CascadeGains
 from autopilot.control.param_decls import controller_param_specs
 from autopilot.estimation import Estimator, FrameLike, VehicleState, make_estimator
-from autopilot.failsafe import BatteryModel, FailsafeInputs, FailsafeMonitor
+from autopilot.failsafe import BatteryModel, FailsafeInputs, FailsafeMonitor, SensorFailsafe
+from autopilot.failure_injection import FailureInjector
 from autopilot.flight_control import SETPOINT_PARAMS, FlightControl
 from autopilot.link_health import LinkHealth
 from autopilot.mission.param_decls import mission_param_specs
@@ -37,6 +39,7 @@ from autopilot.planner.param_decls import PlannerParams, planner_param_specs
 from autopilot.planner.planner import AvoidancePlanner
 from autopilot.reporting import AutopilotEndReason, MissionProgress, StepListener, StepRecord, Tracking, TruthHash
 from autopilot.scripted_commands import CommandScript
+from autopilot.sensor_validation import StaleSensorCheck
 from autopilot.setpoints import NavTarget, SetpointGenerator, TargetKind
 from mavlink_bridge.contract.frames import GeoPoint, Vec3
 from mavlink_bridge.contract.mav_enums import MavCmd
@@ -98,8 +101,12 @@ class Autopilot:
         self.script = script
         self.links = LinkHealth(self.config.speed_factor, wall_clock)
         self.commander = Commander(self.params)
+        self.failures = FailureInjector(self.params)  # what the estimator sees and the motors get (SYS_FAILURE_EN)
+        self.commander.command_handlers[MavCmd.INJECT_FAILURE] = self.failures.handle_command
+        self.sensor_check = StaleSensorCheck()  # a stuck mag/baro is dropped before the estimator
         self.control = FlightControl(self.params, self.airframe)
         self.failsafe = FailsafeMonitor(self.params)
+        self.sensor_failsafe = SensorFailsafe(self.params)
         self.battery = BatteryModel(self.params.get("BAT_HOVER_ENDUR"))
         self.state: VehicleState | None = None
         self.tracking = Tracking()
@@ -212,7 +219,8 @@ class Autopilot:
         self._prev_time_us = t_us
         self.frames += 1
         self.frame_detections = getattr(frame, "detections", ())
-        state = self.estimator.update(frame)
+        seen = self.sensor_check.apply(self.failures.apply_to_frame(frame), self.commander.in_air)
+        state = self.estimator.update(seen)
         self._pending_truth = frame.truth
         commander = self.commander
         if state is None:
@@ -241,7 +249,7 @@ class Autopilot:
             self.navigator.mode_changed(commander.mode, self._last_mode, state.time_us)
             self._last_mode = commander.mode
         self._target = target
-        motor = self._control(state, target)
+        motor = self.failures.apply_to_motors(self._control(state, target))
         self._motor = motor
         return ActuatorCommand(t_us, motor, commander.armed, commander.gripper_release)
 
@@ -308,6 +316,9 @@ class Autopilot:
         )
         for event in events:
             commander.apply_failsafe(event)
+        status = self.estimator.status
+        for event in self.sensor_failsafe.update(state.time_us, status, commander.armed, commander.in_air):
+            commander.apply_failsafe(event)
         self.update_context(failsafe_reasons=frozenset(kind.value for kind in self.failsafe.active))
 
     def _control(self, state: VehicleState, target: NavTarget) -> tuple[float, float, float, float]:
@@ -349,6 +360,8 @@ class Autopilot:
         """Events (commander, navigator, runner) since the last call."""
         texts = self.commander.drain_texts()
         texts += self.navigator.drain_texts()
+        texts += self.failures.drain_texts()
+        texts += self.sensor_check.drain_texts()
         if self._texts:
             texts += self._texts
             self._texts = []
@@ -388,9 +401,11 @@ class Autopilot:
         self.after_answer()
         if self.state is None:
             return None
-        return reporting.snapshot(
+        snap = reporting.snapshot(
             self.state, self.commander, self.navigator, self.control, self.battery, self.progress, self.estimator.origin
         )
+        failed = self.failures.unhealthy_bits  # a failed motor clears the motor-outputs bit
+        return replace(snap, sensors_health=snap.sensors_health & ~failed) if failed else snap
 
     def summary(self, wall_time_s: float, lockstep: dict[str, int] | None = None) -> dict[str, object]:
         """``autopilot_summary.json`` (SPEC §12): mission progress, modes, landing, tracking errors; ``lockstep``:
