@@ -22,25 +22,22 @@ from pathlib import Path
 from autopilot import reporting
 from autopilot.commander import CommandContext, Commander, CommanderInputs
 from autopilot.control.airframe import Airframe, load_airframe
-from autopilot.control.cascade import CascadeController, SingleStep
-from autopilot.control.gains import CascadeGains
-from autopilot.control.param_decls import controller_param_specs
+from autopilot.control.cascade import SingleStep
 from autopilot.estimation import Estimator, FrameLike, VehicleState, make_estimator
 from autopilot.failsafe import BatteryModel, FailsafeInputs, FailsafeMonitor, SensorFailsafe
 from autopilot.failure_injection import FailureInjector
-from autopilot.flight_control import SETPOINT_PARAMS, FlightControl
+from autopilot.flight_control import FlightControl
 from autopilot.link_health import LinkHealth
-from autopilot.mission.param_decls import mission_param_specs
 from autopilot.navigation import HomeFrame, Navigator
-from autopilot.param_binding import ParamBindings
+from autopilot.param_binding import autopilot_bindings
 from autopilot.param_schema import make_param_store
 from autopilot.params import ParamStore
-from autopilot.planner.param_decls import PlannerParams, planner_param_specs
+from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import AvoidancePlanner
 from autopilot.reporting import AutopilotEndReason, MissionProgress, StepListener, StepRecord, Tracking, TruthHash
 from autopilot.scripted_commands import CommandScript
 from autopilot.sensor_validation import StaleSensorCheck
-from autopilot.setpoints import NavTarget, SetpointGenerator, TargetKind
+from autopilot.setpoints import NavTarget, TargetKind
 from mavlink_bridge.contract.frames import GeoPoint, Vec3
 from mavlink_bridge.contract.mav_enums import MavCmd
 from mavlink_bridge.contract.vehicle_api import (
@@ -126,25 +123,9 @@ class Autopilot:
         self._pending_control: SingleStep | None = None  # this step's cascade output, booked by after_answer
         self._motor = (0.0, 0.0, 0.0, 0.0)
         self._next_failsafe_us = 0
-        self._bind_params()
-
-    # ------------------------------------------------------------------ composition
-    def _bind_params(self) -> None:
-        """Parameter changes take effect at once (in flight too); see :mod:`autopilot.param_binding`."""
-        nav = self.navigator
-        bindings = ParamBindings()
-        bindings.bind_every(lambda _name, _value: nav.params_changed())  # cached mission targets are rebuilt
-        fc = self.control
-        bindings.bind(SETPOINT_PARAMS, lambda _n, _v: fc.apply_setpoint_params())
-        bindings.bind((s.name for s in controller_param_specs()), self._apply_controller_params)
-        bindings.bind(("PLD_MASS_KG",), lambda _n, _v: fc.set_payload_released(fc.payload_released))
-        bindings.bind(("BAT_HOVER_ENDUR",), lambda _n, v: self.battery.set_hover_endurance_s(v))
-        mission_names = [s.name for s in mission_param_specs()] + ["MIS_TAKEOFF_ALT"]
-        bindings.bind(mission_names, lambda _n, _v: nav.apply_mission_params())
-        bindings.bind([s.name for s in planner_param_specs()], lambda _n, _v: nav.apply_planner_params())
-        bindings.bind(("GF_MAX_VER_DIST",), lambda _n, _v: nav.apply_altitude_limits())
-        bindings.bind(("CA_RSAFE_M",), self._listener_safety_radius)
-        bindings.attach(self.params)
+        autopilot_bindings(
+            self.navigator, self.control, self.battery, self._apply_controller_params, self._listener_safety_radius
+        ).attach(self.params)
 
     def _apply_controller_params(self, _name: str, _value: float) -> None:
         problem = self.control.apply_controller_params()
@@ -154,10 +135,6 @@ class Autopilot:
     def _listener_safety_radius(self, _name: str, value: float) -> None:
         if hasattr(self.listener, "safety_radius_m"):
             self.listener.safety_radius_m = value  # type: ignore[union-attr]  # drawn safety spheres follow R_safe
-
-    @property
-    def planner(self) -> object | None:
-        return self.navigator.planner
 
     # ------------------------------------------------------------------ geography
     @property
@@ -430,19 +407,3 @@ class Autopilot:
             return None
         summary = self.summary(wall_time_s, lockstep)
         return reporting.write_json(Path(self.config.log_dir) / "autopilot_summary.json", summary)
-
-    @property
-    def controller(self) -> CascadeController:
-        return self.control.controller
-
-    @property
-    def gains(self) -> CascadeGains:
-        return self.control.gains
-
-    @property
-    def setpoints(self) -> SetpointGenerator:
-        return self.control.setpoints
-
-    @property
-    def reached_seqs(self) -> list[int]:
-        return self.progress.reached_seqs

@@ -28,7 +28,6 @@ LONG_MODULES: dict[str, str] = {
     "autopilot.mission.files": "being split (one module per file format)",
     "autopilot.planner.detour": "being split",
     "autopilot.planner.planner": "being split",
-    "autopilot.runner": "being split",
     "autopilot.telemetry.rerun_logger": "being split",
     "mavlink_bridge.codec": "being split",
     "mavlink_bridge.gcs_client": "being split",
