@@ -612,6 +612,12 @@ class Commander:
             self._lndmc = (p("LNDMC_Z_VEL_MAX"), p("LNDMC_XY_VEL_MAX"), p("LNDMC_LOW_T_THR"), trig_us)
         return self._lndmc
 
+    def mission_land_speed_m_s(self) -> float:
+        """The descent speed of a mission LAND at the latest state (MPC_LAND_SPEED before any: the vehicle is
+        then taken to be at home's height, below MPC_LAND_ALT2)."""
+        state = self._state
+        return self.land_speed_m_s(state) if state is not None else self.params.get("MPC_LAND_SPEED")
+
     def land_speed_m_s(self, state: VehicleState) -> float:
         """Descent speed of a landing: MPC_LAND_SPEED below MPC_LAND_ALT2 above home, else MPC_Z_VEL_MAX_DN."""
         p = self.params.get

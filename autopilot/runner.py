@@ -1,11 +1,7 @@
 """The autopilot: composes its modules and steps them once per lockstep frame (SPEC §3-§4). No sockets.
 
-Per frame (:meth:`Autopilot.step`), in sim time only::
-
-    [injected sensor failures] -> [stale-data check] -> estimator -> failsafes (10 Hz) -> navigator (AUTO_MISSION)
-    -> commander -> setpoint generator -> [navigator's avoidance override] -> NLVG-PID cascade
-    -> [injected motor failures] -> ActuatorCommand (armed flag, gripper)
-
+Every frame (250 Hz): [failures] -> [stale-data check] -> estimator -> setpoints -> [avoidance] -> cascade ->
+[motor failures] -> ActuatorCommand. At 50 Hz and after any command: failsafes (10 Hz), navigator, commander.
 The command is answered *before* the bookkeeping (:meth:`Autopilot.after_answer`: truth hash, battery,
 tracking, the next step's reference prepared), so the simulator integrates while the autopilot does the rest.
 The runner only composes and steps the modules; ``docs/architecture.md`` says what each owns, reads and emits.
@@ -55,6 +51,9 @@ from mavlink_bridge.contract.wire import ActuatorCommand, ObstacleDetection
 
 #: Failsafe conditions are evaluated every this much sim time (µs); PX4's commander runs them at 10 Hz too.
 FAILSAFE_PERIOD_US = 100_000
+#: The navigator and the commander run every this much sim time (µs, 50 Hz: PX4's navigator and land detector
+#: rates) and right after any command or upload; the estimator and flight control run every step (250 Hz).
+NAV_PERIOD_US = 20_000
 __all__ = ["Autopilot", "AutopilotConfig", "AutopilotEndReason", "StepRecord"]
 
 
@@ -94,10 +93,10 @@ class Autopilot:
         self.listener = listener
         if planner is None and self.config.avoidance:
             planner = AvoidancePlanner(PlannerParams.from_store(self.params))
-        self.navigator = Navigator(self.params, planner, self._mission_land_speed)  # type: ignore[arg-type]
+        self.commander = Commander(self.params)
+        self.navigator = Navigator(self.params, planner, self.commander.mission_land_speed_m_s)  # type: ignore[arg-type]
         self.script = script
         self.links = LinkHealth(self.config.speed_factor, wall_clock)
-        self.commander = Commander(self.params)
         self.failures = FailureInjector(self.params)  # what the estimator sees and the motors get (SYS_FAILURE_EN)
         self.commander.command_handlers[MavCmd.INJECT_FAILURE] = self.failures.handle_command
         self.sensor_check = StaleSensorCheck()  # a stuck mag/baro is dropped before the estimator
@@ -123,6 +122,7 @@ class Autopilot:
         self._pending_control: SingleStep | None = None  # this step's cascade output, booked by after_answer
         self._motor = (0.0, 0.0, 0.0, 0.0)
         self._next_failsafe_us = 0
+        self._next_nav_us = 0
         autopilot_bindings(
             self.navigator, self.control, self.battery, self._apply_controller_params, self._listener_safety_radius
         ).attach(self.params)
@@ -153,10 +153,12 @@ class Autopilot:
         self._texts.append(StatusText(severity, text))
 
     def update_context(self, **changes: object) -> CommandContext:
-        """The commander's context with ``changes`` (a new object only when something changed)."""
+        """The commander's context with ``changes`` (a new object only when something changed, which wakes the
+        slow loop)."""
         context = self._context
         if any(getattr(context, name) != value for name, value in changes.items()):
             context = self._context = replace(context, **changes)  # type: ignore[arg-type]
+            self.wake_navigation()
         return context
 
     # ------------------------------------------------------------------ commands (GCS, API, script)
@@ -171,6 +173,7 @@ class Autopilot:
                 self.listener.on_mission(items, home)
 
     def handle_command(self, request: CommandRequest) -> CommandResult:
+        self.wake_navigation()
         context = self.update_context(
             offboard_streaming=self.links.offboard_streaming(self.params.get("COM_OF_LOSS_T"))
         )
@@ -203,7 +206,20 @@ class Autopilot:
         if state is None:
             return ActuatorCommand(t_us, (0.0, 0.0, 0.0, 0.0), False, commander.gripper_release)
         self.state = state
-        # each stage's own "nothing to do" test inline: the calls are a good part of a step's cost
+        status = self.estimator.status  # the same object while nothing changes
+        if status is not self._context.estimator_status:  # arming checks and SYS_STATUS read it
+            self.update_context(estimator_status=status)
+        if state.time_us >= self._next_nav_us:  # 50 Hz, and at once after a command
+            self._next_nav_us = state.time_us + NAV_PERIOD_US
+            self._navigate(state)
+        motor = self.failures.apply_to_motors(self._control(state, self._target))
+        self._motor = motor
+        return ActuatorCommand(t_us, motor, commander.armed, commander.gripper_release)
+
+    def _navigate(self, state: VehicleState) -> None:
+        """The slow loop: home, scripted commands, failsafes (10 Hz), the navigator and the commander, which
+        set the target flight control flies until the next call (PX4: navigator and land detector at 50 Hz)."""
+        commander = self.commander
         if commander.home is not self._last_home or self.navigator.frame is None:
             self._track_home()
         script = self.script
@@ -219,23 +235,16 @@ class Autopilot:
             commander.set_gripper(release=nav.gripper_release)
         fc = self.control
         inputs = CommanderInputs(state, fc.thrust_ratio, self.estimator.local_frame, self._context, nav.mission_target)
-        target = commander.update(inputs)
+        self._target = commander.update(inputs)
         if commander.gripper_release is not fc.payload_released:
             fc.set_payload_released(commander.gripper_release)
         if commander.mode is not self._last_mode:
             self.navigator.mode_changed(commander.mode, self._last_mode, state.time_us)
             self._last_mode = commander.mode
-        self._target = target
-        motor = self.failures.apply_to_motors(self._control(state, target))
-        self._motor = motor
-        return ActuatorCommand(t_us, motor, commander.armed, commander.gripper_release)
 
-    def _mission_land_speed(self) -> float:
-        """The descent speed of a mission LAND at the commander's latest state (MPC_LAND_SPEED before any: the
-        vehicle is then taken to be at home's height, below MPC_LAND_ALT2)."""
-        commander = self.commander
-        state = commander.state
-        return commander.land_speed_m_s(state) if state is not None else self.params.get("MPC_LAND_SPEED")
+    def wake_navigation(self) -> None:
+        """Run the slow loop at the next step (a command, an upload or a setpoint arrived)."""
+        self._next_nav_us = 0
 
     def _run_script(self, state: VehicleState) -> None:
         """Scripted commands due at this sim time, through the same path as GCS commands."""

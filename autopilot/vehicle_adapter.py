@@ -79,12 +79,14 @@ class VehicleAdapter:
         return True
 
     def _offboard_heard(self) -> None:
+        self._ap.wake_navigation()  # the commander takes the new setpoint at the next step
         self._ap.links.offboard_heard()
         self._ap.update_context(offboard_streaming=True)
 
     def set_manual_input(self, sticks: ManualInput) -> bool:
         """Joystick input (MANUAL_CONTROL); POSCTL flies it while it keeps coming (COM_RC_LOSS_T)."""
         self._ap.commander.set_manual_input(sticks)
+        self._ap.wake_navigation()
         self._ap.links.manual_heard()
         self._ap.update_context(manual_fresh=True)
         return True
