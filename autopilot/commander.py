@@ -731,6 +731,11 @@ class Commander:
         if delay_s >= 0.0 and state.time_us - since_us >= delay_s * 1e6:
             self.disarm(reason=why)
 
+    def observe(self, state: VehicleState) -> None:
+        """The latest estimate between updates: commands are judged and stamped on it (the runner calls this every
+        step; :meth:`update` runs at the navigation rate)."""
+        self._state = state
+
     def update(self, inputs: CommanderInputs) -> NavTarget:
         """Advance the state machine one step on ``inputs`` (see :class:`CommanderInputs`)."""
         state, thrust_ratio = inputs.state, inputs.thrust_ratio

@@ -231,13 +231,17 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         sim_cmd, ap_cmd = commands(args)
+    except LinkUrlError as exc:
+        print(f"quadsitl up: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    problem = preflight(args, sim_cmd)  # the files first: a typo is the user's to fix whatever the ports
+    if problem is not None:
+        print(f"quadsitl up: {problem}", file=sys.stderr)
+        return EXIT_USAGE
+    try:
         check_ports_free(listen_urls(args))
     except (LinkUrlError, OSError) as exc:  # OSError: PortInUseError naming the port and --instance
         print(f"quadsitl up: {exc}", file=sys.stderr)
-        return EXIT_USAGE
-    problem = preflight(args, sim_cmd)
-    if problem is not None:
-        print(f"quadsitl up: {problem}", file=sys.stderr)
         return EXIT_USAGE
     print(banner(args, sim_cmd[sim_cmd.index("--vehicle") + 1]), flush=True)
     if args.log_dir:

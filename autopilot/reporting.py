@@ -86,6 +86,8 @@ class StepRecord:
     control: ControlSample | None  # the cascade's step (None while idle)
     battery_remaining_pct: float = math.nan
     battery_voltage_v: float = math.nan
+    truth: GroundTruth | None = None  # the sim's truth of this step: for estimate-vs-truth logging only
+    estimator_status: EstimatorStatus | None = None
 
     @property
     def pos_sp_ned_m(self) -> Vec3:

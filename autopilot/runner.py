@@ -2,8 +2,7 @@
 
 Every frame (250 Hz): [failures] -> [stale-data check] -> estimator -> setpoints -> [avoidance] -> cascade ->
 [motor failures] -> ActuatorCommand. At 50 Hz and after any command: failsafes (10 Hz), navigator, commander.
-The command is answered *before* the bookkeeping (:meth:`Autopilot.after_answer`: truth hash, battery,
-tracking, the next step's reference prepared), so the simulator integrates while the autopilot does the rest.
+The answer goes out *before* the bookkeeping (:meth:`Autopilot.after_answer`), while the simulator integrates.
 The runner only composes and steps the modules; ``docs/architecture.md`` says what each owns, reads and emits.
 """
 
@@ -51,8 +50,7 @@ from mavlink_bridge.contract.wire import ActuatorCommand, ObstacleDetection
 
 #: Failsafe conditions are evaluated every this much sim time (µs); PX4's commander runs them at 10 Hz too.
 FAILSAFE_PERIOD_US = 100_000
-#: The navigator and the commander run every this much sim time (µs, 50 Hz: PX4's navigator and land detector
-#: rates) and right after any command or upload; the estimator and flight control run every step (250 Hz).
+#: Navigator and commander period (µs, 50 Hz as PX4's navigator and land detector; at once after a command).
 NAV_PERIOD_US = 20_000
 __all__ = ["Autopilot", "AutopilotConfig", "AutopilotEndReason", "StepRecord"]
 
@@ -119,6 +117,7 @@ class Autopilot:
         self._last_home: object | None = None
         self._target = NavTarget(TargetKind.IDLE)
         self._pending_truth: object | None = None  # this step's truth, hashed by after_answer
+        self._truth: object | None = None  # the latest truth, for the step record (estimate vs truth)
         self._pending_control: SingleStep | None = None  # this step's cascade output, booked by after_answer
         self._motor = (0.0, 0.0, 0.0, 0.0)
         self._next_failsafe_us = 0
@@ -201,11 +200,12 @@ class Autopilot:
         self.frame_detections = getattr(frame, "detections", ())
         seen = self.sensor_check.apply(self.failures.apply_to_frame(frame), self.commander.in_air)
         state = self.estimator.update(seen)
-        self._pending_truth = frame.truth
+        self._pending_truth = self._truth = frame.truth
         commander = self.commander
         if state is None:
             return ActuatorCommand(t_us, (0.0, 0.0, 0.0, 0.0), False, commander.gripper_release)
         self.state = state
+        commander.observe(state)
         status = self.estimator.status  # the same object while nothing changes
         if status is not self._context.estimator_status:  # arming checks and SYS_STATUS read it
             self.update_context(estimator_status=status)
@@ -380,6 +380,8 @@ class Autopilot:
             control=fc.controller.sample() if flying else None,
             battery_remaining_pct=100.0 * self.battery.remaining,
             battery_voltage_v=self.battery.voltage_v,
+            truth=self._truth,  # type: ignore[arg-type]
+            estimator_status=self.estimator.status,
         )
 
     def snapshot(self) -> TelemetrySnapshot | None:

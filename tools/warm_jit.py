@@ -60,7 +60,7 @@ def warm() -> dict[str, float]:
     from autopilot.control.gains import CascadeGains
     from autopilot.runner import Autopilot, AutopilotConfig
 
-    Autopilot(AutopilotConfig(vehicle="x500"))  # warms the single-vehicle cascade path itself
+    Autopilot(AutopilotConfig(vehicle="x500", estimator="ekf"))  # warms the cascade and the EKF kernels
     batch = CascadeController(load_airframe("x500"), CascadeGains.paper_default(), 3)
     z3, q3 = np.zeros((3, 3)), np.tile([1.0, 0.0, 0.0, 0.0], (3, 1))
     batch.update_position(z3, z3, q3, z3, z3, z3, z3, np.zeros(3))

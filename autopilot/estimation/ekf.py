@@ -81,11 +81,20 @@ class EkfEstimator:
             (k.P_GPS_MAX_EPH, p.gps_max_eph_m),
         ):  # fmt: skip
             prm[index] = value
+        self._warm_up()
         self._frame: LocalNedFrame | None = None
         self._gps: GpsSample | None = None
         self._version = -1
         self._status_version = -1
         self._status = _NO_DATA
+
+    def _warm_up(self) -> None:
+        """One step on scratch arrays now: the kernel's first call JIT-loads it (seconds, when not cached), which
+        must not happen inside the lockstep, where the sim would declare the autopilot lost."""
+        x, p, aux, _, work, out = k.new_arrays()
+        nan = math.nan
+        ekf_step(x, p, aux, self._prm.copy(), work, out, 0, 0.0, 0.0, -9.8, 0.0, 0.0, 0.0, 0.2, 0.0, 0.4, 0.0,
+                 0, nan, nan, nan, nan, nan, nan, nan, nan)  # fmt: skip
 
     @property
     def origin(self) -> GeoPoint | None:

@@ -249,6 +249,8 @@ class RerunTelemetry:
         self._times.append(t_us)
         self._steps.append(self.steps_logged)
         self.steps_logged += 1
+        if record.truth is not None:  # the estimate against the sim's truth (decimated inside)
+            self.on_truth(state, record.truth, record.estimator_status)
 
         if t_us >= self._next_3d_us:
             self._next_3d_us = t_us + self._period_3d_us
