@@ -50,6 +50,8 @@ class ParamSpec:
 
 
 Listener = Callable[[str, float], None]
+#: Converts a parsed parameter file with a ``format`` key into ``NAME: value`` pairs.
+FileFormat = Callable[[dict], Mapping[str, float]]
 
 
 class ParamStore:
@@ -101,11 +103,27 @@ class ParamStore:
     def subscribe(self, listener: Listener) -> None:
         self._listeners.append(listener)
 
-    def load_file(self, path: str | Path) -> None:
-        """Apply a YAML file of ``NAME: value`` pairs; all are checked before any is set."""
-        data = yaml.safe_load(Path(path).read_text()) or {}
+    def load_file(self, path: str | Path, formats: Mapping[str, FileFormat] | None = None) -> None:
+        """Apply a YAML file of ``NAME: value`` pairs; all are checked before any is set.
+
+        A file with a top-level ``format: F`` key is converted by ``formats[F]`` (e.g. a tuner's gains file,
+        ``autopilot.param_schema``) into ``NAME: value`` pairs first. Every refusal is a one-line ParamError.
+        """
+        try:
+            data = yaml.safe_load(Path(path).read_text()) or {}
+        except (OSError, yaml.YAMLError) as exc:
+            raise ParamError(f"{path}: {' '.join(str(exc).split())}") from None
         if not isinstance(data, dict):
             raise ParamError(f"{path}: expected a mapping of NAME: value, got {type(data).__name__}")
+        if "format" in data:
+            convert = (formats or {}).get(str(data["format"]))
+            if convert is None:
+                known = ", ".join(sorted(formats or {})) or "none"
+                raise ParamError(f"{path}: unknown file format {data['format']!r} (known: {known})")
+            try:
+                data = convert(data)
+            except (TypeError, ValueError) as exc:
+                raise ParamError(f"{path}: {' '.join(str(exc).split())}") from None
         checked = {}
         for name, value in data.items():
             spec = self._specs.get(str(name))
