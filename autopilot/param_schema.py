@@ -12,7 +12,8 @@ import sys
 from collections.abc import Iterable
 from pathlib import Path
 
-from autopilot.control.param_decls import controller_param_specs
+from autopilot.control.gains import GAINS_FILE_FORMAT, CascadeGains
+from autopilot.control.param_decls import controller_param_specs, params_from_gains
 from autopilot.mission.param_decls import mission_param_specs
 from autopilot.nav_params import nav_param_specs
 from autopilot.params import ParamError, ParamSpec, ParamStore
@@ -71,14 +72,24 @@ def all_param_specs(payload_nominal_kg: float = 0.0) -> list[ParamSpec]:
 
 
 def make_param_store(params_file: str | Path | None = None, *, payload_nominal_kg: float = 0.0) -> ParamStore:
-    """A ParamStore with every parameter at its default, then ``params_file`` (YAML NAME: value) applied.
+    """A ParamStore with every parameter at its default, then ``params_file`` applied: YAML ``NAME: value``
+    pairs, or a gains file as ``tools.tune_es`` writes it (:data:`PARAM_FILE_FORMATS`).
 
     ``payload_nominal_kg`` (the airframe's) is the default of ``PLD_MASS_KG``.
     """
     store = ParamStore(all_param_specs(payload_nominal_kg))
     if params_file is not None:
-        store.load_file(params_file)
+        store.load_file(params_file, PARAM_FILE_FORMATS)
     return store
+
+
+def _gains_file_params(data: dict) -> dict[str, float]:
+    """A gains file (``tools.tune_es`` output, ``format: quadsitl.cascade_gains/1``) as ``NV_*`` values."""
+    return params_from_gains(CascadeGains.from_dict(data))
+
+
+#: Files ``--params`` accepts besides plain ``NAME: value`` pairs, by their ``format`` key.
+PARAM_FILE_FORMATS = {GAINS_FILE_FORMAT: _gains_file_params}
 
 
 def _cell(text: str) -> str:

@@ -50,6 +50,8 @@ class ParamSpec:
 
 
 Listener = Callable[[str, float], None]
+#: Converts a parsed parameter file with a ``format`` key into ``NAME: value`` pairs.
+FileFormat = Callable[[dict], Mapping[str, float]]
 
 
 def difflike(name: object, names: Iterable[str]) -> bool:
@@ -106,11 +108,13 @@ class ParamStore:
     def subscribe(self, listener: Listener) -> None:
         self._listeners.append(listener)
 
-    def load_file(self, path: str | Path) -> None:
+    def load_file(self, path: str | Path, formats: Mapping[str, FileFormat] | None = None) -> None:
         """Apply a YAML file of ``NAME: value`` pairs; all are checked before any is set.
 
         ParamError is one line ``FILE:LINE: what is wrong; fix: ...`` (a missing file, bad YAML, an unknown
-        name, a value that is not a number or out of range).
+        name, a value that is not a number or out of range). A file with a top-level ``format: F`` key is
+        converted by ``formats[F]`` (e.g. a tuner's gains file, ``autopilot.param_schema``) into ``NAME: value``
+        pairs first.
         """
         try:
             source = read_yaml(path)
@@ -124,6 +128,20 @@ class ParamStore:
                 f"{source.where()}: expected a mapping of NAME: value, got {type(data).__name__}; "
                 "fix: write one 'NAME: value' per line, e.g. 'MPC_XY_CRUISE: 5.0'"
             )
+        if "format" in data:
+            convert = (formats or {}).get(str(data["format"]))
+            if convert is None:
+                known = ", ".join(sorted(formats or {})) or "none"
+                raise ParamError(
+                    f"{source.where('format')}: unknown file format {data['format']!r}; fix: one of {known}, "
+                    "or plain 'NAME: value' pairs"
+                )
+            try:
+                data = convert(data)
+            except (TypeError, ValueError) as exc:
+                raise ParamError(
+                    f"{source.where()}: {' '.join(str(exc).split())}; fix: rewrite it with python -m tools.tune_es"
+                ) from None
         checked = {}
         for name, value in data.items():
             where = source.where(str(name))

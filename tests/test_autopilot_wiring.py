@@ -11,7 +11,7 @@ from autopilot_fakes import command
 from autopilot_loop import SimLoop
 
 from autopilot.control.airframe import load_airframe
-from autopilot.control.param_decls import controller_param_specs
+from autopilot.control.param_decls import controller_param_specs, shipped_gains
 from autopilot.mission.fence import circle_fence_items, polygon_fence_items
 from autopilot.param_schema import all_param_specs, make_param_store
 from autopilot.runner import Autopilot, AutopilotConfig
@@ -45,7 +45,9 @@ def test_gain_change_in_flight_shows_in_the_diagnostics_next_step() -> None:
     loop = SimLoop("x500")
     loop.take_off(10.0, settle_s=2.0)
     vehicle, diag = loop.vehicle, loop.ap.control.controller.diagnostics  # type: ignore[union-attr]
-    assert diag.kp[0, Z] == 5.0 and diag.kp[0, ROLL] == 8.0
+    shipped = shipped_gains()  # the defaults: a variable gain, k_p(|e|) between its k1 and k2
+    for col, ch in ((Z, shipped.z), (ROLL, shipped.roll)):
+        assert min(ch.k1[0], ch.k2[0]) - 1e-9 <= diag.kp[0, col] <= max(ch.k1[0], ch.k2[0]) + 1e-9
     for name, value in (("NV_Z_P_K1", 7.0), ("NV_Z_P_K2", 7.0), ("NV_ROLL_P_K1", 11.0), ("NV_ROLL_P_K2", 11.0)):
         assert vehicle.param_set(name, value) == (True, value, "")
     controller = loop.ap.control.controller

@@ -35,7 +35,10 @@ def test_recovery_time_counts_from_the_change() -> None:
 def test_quick_paper_table_schema(tmp_path: Path) -> None:
     assert paper_table.main(["--quick", "--out", str(tmp_path)]) == 0
     table = json.loads((tmp_path / "paper_table.json").read_text())
-    assert set(table) == {"step", "storm", "lissajous"}
+    assert set(table) == {"step", "storm", "lissajous", "noisy_effort"}
+    noisy = table["noisy_effort"]
+    assert set(noisy) == {"step", "storm", "lissajous"} and set(noisy["step"]) == {"phi", "theta", "x", "y"}
+    assert set(noisy["lissajous"]["nlvg"]) == {"pos_rms_m", "att_rms_deg"}
     assert set(table["step"]) == {"phi", "theta", "x", "y"}
     for row in table["step"].values():
         assert set(row) == {"pid", "nlvg"}
@@ -54,7 +57,15 @@ def test_quick_paper_table_schema(tmp_path: Path) -> None:
     assert extras["payload"]["-30%"]["pid"]["mass_after_kg"] == pytest.approx(
         0.7 * extras["payload"]["-30%"]["pid"]["mass_before_kg"]
     )
+    nz = extras["noisy_effort"]
+    assert [p["effort_scale"] for p in nz["tradeoff"]] == [0.0, 1.0]
+    assert set(nz["steps"]["phi"]["ratio"]["IAE"]) == {"mean", "ci95"}
+    assert set(nz["steps"]["x"]["values"]["nlvg"]) >= {"overshoot", "settling_s", "chatter_per_s"}
+    assert set(nz["eval_seeds"]).isdisjoint(nz["train_seeds"])
+    assert "phi" in extras["step_overshoot_settling"]
+    assert (tmp_path / "tradeoff_noisy.png").stat().st_size > 1000
     md = (tmp_path / "paper_table.md").read_text()
+    assert "The noisy, effort-aware setting" in md
     assert "| φ (roll, °) |" in md and "IAE ratio" in md
     for name in ("step_attitude.png", "storm_errors.png", "lissajous_errors.png", "convergence_attitude_nlvg.png"):
         assert (tmp_path / name).stat().st_size > 1000

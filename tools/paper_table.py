@@ -6,13 +6,17 @@ Usage::
 
 Writes into ``--out``:
 
-* ``paper_table.json``: exactly the SPEC §12 schema ({"step": {phi, theta, x, y: {pid, nlvg: {IAE, ITAE,
-  ITSE}}}, "storm"/"lissajous": {pid, nlvg: {pos_rms_m, att_rms_deg}}});
-* ``paper_extras.json``: ratios, portability table, payload change, tuning budget and wall times;
+* ``paper_table.json``: the SPEC §12 schema ({"step": {phi, theta, x, y: {pid, nlvg: {IAE, ITAE,
+  ITSE}}}, "storm"/"lissajous": {pid, nlvg: {pos_rms_m, att_rms_deg}}}) for the noise-free setting, and the same
+  schema under ``"noisy_effort"`` for the noisy effort-aware setting (means over the held-out seeds);
+* ``paper_extras.json``: ratios, portability table, payload change, step overshoot/settling, tuning budget and
+  wall times; under ``"noisy_effort"``: the noise model, seeds, λ, μ, every metric with its 95 % CI and the
+  per-seed NLVG/PID ratios, hover jitter/chatter, the λ sweep, J and the tuned gains;
 * ``paper_table.md``: Table 1 layout with NLVG/PID ratios, the tracking, portability and payload tables;
 * plots: ``step_attitude.png``, ``step_position.png``, ``storm_errors.png``, ``lissajous_errors.png``,
-  ``payload_change.png``, ``convergence_<level>_<structure>.png``; tuned gains ``gains_pid.yaml``,
-  ``gains_nlvg.yaml``.
+  ``payload_change.png``, ``convergence_<level>_<structure>.png``, ``tradeoff_noisy.png`` (the λ sweep),
+  ``step_attitude_noisy.png``, ``step_position_noisy.png``, ``lissajous_errors_noisy.png``; tuned gains
+  ``gains_pid.yaml``, ``gains_nlvg.yaml``, ``gains_noisy_pid.yaml``, ``gains_noisy_nlvg.yaml``.
 """
 
 from __future__ import annotations
@@ -26,6 +30,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from tools.experiments.noisy_eval import hover_metrics, route_metrics, step_metrics, tradeoff_point
+from tools.experiments.noisy_pipeline import noisy_config, tune_noisy_pair
 from tools.experiments.paper_pipeline import (
     LEVELS,
     RECOVERY_BAND_M,
@@ -39,7 +45,8 @@ from tools.experiments.paper_pipeline import (
     tracking_table,
     tune_both,
 )
-from tools.experiments.paper_plots import plot_mass_change, plot_steps, plot_tracking
+from tools.experiments.paper_plots import plot_mass_change, plot_steps, plot_tracking, plot_tradeoff
+from tools.experiments.rollout import StepTrace
 from tools.experiments.tuner import plot_convergence
 
 #: the paper's claims (section 4 and Table 1) for the honest comparison
@@ -167,11 +174,171 @@ def markdown(table: dict[str, Any], extras: dict[str, Any]) -> str:
             f"| {_fmt(n['recovery_s'], inf_text=nr)} |"
         )
     lines += ["", f"Recovery: time until |altitude error| stays below {extras['recovery_band_m']} m.", ""]
+    lines += noisy_markdown(extras)
     return "\n".join(lines)
+
+
+def _mci(mc: dict[str, float], digits: int = 3) -> str:
+    """``mean ± ci95``."""
+    return f"{_fmt(mc['mean'], digits)} ± {_fmt(mc['ci95'], 2)}"
+
+
+def noisy_markdown(extras: dict[str, Any]) -> list[str]:
+    """The noisy effort-aware setting: ratios with 95 % CIs over the held-out seeds, step shape, hover, sweep."""
+    nz = extras["noisy_effort"]
+    shape = extras["step_overshoot_settling"]
+    lines = [
+        "## Noise-free large steps: overshoot and 5 % settling time",
+        "",
+        "| Channel | PID overshoot | NLVG overshoot | PID settling (s) | NLVG settling (s) |",
+        "|---|---|---|---|---|",
+    ]
+    for ch, row in shape.items():
+        p, n = row["pid"], row["nlvg"]
+        lines.append(
+            f"| {ch} | {p['overshoot']:.1%} | {n['overshoot']:.1%} | {_fmt(p['settling_s'], 3)} "
+            f"| {_fmt(n['settling_s'], 3)} |"
+        )
+    lines += [
+        "",
+        "# The noisy, effort-aware setting",
+        "",
+        f"Feedback noise: white + Gauss-Markov drift on position, velocity, attitude and rates "
+        f"(`tools/experiments/feedback_noise.py`); training seeds {nz['train_seeds']}, evaluation on held-out "
+        f"seeds {nz['eval_seeds']} (mean ± 95 % CI over seeds; ratios NLVG/PID taken per seed, both structures "
+        f"meet the same noise and gusts). Cost: true-error mean e² + λ·chatter² + μ·overshoot², λ = "
+        f"{nz['effort_weight']} × {nz['headline_effort_scale']:g}, μ = {nz['overshoot_weight']}. "
+        "PID tuned first, NLVG (k1, k2, δ1, δ2) warm-started at it.",
+        "",
+        "| Channel | IAE ratio | ITAE ratio | ITSE ratio | PID overshoot | NLVG overshoot | PID settling (s) "
+        "| NLVG settling (s) | chatter ratio |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for ch, row in nz["steps"].items():
+        r, v = row["ratio"], row["values"]
+        lines.append(
+            f"| {ch} | {_mci(r['IAE'])} | {_mci(r['ITAE'])} | {_mci(r['ITSE'])} | {v['pid']['overshoot']:.1%} "
+            f"| {v['nlvg']['overshoot']:.1%} | {_fmt(v['pid']['settling_s'], 3)} | {_fmt(v['nlvg']['settling_s'], 3)} "
+            f"| {_mci(r['chatter_per_s'])} |"
+        )
+    lines += [
+        "",
+        "| Route / hover (wind) | PID pos (m) | NLVG pos (m) | pos ratio | PID att (°) | NLVG att (°) | att ratio "
+        "| chatter ratio |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for name in ("storm", "lissajous", "hover"):
+        row = nz[name]
+        v, r = row["values"], row["ratio"]
+        lines.append(
+            f"| {name} | {_fmt(v['pid']['pos_rms_m'])} | {_fmt(v['nlvg']['pos_rms_m'])} | {_mci(r['pos_rms_m'])} "
+            f"| {_fmt(v['pid']['att_rms_deg'])} | {_fmt(v['nlvg']['att_rms_deg'])} | {_mci(r['att_rms_deg'])} "
+            f"| {_mci(r['chatter_per_s'])} |"
+        )
+    lines += [
+        "",
+        "λ sweep (`tradeoff_noisy.png`): per λ multiplier, both structures re-tuned; 1 m x-step RMS true error, "
+        "hover attitude jitter and motor chatter on the held-out seeds.",
+        "",
+        "| λ× | PID step (m) | NLVG step (m) | PID jitter (°) | NLVG jitter (°) | PID chatter (1/s) "
+        "| NLVG chatter (1/s) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for pt in nz["tradeoff"]:
+        p, n = pt["pid"], pt["nlvg"]
+        lines.append(
+            f"| {pt['effort_scale']:g} | {_fmt(p['step_rms_m'])} | {_fmt(n['step_rms_m'])} | {_fmt(p['jitter_deg'])} "
+            f"| {_fmt(n['jitter_deg'])} | {_fmt(p['chatter_per_s'])} | {_fmt(n['chatter_per_s'])} |"
+        )
+    jw = nz["j_nlvg_warm_start_at_pid"]
+    lines += [
+        "",
+        "ES cost J (training seeds), initial → best: "
+        + ", ".join(f"{k} {_fmt(v[0])} → {_fmt(v[1])}" for k, v in nz["j"].items())
+        + "; the NLVG's J at its warm start (the tuned PID's gains): "
+        + ", ".join(f"{k} {_fmt(v)}" for k, v in jw.items())
+        + ".",
+        "",
+    ]
+    return lines
 
 
 def _pct(ratio: float) -> str:
     return "n/a" if not math.isfinite(ratio) else f"{(ratio - 1.0) * 100.0:+.1f} %"
+
+
+def _first_block(tr: StepTrace) -> StepTrace:
+    """The PID/NLVG pair of the first noise seed (for the step plots)."""
+    return replace(tr, error=tr.error[:2], response=tr.response[:2], diverged=tr.diverged[:2], chatter=tr.chatter[:2])
+
+
+def step_shape(traces: dict[str, StepTrace]) -> dict[str, dict[str, dict[str, float]]]:
+    """Noise-free large steps: overshoot (fraction of the step) and 5 % settling time (s) per structure."""
+    return {
+        key: {
+            s: {"overshoot": float(tr.overshoot[i]), "settling_s": float(tr.settling_time_s(0.05)[i])}
+            for i, s in enumerate(STRUCTURES)
+        }
+        for key, tr in traces.items()
+    }
+
+
+def noisy_setting(settings: PaperSettings, vehicle: str, out: Path, log) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The noisy effort-aware setting: λ sweep (tuning both structures per λ), held-out-seed evaluation of the
+    headline λ (×1): Table 1 with overshoot/settling, routes, hover; returns (table part, extras part)."""
+    att_cfg = noisy_config("attitude", vehicle)
+    noise, seeds = att_cfg.noise, att_cfg.eval_seeds
+    durations = {"attitude": settings.step_duration_attitude_s, "position": settings.step_duration_position_s}
+    sweep = []
+    pairs = {}
+    for scale in settings.effort_scales:
+        pair = tune_noisy_pair(vehicle, scale, settings.noisy_iterations, log, settings.tune_step_scale)
+        pairs[scale] = pair
+        point = tradeoff_point(pair.gains, vehicle, noise, seeds, settings.hover_s, settings.step_duration_position_s)
+        sweep.append({"effort_scale": scale, **point})
+        log(f"noisy λ×{scale:g}: tuned and evaluated")
+    plot_tradeoff(sweep, out / "tradeoff_noisy.png")
+    head = pairs[1.0] if 1.0 in pairs else pairs[settings.effort_scales[-1]]
+    for s in STRUCTURES:
+        head.gains[s].to_yaml(out / f"gains_noisy_{s}.yaml")
+    steps, traces = step_metrics(head.gains, vehicle, noise, seeds, durations)
+    storm, _ = route_metrics(head.gains, vehicle, "storm", settings.noisy_storm_duration_s, noise, seeds)
+    liss, liss_tr = route_metrics(head.gains, vehicle, "lissajous", settings.noisy_lissajous_duration_s, noise, seeds)
+    hover = hover_metrics(head.gains, vehicle, settings.hover_s, noise, seeds)
+    log("noisy setting evaluated")
+    plot_steps({k: _first_block(t) for k, t in traces.items()}, ("phi", "theta"), out / "step_attitude_noisy.png", True)
+    plot_steps({k: _first_block(t) for k, t in traces.items()}, ("x", "y"), out / "step_position_noisy.png", False)
+    plot_tracking(liss_tr, "Lissajous, noisy feedback", out / "lissajous_errors_noisy.png")
+    table = {
+        "step": {
+            k: {s: {m: v["values"][s][m] for m in ("IAE", "ITAE", "ITSE")} for s in STRUCTURES}
+            for k, v in steps.items()
+        },
+        "storm": {s: {m: storm["values"][s][m] for m in ("pos_rms_m", "att_rms_deg")} for s in STRUCTURES},
+        "lissajous": {s: {m: liss["values"][s][m] for m in ("pos_rms_m", "att_rms_deg")} for s in STRUCTURES},
+    }
+    extras = {
+        "noise": noise.to_dict(),
+        "eval_seeds": list(seeds),
+        "train_seeds": list(att_cfg.seeds),
+        "effort_weight": {lv: noisy_config(lv, vehicle).effort_weight for lv in ("attitude", "position")},
+        "overshoot_weight": {lv: noisy_config(lv, vehicle).overshoot_weight for lv in ("attitude", "position")},
+        "headline_effort_scale": 1.0 if 1.0 in pairs else settings.effort_scales[-1],
+        "steps": steps,
+        "storm": storm,
+        "lissajous": liss,
+        "hover": hover,
+        "tradeoff": sweep,
+        "j": {
+            f"{lv}_{s}": [head.outcomes[(lv, s)].result.j_initial, head.outcomes[(lv, s)].result.j_best]
+            for lv in LEVELS
+            for s in STRUCTURES
+        },
+        "j_nlvg_warm_start_at_pid": head.j_warm_start,
+        "rollouts": {f"{lv}_{s}": head.outcomes[(lv, s)].result.n_evaluations for lv in LEVELS for s in STRUCTURES},
+        "gains": {s: head.gains[s].to_dict()["channels"] for s in STRUCTURES},
+    }
+    return table, extras
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -214,6 +381,7 @@ def main(argv: list[str] | None = None) -> int:
     log("portability done")
     payload, payload_traces = payload_table(pair, settings)
     log("payload change done")
+    noisy_table, noisy_extras = noisy_setting(settings, args.vehicle, out, log)
 
     plot_steps(step_traces, ("phi", "theta"), out / "step_attitude.png", degrees=True)
     plot_steps(step_traces, ("x", "y"), out / "step_position.png", degrees=False)
@@ -250,8 +418,11 @@ def main(argv: list[str] | None = None) -> int:
             "tune_wall_s": {f"{lv}_{s}": pair.outcomes[(lv, s)].wall_s for lv in LEVELS for s in STRUCTURES},
         },
         "durations_s": {"storm": settings.storm_duration_s, "lissajous": settings.lissajous_duration_s},
+        "step_overshoot_settling": step_shape(step_traces),
+        "noisy_effort": noisy_extras,
         "wall_s": time.perf_counter() - t_start,
     }
+    table["noisy_effort"] = noisy_table
     (out / "paper_table.json").write_text(json.dumps(_json_safe(table), indent=2) + "\n")
     (out / "paper_extras.json").write_text(json.dumps(_json_safe(extras), indent=2) + "\n")
     (out / "paper_table.md").write_text(markdown(table, extras))

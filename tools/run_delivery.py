@@ -219,6 +219,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out-dir", default=None, help="default runs/<timestamp>")
     parser.add_argument("--timeout-s", type=float, default=600.0, help="wall-clock limit for the flight")
     parser.add_argument("--rerun", default=None, help="override --rerun (default save:<out-dir>/flight.rrd)")
+    parser.add_argument("--params", default=None, help="autopilot --params FILE (NAME: value pairs or a gains file)")
     args = parser.parse_args(argv)
 
     mission = Path(args.mission)
@@ -243,6 +244,8 @@ def main(argv: list[str] | None = None) -> int:
     ]  # fmt: skip
     if args.vehicle:
         up_cmd += ["--vehicle", args.vehicle]
+    if args.params:
+        up_cmd += ["--params", args.params]
     gcs_cmd = [
         sys.executable, "-m", "tools.gcs", "--instance", str(instance), "fly", str(mission),
         "--summary", str(out_dir / "gcs_summary.json"), "--timeout-s", str(args.timeout_s),

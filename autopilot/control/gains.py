@@ -48,7 +48,7 @@ def _as_triple(value: Sequence[Gain], name: str) -> tuple[Gain, Gain, Gain]:
 class NlvgGains:
     """One channel: k(s) goes from ``k1`` (|s| < δ1) to ``k2`` (|s| > δ2) for each of (kp, ki, kd).
 
-    Fixed PID when k1 == k2. Each gain is a float or an array (n,) (one value per vehicle).
+    Fixed PID when k1 == k2. Each gain (and δ1, δ2) is a float or an array (n,) (one value per vehicle).
     ``variant``: "raised_cosine" | "paper_literal"; ``schedule``: "error" | "per_term" (see pid.py).
     """
 
@@ -62,8 +62,12 @@ class NlvgGains:
     def __post_init__(self) -> None:
         object.__setattr__(self, "k1", _as_triple(self.k1, "k1"))
         object.__setattr__(self, "k2", _as_triple(self.k2, "k2"))
-        if not (math.isfinite(self.delta1) and math.isfinite(self.delta2) and 0.0 <= self.delta1 < self.delta2):
+        d1, d2 = (np.asarray(d, dtype=np.float64) for d in (self.delta1, self.delta2))
+        ok = d1.ndim <= 1 and d2.ndim <= 1 and np.all(np.isfinite(d1)) and np.all(np.isfinite(d2))
+        if not (ok and np.all(d1 >= 0.0) and np.all(d1 < d2)):
             raise ValueError(f"need 0 <= delta1 < delta2, got delta1={self.delta1}, delta2={self.delta2}")
+        object.__setattr__(self, "delta1", float(d1) if d1.ndim == 0 else d1)
+        object.__setattr__(self, "delta2", float(d2) if d2.ndim == 0 else d2)
         GainVariant.parse(self.variant)
         Schedule.parse(self.schedule)
 
@@ -75,7 +79,8 @@ class NlvgGains:
     @property
     def n(self) -> int:
         """Batch size implied by the gain arrays (1 for scalars)."""
-        return int(np.broadcast_shapes(*(np.shape(g) for g in (*self.k1, *self.k2)), (1,))[0])
+        shapes = (np.shape(g) for g in (*self.k1, *self.k2, self.delta1, self.delta2))
+        return int(np.broadcast_shapes(*shapes, (1,))[0])
 
     def row(self, n: int) -> np.ndarray:
         """Packed gain-table rows (n, N_GAIN_COLS) for the kernels (pid.G_* columns)."""
@@ -90,7 +95,7 @@ class NlvgGains:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain YAML-able mapping (scalar gains only)."""
-        if self.n != 1 or any(np.ndim(g) for g in (*self.k1, *self.k2)):
+        if self.n != 1 or any(np.ndim(g) for g in (*self.k1, *self.k2, self.delta1, self.delta2)):
             raise ValueError("only a single (scalar) gain set can be written to a file")
         return {
             "k1": [float(g) for g in self.k1],
@@ -156,7 +161,7 @@ class CascadeGains:
 
     @staticmethod
     def stacked(items: Sequence[CascadeGains]) -> CascadeGains:
-        """One batch (gains as arrays (n,)) from n single gain sets; δ, variant, schedule must agree."""
+        """One batch (gains and δ as arrays (n,)) from n single gain sets; variant and schedule must agree."""
         if not items:
             raise ValueError("stacked() needs at least one gain set")
         out = {}
@@ -164,17 +169,40 @@ class CascadeGains:
             chans = [getattr(g, c) for g in items]
             first = chans[0]
             for other in chans[1:]:
-                if (other.delta1, other.delta2, other.variant, other.schedule) != (
-                    first.delta1,
-                    first.delta2,
-                    first.variant,
-                    first.schedule,
-                ):
-                    raise ValueError(f"channel {c}: delta1/delta2/variant/schedule differ within the batch")
-            k1 = tuple(np.array([np.broadcast_to(ch.k1[t], ()) for ch in chans], dtype=np.float64) for t in range(3))
-            k2 = tuple(np.array([np.broadcast_to(ch.k2[t], ()) for ch in chans], dtype=np.float64) for t in range(3))
-            out[c] = replace(first, k1=k1, k2=k2)
+                if (other.variant, other.schedule) != (first.variant, first.schedule):
+                    raise ValueError(f"channel {c}: variant/schedule differ within the batch")
+
+            def col(get, chans=chans) -> np.ndarray:
+                return np.array([np.broadcast_to(get(ch), ()) for ch in chans], dtype=np.float64)
+
+            k1 = tuple(col(lambda ch, t=t: ch.k1[t]) for t in range(3))
+            k2 = tuple(col(lambda ch, t=t: ch.k2[t]) for t in range(3))
+            d1, d2 = col(lambda ch: ch.delta1), col(lambda ch: ch.delta2)
+            same_d = bool(np.all(d1 == d1[0]) and np.all(d2 == d2[0]))
+            out[c] = replace(
+                first, k1=k1, k2=k2, delta1=float(d1[0]) if same_d else d1, delta2=float(d2[0]) if same_d else d2
+            )
         return CascadeGains(**out)
+
+    def tiled(self, reps: int) -> CascadeGains:
+        """The batch repeated ``reps`` times (vehicle ``b·n + i`` flies gain set ``i``), e.g. one block per seed."""
+        n = self.n
+
+        def tile(g: Gain) -> Gain:
+            return g if np.ndim(g) == 0 else np.tile(np.broadcast_to(g, (n,)), reps)
+
+        return CascadeGains(
+            **{
+                c: replace(
+                    ch,
+                    k1=tuple(tile(g) for g in ch.k1),
+                    k2=tuple(tile(g) for g in ch.k2),
+                    delta1=tile(ch.delta1),
+                    delta2=tile(ch.delta2),
+                )
+                for c, ch in zip(CHANNELS, self.channels(), strict=True)
+            }
+        )
 
     def select(self, i: int) -> CascadeGains:
         """Gain set of vehicle i of a batch, as scalars."""
@@ -184,18 +212,34 @@ class CascadeGains:
 
         return CascadeGains(
             **{
-                c: replace(ch, k1=tuple(pick(g) for g in ch.k1), k2=tuple(pick(g) for g in ch.k2))
+                c: replace(
+                    ch,
+                    k1=tuple(pick(g) for g in ch.k1),
+                    k2=tuple(pick(g) for g in ch.k2),
+                    delta1=pick(ch.delta1),
+                    delta2=pick(ch.delta2),
+                )
                 for c, ch in zip(CHANNELS, self.channels(), strict=True)
             }
         )
 
-    def to_dict(self) -> dict[str, Any]:
-        return {"format": GAINS_FILE_FORMAT, "channels": {c: getattr(self, c).to_dict() for c in CHANNELS}}
+    def to_dict(self, provenance: dict[str, Any] | None = None) -> dict[str, Any]:
+        """The gain file mapping; ``provenance`` (which command and seed wrote it) is kept beside the channels."""
+        out: dict[str, Any] = {"format": GAINS_FILE_FORMAT}
+        if provenance:
+            out["provenance"] = dict(provenance)
+        out["channels"] = {c: getattr(self, c).to_dict() for c in CHANNELS}
+        return out
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> CascadeGains:
         if not isinstance(data, dict) or data.get("format") != GAINS_FILE_FORMAT:
             raise ValueError(f"not a gain set: expected format: {GAINS_FILE_FORMAT}")
+        unknown = set(data) - {"format", "provenance", "channels"}
+        if unknown:
+            raise ValueError(f"gain set: unknown keys {sorted(unknown)} (allowed: format, provenance, channels)")
+        if not isinstance(data.get("provenance", {}), dict):
+            raise ValueError("gain set: provenance must be a mapping")
         chans = data.get("channels")
         if not isinstance(chans, dict) or sorted(chans) != sorted(CHANNELS):
             raise ValueError(f"gain set must have channels {list(CHANNELS)}")
@@ -211,15 +255,15 @@ class CascadeGains:
                 raise ValueError(f"channel {c}: {exc}") from None
         return cls(**out)
 
-    def to_yaml(self, path: str | Path) -> None:
-        Path(path).write_text(yaml.safe_dump(self.to_dict(), sort_keys=False))
+    def to_yaml(self, path: str | Path, provenance: dict[str, Any] | None = None) -> None:
+        Path(path).write_text(yaml.safe_dump(self.to_dict(provenance), sort_keys=False, allow_unicode=True))
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> CascadeGains:
         try:
             return cls.from_dict(yaml.safe_load(Path(path).read_text()))
-        except ValueError as exc:
-            raise ValueError(f"{path}: {exc}") from None
+        except (OSError, yaml.YAMLError, ValueError) as exc:
+            raise ValueError(f"{path}: {' '.join(str(exc).split())}") from None
 
 
 @dataclass(frozen=True)

@@ -5,21 +5,23 @@ CH ∈ {X, Y, Z, ROLL, PITCH, YAW}; ``NV_<CH>_DLT1`` / ``_DLT2`` for δ1/δ2; ``
 1 paper literal) and ``NV_SCHED`` (0 |e| for all gains, 1 per term); limits ``MPC_TILTMAX_DEG``,
 ``MPC_ACC_HOR_MAX``, ``MPC_ACC_UP_MAX``, ``MPC_ACC_DOWN_MAX``, ``NV_AACC_RP_MAX``, ``NV_AACC_Y_MAX``,
 ``NV_POS_I_MAX``, ``NV_ATT_I_MAX``, ``NV_POS_TSCALE``, ``NV_ATT_TSCALE``. Gains are dimensionless in each
-loop's normalised time (pid.py). Defaults: the paper's starting gains as a fixed PID, δ1 = 0.01, δ2 = 0.838.
+loop's normalised time (pid.py), so one set flies every wheelbase.
+
+Defaults of the gains and δ: the shipped ES-tuned NLVG-PID gains in :data:`DEFAULT_GAINS_PATH`
+(``autopilot/control/default_gains.yaml``, written by ``python -m tools.tune_es --ship``; the file records the
+command and seeds that produced it). A missing or malformed file is an error, never a silent fallback.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from functools import cache
+from pathlib import Path
 
 from autopilot.control.gain_schedule import GainVariant
 from autopilot.control.gains import (
     CHANNELS,
-    PAPER_ATTITUDE_PID,
-    PAPER_DELTA1,
-    PAPER_DELTA2,
-    PAPER_POSITION_PID,
     CascadeGains,
     CascadeLimits,
     NlvgGains,
@@ -28,6 +30,8 @@ from autopilot.control.pid import Schedule
 from autopilot.params import ParamSpec
 
 TERMS = ("P", "I", "D")
+#: The shipped default gains (a gains file, ``CascadeGains.from_yaml``), written by ``tools.tune_es --ship``.
+DEFAULT_GAINS_PATH = Path(__file__).resolve().parent / "default_gains.yaml"
 _LIMIT_PARAMS: tuple[tuple[str, str, float, float, str, str, float], ...] = (
     # name, CascadeLimits field, min, max, unit, description, scale (param value × scale = field value)
     ("MPC_TILTMAX_DEG", "tilt_max_rad", 5.0, 80.0, "deg", "maximum tilt of the thrust vector", math.pi / 180),
@@ -53,18 +57,25 @@ def delta_param_name(channel: str, which: int) -> str:
     return f"NV_{channel.upper()}_DLT{which}"
 
 
+@cache
+def shipped_gains() -> CascadeGains:
+    """The shipped default gains (:data:`DEFAULT_GAINS_PATH`); ValueError naming the file if it is unusable."""
+    return CascadeGains.from_yaml(DEFAULT_GAINS_PATH)
+
+
 def controller_param_specs() -> list[ParamSpec]:
-    """Every controller parameter with default, range, unit and description."""
+    """Every controller parameter with default (gains and δ: :func:`shipped_gains`), range, unit and description."""
     specs: list[ParamSpec] = []
+    shipped = shipped_gains()
     for ch in CHANNELS:
-        base = PAPER_POSITION_PID if ch in ("x", "y", "z") else PAPER_ATTITUDE_PID
+        g = getattr(shipped, ch)
         for t, term in enumerate(TERMS):
-            for bound in (1, 2):
+            for bound, k in ((1, g.k1), (2, g.k2)):
                 which = "small-error (k1)" if bound == 1 else "large-error (k2)"
                 specs.append(
                     ParamSpec(
                         gain_param_name(ch, term, bound),
-                        base[t],
+                        float(k[t]),
                         0.0,
                         100.0,
                         "",
@@ -72,10 +83,13 @@ def controller_param_specs() -> list[ParamSpec]:
                     )
                 )
         unit = "m" if ch in ("x", "y", "z") else "rad"
-        specs.append(ParamSpec(delta_param_name(ch, 1), PAPER_DELTA1, 0.0, 10.0, unit, f"{ch} delta1: k1 below"))
-        specs.append(ParamSpec(delta_param_name(ch, 2), PAPER_DELTA2, 0.001, 20.0, unit, f"{ch} delta2: k2 above"))
-    specs.append(ParamSpec("NV_VARIANT", 0.0, 0.0, 1.0, "", "k(s) shape: 0 raised cosine, 1 paper literal"))
-    specs.append(ParamSpec("NV_SCHED", 0.0, 0.0, 1.0, "", "gain schedule signal: 0 |e| for all, 1 per term"))
+        d1, d2 = float(g.delta1), float(g.delta2)
+        specs.append(ParamSpec(delta_param_name(ch, 1), d1, 0.0, 10.0, unit, f"{ch} delta1: k1 below"))
+        specs.append(ParamSpec(delta_param_name(ch, 2), d2, 0.001, 20.0, unit, f"{ch} delta2: k2 above"))
+    variant = float(GainVariant.parse(shipped.x.variant))
+    sched = float(Schedule.parse(shipped.x.schedule))
+    specs.append(ParamSpec("NV_VARIANT", variant, 0.0, 1.0, "", "k(s) shape: 0 raised cosine, 1 paper literal"))
+    specs.append(ParamSpec("NV_SCHED", sched, 0.0, 1.0, "", "gain schedule signal: 0 |e| for all, 1 per term"))
     defaults = CascadeLimits()
     for name, fld, lo, hi, unit, desc, scale in _LIMIT_PARAMS:
         specs.append(ParamSpec(name, round(getattr(defaults, fld) / scale, 9), lo, hi, unit, desc))

@@ -65,6 +65,12 @@ class PaperSettings:
     payload_hover_s: float = 3.0
     payload_after_s: float = 30.0
     tune_step_scale: float = 1.0  # multiplies the tuning configs' step durations (quick mode shortens them)
+    # the noisy, effort-aware setting (tools/experiments/noisy_pipeline.py, noisy_eval.py)
+    effort_scales: tuple[float, ...] = (0.0, 1.0, 4.0)  # λ multipliers of the sweep; 1.0 is the headline
+    noisy_iterations: int | None = 4  # NLVG ES iterations per noisy tune (the PID: equal rollouts); None: configs'
+    hover_s: float = 10.0
+    noisy_storm_duration_s: float = 140.0
+    noisy_lissajous_duration_s: float = 40.0
 
     @classmethod
     def quick(cls) -> PaperSettings:
@@ -78,6 +84,11 @@ class PaperSettings:
             payload_hover_s=0.3,
             payload_after_s=0.7,
             tune_step_scale=0.2,
+            effort_scales=(0.0, 1.0),
+            noisy_iterations=1,
+            hover_s=0.5,
+            noisy_storm_duration_s=2.0,
+            noisy_lissajous_duration_s=2.0,
         )
 
 

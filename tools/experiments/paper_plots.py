@@ -83,3 +83,27 @@ def plot_mass_change(traces: Mapping[str, MassChangeTrace], vehicle: str, path: 
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
+
+
+def plot_tradeoff(points: Sequence[dict], path: Path) -> None:
+    """The λ sweep's trade-off curves, one PNG: step tracking error against hover attitude jitter (left) and
+    hover motor chatter (right), PID and NLVG-PID, each point labelled with its λ multiplier."""
+    fig, axes = plt.subplots(1, 2, figsize=(10.0, 4.0), dpi=120)
+    for ax, xkey, xlabel in (
+        (axes[0], "jitter_deg", "hover attitude jitter (deg RMS, true)"),
+        (axes[1], "chatter_per_s", "hover motor-command rate (1/s RMS)"),
+    ):
+        for i, s in enumerate(("pid", "nlvg")):
+            xs = [p[s][xkey] for p in points]
+            ys = [p[s]["step_rms_m"] for p in points]
+            ax.plot(xs, ys, "o-", color=COLOURS[i], label=LABELS[i])
+            for p, x, y in zip(points, xs, ys, strict=True):
+                ax.annotate(f"λ×{p['effort_scale']:g}", (x, y), textcoords="offset points", xytext=(4, 4), fontsize=7)
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel("1 m x step: RMS true position error (m)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle("Noisy feedback, effort-aware ES: tracking vs jitter and chatter (held-out seeds)")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)

@@ -5,6 +5,12 @@ Each function runs ``m`` vehicles side by side, vehicle ``i`` flying gain set ``
 ES cost (SPEC §6.3, ``J = 1/(tf - t0) ∫ e² dt``) are computed from. Vehicles whose simulation ended
 (non-finite state, ground impact) get ``diverged = True``; their cost is +inf.
 
+:func:`run_step` and :func:`run_tracking` take an optional ``noise``
+(:class:`~tools.experiments.feedback_noise.FeedbackNoise`) and ``seeds``: the batch is then
+``len(seeds)`` blocks of the ``m`` gain sets, the controller is fed the noisy state of its seed (the same
+draws for every gain set of a block), while errors are measured on the true state. Every trace also
+carries the motor-command chatter (RMS rate of the motor commands, 1/s, yaw mode excluded).
+
 * :func:`run_step`: the paper's step responses, started from hover at ``hover_alt_m``. Attitude channels
   (roll, pitch, yaw) drive the attitude loop alone with hover collective thrust; position channels
   (x, y, z) drive the whole cascade with a position setpoint step.
@@ -16,7 +22,7 @@ ES cost (SPEC §6.3, ``J = 1/(tf - t0) ∫ e² dt``) are computed from. Vehicles
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from functools import lru_cache
 
@@ -29,6 +35,7 @@ from autopilot.metrics import es_cost
 from sim.batch import BatchSim
 from sim.vehicle_config import VehicleConfig, load_vehicle
 from sim.world import WindConfig, World, empty_world
+from tools.experiments.feedback_noise import FeedbackNoise, NoiseStream
 
 ATTITUDE_CHANNELS = ("roll", "pitch", "yaw")
 POSITION_AXES = {"x": 0, "y": 1, "z": 2}
@@ -44,9 +51,23 @@ class StepTrace:
     channel: str
     amplitude: float
     t_s: np.ndarray  # (T,)
-    error: np.ndarray  # (m, T)
-    response: np.ndarray  # (m, T) the measured stepped quantity
-    diverged: np.ndarray  # (m,) bool
+    error: np.ndarray  # (n, T) true error, n = n_seeds · m (seed-major blocks)
+    response: np.ndarray  # (n, T) the true stepped quantity
+    diverged: np.ndarray  # (n,) bool
+    chatter: np.ndarray  # (n,) motor-command rate RMS, 1/s (yaw mode excluded)
+    n_seeds: int = 1
+
+    @property
+    def overshoot(self) -> np.ndarray:
+        """Peak beyond the setpoint as a fraction of the amplitude (n,), 0 when it never crosses."""
+        return np.maximum(np.max(self.response / self.amplitude, axis=1) - 1.0, 0.0)
+
+    def settling_time_s(self, band: float = 0.05) -> np.ndarray:
+        """Time after which |error| stays within ``band``·amplitude (n,); the duration if it never settles."""
+        outside = np.abs(self.error) > band * abs(self.amplitude)
+        last = np.where(outside.any(axis=1), outside.shape[1] - 1 - np.argmax(outside[:, ::-1], axis=1), -1)
+        idx = np.minimum(last + 1, self.t_s.size - 1)
+        return np.where(last < 0, 0.0, self.t_s[idx])
 
 
 @dataclass(frozen=True, slots=True)
@@ -59,6 +80,8 @@ class TrackTrace:
     pos_ned: np.ndarray  # (m, T, 3)
     ref_pos_ned: np.ndarray  # (T, 3)
     diverged: np.ndarray  # (m,) bool
+    chatter: np.ndarray  # (m,) motor-command rate RMS, 1/s (yaw mode excluded)
+    n_seeds: int = 1
 
 
 @dataclass(frozen=True, slots=True)
@@ -122,6 +145,39 @@ def _controller(vehicle: str, gains: CascadeGains, m: int, dt_s: float, limits: 
     return CascadeController(_airframe(vehicle), gains, n=m, dt_s=dt_s, limits=limits)
 
 
+class _Chatter:
+    """Running RMS of the motor-command rate (1/s) per vehicle, the yaw mode (rotor_yaw_dir) projected out."""
+
+    def __init__(self, vehicle: str, n: int, dt_s: float) -> None:
+        yaw = np.asarray(_airframe(vehicle).rotor_yaw_dir, dtype=np.float64)
+        self._proj = np.eye(4) - np.outer(yaw, yaw) / float(yaw @ yaw)
+        self._prev: np.ndarray | None = None
+        self._sum = np.zeros(n)
+        self._count = 0
+        self._dt_s = dt_s
+
+    def add(self, u: np.ndarray) -> None:
+        u = np.nan_to_num(u, nan=0.0)
+        if self._prev is not None:
+            d = (u - self._prev) @ self._proj / self._dt_s
+            self._sum += np.mean(d * d, axis=1)
+            self._count += 1
+        self._prev = u
+
+    def rms(self) -> np.ndarray:
+        return np.sqrt(self._sum / max(self._count, 1))
+
+
+def _seeded(gains: CascadeGains, m: int | None, seeds: Sequence[int]) -> tuple[CascadeGains, int, int]:
+    """(gains for the whole batch, m gain sets, n vehicles = len(seeds)·m)."""
+    m = gains.n if m is None else m
+    if gains.n not in (1, m):
+        raise ValueError(f"gain batch of {gains.n} does not fit {m} vehicles")
+    if len(seeds) < 1:
+        raise ValueError("need at least one seed")
+    return (gains.tiled(len(seeds)) if gains.n > 1 else gains), m, len(seeds) * m
+
+
 def run_step(
     vehicle: str,
     gains: CascadeGains,
@@ -132,41 +188,57 @@ def run_step(
     hover_alt_m: float = 20.0,
     seed: int = 0,
     limits: CascadeLimits | None = None,
+    noise: FeedbackNoise | None = None,
+    seeds: Sequence[int] = (0,),
+    world: World | None = None,
 ) -> StepTrace:
-    """Step of ``amplitude`` (rad for roll/pitch/yaw, m for x/y/z NED) at t = 0 from hover; ``m`` vehicles."""
-    m = gains.n if m is None else m
+    """Step of ``amplitude`` (rad for roll/pitch/yaw, m for x/y/z NED) at t = 0 from hover; ``m`` gain sets,
+    each flown once per noise seed in ``seeds`` (with ``noise``; otherwise ``seeds`` just repeats the batch),
+    in ``world``'s wind if given (the same gusts for every vehicle).
+    """
     if channel not in ATTITUDE_AXES and channel not in POSITION_AXES:
         raise ValueError(f"step channel {channel!r} is not one of {(*ATTITUDE_AXES, *POSITION_AXES)}")
-    sim = _hovering_batch(vehicle, m, hover_alt_m, seed)
-    ctrl = _controller(vehicle, gains, m, sim.control_dt_s, limits)
+    gains, m, n = _seeded(gains, m, seeds)
+    sim = _hovering_batch(vehicle, n, hover_alt_m, seed, world=world)
+    ctrl = _controller(vehicle, gains, n, sim.control_dt_s, limits)
     n_steps = round(duration_s * sim.control_hz)
+    stream = None if noise is None else NoiseStream(noise, seeds, m, n_steps, sim.control_dt_s)
+    chatter = _Chatter(vehicle, n, sim.control_dt_s)
     t_s = np.arange(n_steps + 1) / sim.control_hz  # sample 0 is the step instant (response 0)
-    response = np.zeros((m, n_steps + 1))
-    diverged = np.zeros(m, dtype=bool)
+    response = np.zeros((n, n_steps + 1))
+    diverged = np.zeros(n, dtype=bool)
     home = np.array([0.0, 0.0, -hover_alt_m])
     if channel in ATTITUDE_AXES:
         axis = ATTITUDE_AXES[channel]
-        att_sp = np.zeros((m, 3))
+        att_sp = np.zeros((n, 3))
         att_sp[:, axis] = amplitude
         thrust_n = ctrl.hover_thrust_n()
         for k in range(1, n_steps + 1):
-            u = ctrl.update_attitude(sim.q_ned_frd, sim.rate_frd, att_sp, thrust_n)
+            q, rate = sim.q_ned_frd, sim.rate_frd
+            if stream is not None:
+                _, _, q, rate = stream.feedback(k - 1, sim.pos_ned, sim.vel_ned, q, rate)
+            u = ctrl.update_attitude(q, rate, att_sp, thrust_n)
+            chatter.add(u)
             sim.step(u)
             _euler_axis(sim, axis, out=response[:, k])
             diverged |= ~sim.running
     else:
         axis = POSITION_AXES[channel]
-        pos_sp = np.broadcast_to(home, (m, 3)).copy()
+        pos_sp = np.broadcast_to(home, (n, 3)).copy()
         pos_sp[:, axis] += amplitude
-        zeros = np.zeros((m, 3))
+        zeros = np.zeros((n, 3))
         for k in range(1, n_steps + 1):
-            u = ctrl.update_position(sim.pos_ned, sim.vel_ned, sim.q_ned_frd, sim.rate_frd, pos_sp, zeros, zeros, 0.0)
+            state = (sim.pos_ned, sim.vel_ned, sim.q_ned_frd, sim.rate_frd)
+            if stream is not None:
+                state = stream.feedback(k - 1, *state)
+            u = ctrl.update_position(*state, pos_sp, zeros, zeros, 0.0)
+            chatter.add(u)
             sim.step(u)
             response[:, k] = sim.pos_ned[:, axis] - home[axis]
             diverged |= ~sim.running
     error = amplitude - response
     diverged |= ~np.all(np.isfinite(error), axis=1)
-    return StepTrace(channel, float(amplitude), t_s, error, response, diverged)
+    return StepTrace(channel, float(amplitude), t_s, error, response, diverged, chatter.rms(), len(seeds))
 
 
 def _euler_axis(sim: BatchSim, axis: int, out: np.ndarray) -> None:
@@ -191,47 +263,65 @@ def run_tracking(
     limits: CascadeLimits | None = None,
     record_every: int = 1,
     world: World | None = None,
+    noise: FeedbackNoise | None = None,
+    seeds: Sequence[int] = (0,),
 ) -> TrackTrace:
     """Track ``reference`` for ``duration_s`` starting in hover at the reference's start point.
 
-    ``world``: e.g. :func:`gusty_world`; all vehicles share ``seed``, so they meet the same gusts."""
-    m = gains.n if m is None else m
+    ``world``: e.g. :func:`gusty_world`; all vehicles share ``seed``, so they meet the same gusts.
+    ``noise``/``seeds``: feedback noise as in :func:`run_step` (errors are true-state errors)."""
+    gains, m, n = _seeded(gains, m, seeds)
     ref0 = reference(0.0)
-    sim = _hovering_batch(vehicle, m, 0.0, seed, world=world)
+    sim = _hovering_batch(vehicle, n, 0.0, seed, world=world)
     sim.reset(pos_ned=ref0.pos_ned, yaw_rad=ref0.yaw_rad)
     sim.omega_rad_s[:] = sim.hover_omega_rad_s()[:, None]
     sim.on_ground[:] = False
-    ctrl = _controller(vehicle, gains, m, sim.control_dt_s, limits)
+    ctrl = _controller(vehicle, gains, n, sim.control_dt_s, limits)
     n_steps = round(duration_s * sim.control_hz)
+    stream = None if noise is None else NoiseStream(noise, seeds, m, n_steps, sim.control_dt_s)
+    chatter = _Chatter(vehicle, n, sim.control_dt_s)
     n_rec = n_steps // record_every
     t_s = np.empty(n_rec)
-    pos_err = np.empty((m, n_rec, 3))
-    att_err = np.empty((m, n_rec, 3))
-    pos_rec = np.empty((m, n_rec, 3))
+    pos_err = np.empty((n, n_rec, 3))
+    att_err = np.empty((n, n_rec, 3))
+    pos_rec = np.empty((n, n_rec, 3))
     ref_rec = np.empty((n_rec, 3))
-    diverged = np.zeros(m, dtype=bool)
-    pos_sp = np.empty((m, 3))
-    vel_sp = np.empty((m, 3))
-    acc_ff = np.empty((m, 3))
+    diverged = np.zeros(n, dtype=bool)
+    pos_sp = np.empty((n, 3))
+    vel_sp = np.empty((n, 3))
+    acc_ff = np.empty((n, 3))
+    true_att = np.empty((n, 3))
     for k in range(n_steps):
         ref = reference(k * sim.control_dt_s)
         pos_sp[:] = ref.pos_ned
         vel_sp[:] = ref.vel_ned
         acc_ff[:] = ref.acc_ned
-        u = ctrl.update_position(
-            sim.pos_ned, sim.vel_ned, sim.q_ned_frd, sim.rate_frd, pos_sp, vel_sp, acc_ff, ref.yaw_rad
-        )
+        state = (sim.pos_ned, sim.vel_ned, sim.q_ned_frd, sim.rate_frd)
+        if stream is not None:
+            state = stream.feedback(k, *state)
+        u = ctrl.update_position(*state, pos_sp, vel_sp, acc_ff, ref.yaw_rad)
+        chatter.add(u)
         if k % record_every == 0 and k // record_every < n_rec:
             r = k // record_every
             t_s[r] = k * sim.control_dt_s
-            pos_err[:, r] = ctrl.diagnostics.pos_err_ned
-            att_err[:, r] = ctrl.diagnostics.att_err_rad
+            if stream is None:
+                pos_err[:, r] = ctrl.diagnostics.pos_err_ned
+                att_err[:, r] = ctrl.diagnostics.att_err_rad
+            else:  # the controller's errors hold the noise: measure against the true state
+                pos_err[:, r] = pos_sp - sim.pos_ned
+                for axis in range(3):
+                    _euler_axis(sim, axis, out=true_att[:, axis])
+                att_err[:, r] = _wrap(ctrl.diagnostics.att_sp_rad - true_att)
             pos_rec[:, r] = sim.pos_ned
             ref_rec[r] = ref.pos_ned
         sim.step(u)
         diverged |= ~sim.running
     diverged |= ~(np.all(np.isfinite(pos_err), axis=(1, 2)) & np.all(np.isfinite(att_err), axis=(1, 2)))
-    return TrackTrace(t_s, pos_err, att_err, pos_rec, ref_rec, diverged)
+    return TrackTrace(t_s, pos_err, att_err, pos_rec, ref_rec, diverged, chatter.rms(), len(seeds))
+
+
+def _wrap(angle_rad: np.ndarray) -> np.ndarray:
+    return (angle_rad + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def run_mass_change(

@@ -1,7 +1,17 @@
 """Run one ES tune from a :class:`TuneConfig`: the batched closed-loop cost and its outputs (SPEC §6.3).
 
-The cost of a batch of parameter vectors ``K (m, d)`` flies ``m`` vehicles at once per experiment
-(:func:`tools.experiments.rollout.run_step`) and sums ``weight * 1/(tf-t0) ∫ e² dt`` over the experiments.
+The cost of a batch of parameter vectors ``K (m, d)`` flies ``m`` vehicles at once per experiment and noise
+seed (:func:`tools.experiments.rollout.run_step`; every probe meets the same seeded feedback noise) and is,
+averaged over the training seeds, on the TRUE error::
+
+    J = Σ_e w_e · 1/(tf−t0) ∫ e² dt  +  λ · mean_e chatter_e²  +  μ · Σ_e overshoot_e²
+
+(a ``kind: track`` experiment adds w · mean |e_pos|² over its route instead, and no overshoot)
+
+(λ = ``effort_weight``, chatter = RMS motor-command rate in 1/s, yaw mode excluded; μ = ``overshoot_weight``),
+the steps flown in the config's ``wind`` if it has one.
+With λ = μ = 0 and no noise this is the paper's J. A ``warm_start`` gain set (a tuned PID, k1 = k2) adds one
+restart that starts there, so the NLVG never ends above that PID on the same cost ("best kept").
 """
 
 from __future__ import annotations
@@ -9,17 +19,21 @@ from __future__ import annotations
 import csv
 import json
 import time
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from autopilot.control.gains import CascadeGains
 from autopilot.tuning import CentralEsConfig, EsResult, central_es, perturbation_es
 from autopilot.tuning.es_result import IterationCallback
+from sim.world import empty_world
 from tools.experiments.gain_vector import GainParametrisation
-from tools.experiments.rollout import mean_square_cost, run_step
-from tools.experiments.tune_config import TuneConfig
+from tools.experiments.references import make_reference
+from tools.experiments.rollout import mean_square_cost, run_step, run_tracking
+from tools.experiments.tune_config import TrackExperiment, TuneConfig
 
 
 @dataclass(frozen=True, slots=True)
@@ -37,26 +51,83 @@ class TuneOutcome:
         return self.result.j_best / self.result.j_initial
 
 
+@dataclass(frozen=True, slots=True)
+class CostTerms:
+    """The cost's parts per gain set (m,), each averaged over the seeds: tracking Σ w·mean e², chatter² mean
+    (1/s)², overshoot² sum, and the total J."""
+
+    tracking: np.ndarray
+    chatter_sq: np.ndarray
+    overshoot_sq: np.ndarray
+    total: np.ndarray
+
+
+def cost_terms(config: TuneConfig, gains: CascadeGains, m: int, seeds: Sequence[int]) -> CostTerms:
+    """Fly ``config``'s experiments for ``m`` gain sets on every seed of ``seeds``; the seed-averaged terms."""
+    ns = len(seeds)
+    tracking = np.zeros(m)
+    chatter_sq = np.zeros(m)
+    overshoot_sq = np.zeros(m)
+    world = None if config.wind is None else replace(empty_world(), wind=config.wind)
+    for exp in config.experiments:
+        if isinstance(exp, TrackExperiment):
+            tt = run_tracking(
+                config.vehicle,
+                gains,
+                make_reference(exp.route, exp.duration_s),
+                exp.duration_s,
+                m=m,
+                world=world,
+                noise=config.noise,
+                seeds=seeds,
+            )
+            with np.errstate(invalid="ignore", over="ignore"):
+                mse = np.mean(np.sum(tt.pos_err_ned**2, axis=2), axis=1)
+            mse = np.where(tt.diverged | ~np.isfinite(mse), np.inf, mse).reshape(ns, m)
+            tracking += exp.weight * mse.mean(axis=0)
+            chatter_sq += (tt.chatter**2).reshape(ns, m).mean(axis=0) / len(config.experiments)
+            continue
+        tr = run_step(
+            config.vehicle,
+            gains,
+            exp.channel,
+            exp.amplitude,
+            exp.duration_s,
+            m=m,
+            noise=config.noise,
+            seeds=seeds,
+            world=world,
+        )
+        mse = mean_square_cost(tr.error, tr.t_s, tr.diverged, exp.t0_s).reshape(ns, m)
+        tracking += exp.weight * mse.mean(axis=0)
+        chatter_sq += (tr.chatter**2).reshape(ns, m).mean(axis=0) / len(config.experiments)
+        overshoot_sq += (tr.overshoot**2).reshape(ns, m).mean(axis=0)
+    with np.errstate(invalid="ignore"):
+        total = tracking + config.effort_weight * chatter_sq + config.overshoot_weight * overshoot_sq
+    return CostTerms(tracking, chatter_sq, overshoot_sq, np.where(np.isfinite(total), total, np.inf))
+
+
 def step_cost(config: TuneConfig, param: GainParametrisation):
-    """The batched cost J(K (m, d)) -> (m,) of ``config``'s step experiments."""
+    """The batched cost J(K (m, d)) -> (m,) of ``config``'s step experiments on its training seeds."""
 
     def cost(k: np.ndarray) -> np.ndarray:
-        gains = param.gains(k)
-        total = np.zeros(k.shape[0])
-        for exp in config.experiments:
-            trace = run_step(config.vehicle, gains, exp.channel, exp.amplitude, exp.duration_s, m=k.shape[0])
-            total += exp.weight * mean_square_cost(trace.error, trace.t_s, trace.diverged, exp.t0_s)
-        return total
+        return cost_terms(config, param.gains(k), k.shape[0], config.seeds).total
 
     return cost
 
 
 def tune(config: TuneConfig, on_iteration: IterationCallback | None = None) -> TuneOutcome:
-    """Run ES as configured; restart 0 starts at the base gains when ``start_from_base``."""
+    """Run ES as configured: restart 0 starts at ``warm_start`` when given, the next at the base gains when
+    ``start_from_base`` (as many as there are restarts), the others at random."""
     param = config.parametrisation()
     space = param.space()
     cost = step_cost(config, param)
-    initial = param.vector(config.base_gains) if config.start_from_base else None
+    starts = []
+    if config.warm_start is not None:
+        starts.append(param.vector(config.warm_start))
+    if config.start_from_base:
+        starts.append(param.vector(config.base_gains))
+    initial = np.stack(starts[: config.es.restarts]) if starts else None
     t0 = time.perf_counter()
     if isinstance(config.es, CentralEsConfig):
         result = central_es(cost, space, config.es, initial_gains=initial, on_iteration=on_iteration)
@@ -66,8 +137,40 @@ def tune(config: TuneConfig, on_iteration: IterationCallback | None = None) -> T
     return TuneOutcome(config, result, param.single(result.k_best), wall)
 
 
-def write_outputs(outcome: TuneOutcome, out_dir: str | Path) -> dict[str, Path]:
-    """Write ``gains.yaml``, ``j_per_iteration.csv``, ``convergence.png`` and ``summary.json`` into ``out_dir``."""
+def evaluate(config: TuneConfig, gains: Sequence[CascadeGains]) -> list[dict[str, float]]:
+    """``config``'s cost terms of each gain set on the held-out ``eval_seeds`` (one batch)."""
+    terms = cost_terms(config, CascadeGains.stacked(list(gains)), len(gains), config.eval_seeds)
+    return [
+        {
+            "J": float(terms.total[i]),
+            "tracking": float(terms.tracking[i]),
+            "chatter_rms_per_s": float(np.sqrt(terms.chatter_sq[i])),
+            "overshoot_rms": float(np.sqrt(terms.overshoot_sq[i] / len(config.experiments))),
+        }
+        for i in range(len(gains))
+    ]
+
+
+def provenance(config: TuneConfig, command: str, outcome: TuneOutcome, **extra: Any) -> dict[str, Any]:
+    """What a gains file records about its origin: the command, the config's name, vehicle, seeds and J."""
+    return {
+        "command": command,
+        "config": config.name,
+        "vehicle": config.vehicle,
+        "es_seed": int(config.es.seed),
+        "noise_scale": config.noise_scale,
+        "train_seeds": list(config.seeds),
+        "effort_weight": config.effort_weight,
+        "overshoot_weight": config.overshoot_weight,
+        "j_initial": float(outcome.result.j_initial),
+        "j_best": float(outcome.result.j_best),
+        **extra,
+    }
+
+
+def write_outputs(outcome: TuneOutcome, out_dir: str | Path, command: str = "") -> dict[str, Path]:
+    """Write ``gains.yaml`` (with its provenance), ``j_per_iteration.csv``, ``convergence.png``, ``k_of_s.png``
+    (k_p, k_i, k_d of every channel against |e|) and ``summary.json`` into ``out_dir``."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     res = outcome.result
@@ -76,8 +179,9 @@ def write_outputs(outcome: TuneOutcome, out_dir: str | Path) -> dict[str, Path]:
         "csv": out / "j_per_iteration.csv",
         "plot": out / "convergence.png",
         "summary": out / "summary.json",
+        "k_of_s": out / "k_of_s.png",
     }
-    outcome.gains.to_yaml(paths["gains"])
+    outcome.gains.to_yaml(paths["gains"], provenance(outcome.config, command, outcome))
     with paths["csv"].open("w", newline="") as f:
         w = csv.writer(f)
         r = res.j_history.shape[1]
@@ -86,10 +190,17 @@ def write_outputs(outcome: TuneOutcome, out_dir: str | Path) -> dict[str, Path]:
         for i, row in enumerate(res.j_history):
             w.writerow([i, *[f"{v:.9g}" for v in row], f"{running[i]:.9g}"])
     plot_convergence(res, outcome.config.name, paths["plot"])
+    from tools.plot_gain_schedule import plot_gain_set
+
+    cfg = outcome.config
+    plot_gain_set(outcome.gains, paths["k_of_s"], f"{cfg.name} ({cfg.vehicle}): k(|e|) per channel and term")
     summary = {
         "name": outcome.config.name,
         "vehicle": outcome.config.vehicle,
         "structure": str(outcome.config.structure),
+        "noise_scale": outcome.config.noise_scale,
+        "effort_weight": outcome.config.effort_weight,
+        "overshoot_weight": outcome.config.overshoot_weight,
         "method": res.method,
         "parameters": list(res.names),
         "k_best": res.k_best.tolist(),
