@@ -13,14 +13,21 @@ import argparse
 import json
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from autopilot.mission.files import MissionFileError, load_mission_file, save_mission_file
 from autopilot.mission.plan import MissionPlan
 from mavlink_bridge.contract.frames import GeoPoint
-from mavlink_bridge.contract.vehicle_api import CommandResult, FlightMode, LandedState, MissionResult, MissionType
+from mavlink_bridge.contract.vehicle_api import (
+    CommandResult,
+    FlightMode,
+    LandedState,
+    MissionResult,
+    MissionType,
+    StatusText,
+)
 from mavlink_bridge.gcs_client import CommandFailedError, GcsClient, GcsError, MissionUploadError, VehicleStatus
 from mavlink_bridge.link import LinkUrl, LinkUrlError
 from mavlink_bridge.signing import SigningKeyError, signing_key_from_text
@@ -57,6 +64,7 @@ class FlySummary:
     landed: bool
     disarmed: bool
     reason: str
+    items_bypassed: int = 0  # waypoints the vehicle flew around instead of reaching ("Bypassed item N: ...")
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), indent=2) + "\n"
@@ -178,6 +186,7 @@ def fly(client: GcsClient, plan: MissionPlan, timeout_s: float, progress: bool =
     """Upload mission + fence, arm, start, and wait until the mission is done, landed and disarmed."""
     t0 = time.monotonic()
     total = len(plan.items)
+    text_serial = client.statustext_serial
     _upload_when_ready(client, plan, min(60.0, timeout_s))
     client.forget_reached_items()
     _arm_when_ready(client, min(60.0, timeout_s))
@@ -210,6 +219,8 @@ def fly(client: GcsClient, plan: MissionPlan, timeout_s: float, progress: bool =
     texts = [t.text for t in status.statustexts if t.severity <= 3]
     if reason and texts:
         reason += f" (last error: {texts[-1]})"
+    reason = reason or _failsafe_reason(client.statustexts_since(text_serial))
+    bypassed = sum(t.text.startswith(BYPASSED_PREFIX) for t in client.statustexts_since(text_serial))
     landed = status.landed_state is LandedState.ON_GROUND
     ok = not reason and landed and not status.armed and _mission_done(status, total)
     return FlySummary(
@@ -221,7 +232,22 @@ def fly(client: GcsClient, plan: MissionPlan, timeout_s: float, progress: bool =
         landed=landed,
         disarmed=not status.armed,
         reason=reason,
+        items_bypassed=bypassed,
     )
+
+
+#: STATUSTEXT prefixes of the autopilot's failsafes (fence breach included) and of a waypoint flown around.
+FAILSAFE_PREFIX = "Failsafe:"
+BYPASSED_PREFIX = "Bypassed item"
+
+
+def _failsafe_reason(texts: Sequence[StatusText]) -> str:
+    """A mission during which a failsafe fired (a geofence breach too, even when GF_ACTION only warns) failed:
+    the first such STATUSTEXT is the reason; empty when none fired."""
+    for text in texts:
+        if text.text.startswith(FAILSAFE_PREFIX):
+            return f"failsafe during the mission: {text.text}"
+    return ""
 
 
 class _Progress:
@@ -285,8 +311,9 @@ def cmd_fly(client: GcsClient, args: argparse.Namespace) -> str:
         Path(args.summary).write_text(summary.to_json())
     if not summary.ok:
         raise GcsScriptError(f"mission failed: {summary.reason or 'not complete'}")
+    bypassed = f", {summary.items_bypassed} bypassed" if summary.items_bypassed else ""
     return (
-        f"mission complete: {summary.items_reached}/{summary.items_total} items, "
+        f"mission complete: {summary.items_reached}/{summary.items_total} items{bypassed}, "
         f"sim {summary.sim_time_s:.1f} s in {summary.wall_time_s:.1f} s wall"
     )
 

@@ -182,10 +182,44 @@ def _check_latlon(index: int, item: MissionItem) -> None:
         raise FenceError(index, f"longitude {lon} outside [-180, 180]", "y_lon_deg")
 
 
-def geofence_from_items(items: Sequence[MissionItem], home: GeoPoint) -> Geofence:
-    """Parse FENCE items into zones about ``home``. Raises :class:`FenceError` naming the item."""
-    frame = LocalNedFrame(home)
-    zones: list[FenceZone] = []
+@dataclass(frozen=True, slots=True)
+class GeoZone:
+    """One zone as uploaded (geodetic): a circle (``radius_m`` > 0, one vertex = the centre) or a polygon.
+
+    ``first_item`` is the index of its first FENCE item (for messages naming the item)."""
+
+    vertices_lat_lon_deg: tuple[tuple[float, float], ...]
+    radius_m: float  # 0 for a polygon
+    inclusion: bool
+    group: int
+    first_item: int
+
+    def to_local(self, frame: LocalNedFrame, alt_amsl_m: float) -> FenceZone:
+        """The zone in local NED about ``frame``'s origin (horizontal only)."""
+        pts: list[Vec2] = []
+        for lat, lon in self.vertices_lat_lon_deg:
+            n, e, _ = frame.ned_from_geodetic(lat, lon, alt_amsl_m)
+            pts.append((n, e))
+        if self.radius_m > 0.0:
+            return CircleZone(pts[0], self.radius_m, self.inclusion, self.group)
+        return PolygonZone(tuple(pts), self.inclusion, self.group)
+
+
+@dataclass(frozen=True, slots=True)
+class GeoFence:
+    """A FENCE upload stored geodetically (SPEC §7): accepted before home is known, made local once it is."""
+
+    zones: tuple[GeoZone, ...] = ()
+
+    def to_local(self, home: GeoPoint) -> Geofence:
+        """The zones about ``home`` (north, east in metres)."""
+        frame = LocalNedFrame(home)
+        return Geofence(tuple(z.to_local(frame, home.alt_amsl_m) for z in self.zones))
+
+
+def geo_fence_from_items(items: Sequence[MissionItem]) -> GeoFence:
+    """Parse FENCE items into geodetic zones (no home needed). Raises :class:`FenceError` naming the item."""
+    zones: list[GeoZone] = []
     i = 0
     while i < len(items):
         item = items[i]
@@ -198,9 +232,9 @@ def geofence_from_items(items: Sequence[MissionItem], home: GeoPoint) -> Geofenc
             radius = item.param1
             if not (math.isfinite(radius) and radius > 0.0):
                 raise FenceError(i, f"circle radius (param1) {radius} must be > 0 m", "param1")
-            n, e, _ = frame.ned_from_geodetic(item.x_lat_deg, item.y_lon_deg, home.alt_amsl_m)
             inclusion = item.command == MavCmd.NAV_FENCE_CIRCLE_INCLUSION
-            zones.append(CircleZone((n, e), radius, inclusion, int(item.param2) if inclusion else 0))
+            group = _group(i, item) if inclusion else 0
+            zones.append(GeoZone(((item.x_lat_deg, item.y_lon_deg),), float(radius), inclusion, group, i))
             i += 1
             continue
         count = item.param1
@@ -209,7 +243,7 @@ def geofence_from_items(items: Sequence[MissionItem], home: GeoPoint) -> Geofenc
         count = int(count)
         if i + count > len(items):
             raise FenceError(i, f"polygon declares {count} vertices but only {len(items) - i} items follow")
-        verts: list[Vec2] = []
+        verts: list[tuple[float, float]] = []
         for k in range(i, i + count):
             v = items[k]
             if v.command != item.command or v.param1 != item.param1:
@@ -219,12 +253,34 @@ def geofence_from_items(items: Sequence[MissionItem], home: GeoPoint) -> Geofenc
                     f"with vertex count {count}, got {command_name(v.command)} count {v.param1}",
                 )
             _check_latlon(k, v)
-            n, e, _ = frame.ned_from_geodetic(v.x_lat_deg, v.y_lon_deg, home.alt_amsl_m)
-            verts.append((n, e))
+            verts.append((v.x_lat_deg, v.y_lon_deg))
         inclusion = item.command == MavCmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION
-        zones.append(PolygonZone(tuple(verts), inclusion, int(item.param2) if inclusion else 0))
+        zones.append(GeoZone(tuple(verts), 0.0, inclusion, _group(i, item) if inclusion else 0, i))
         i += count
-    return Geofence(tuple(zones))
+    return GeoFence(tuple(zones))
+
+
+def _group(index: int, item: MissionItem) -> int:
+    group = item.param2
+    if not (math.isfinite(group) and group == int(group) and 0 <= group <= 255):
+        raise FenceError(index, f"inclusion group (param2) {group} must be an integer in [0, 255]", "param2")
+    return int(group)
+
+
+def geofence_from_items(items: Sequence[MissionItem], home: GeoPoint) -> Geofence:
+    """Parse FENCE items into zones about ``home``. Raises :class:`FenceError` naming the item."""
+    return geo_fence_from_items(items).to_local(home)
+
+
+def zone_label(zone: FenceZone, index: int) -> str:
+    """e.g. ``exclusion circle 2 (r 8 m at 60 N 10 E)`` for messages (``index`` counts zones from 1)."""
+    kind = ("inclusion " if zone.inclusion else "exclusion ") + (
+        "circle" if isinstance(zone, CircleZone) else "polygon"
+    )
+    if isinstance(zone, CircleZone):
+        n, e = zone.center_ne_m
+        return f"{kind} {index} (r {zone.radius_m:.0f} m at {n:.0f} N {e:.0f} E)"
+    return f"{kind} {index} ({len(zone.vertices_ne_m)} vertices)"
 
 
 def circle_fence_items(
