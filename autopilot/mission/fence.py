@@ -62,6 +62,35 @@ def segment_to_segments_distance(a: np.ndarray, b: np.ndarray, starts: np.ndarra
     return np.where(crossing, 0.0, d)
 
 
+def _polyline_gap(points: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> float:
+    """Smallest 2D distance between the segments of a polyline ``points`` (n, 2) and the edges ``starts``-``ends``
+    (k, 2); 0 when any two cross."""
+    a, b = points[:-1, None, :], points[1:, None, :]  # (m, 1, 2)
+    c, d = starts[None, :, :], ends[None, :, :]  # (1, k, 2)
+    gap = np.minimum(
+        np.minimum(_point_segment_distance(a, c, d), _point_segment_distance(b, c, d)),
+        np.minimum(_point_segment_distance(c, a, b), _point_segment_distance(d, a, b)),
+    )
+    r, q = b - a, d - c
+    rxs = r[..., 0] * q[..., 1] - r[..., 1] * q[..., 0]
+    safe = np.where(rxs != 0.0, rxs, 1.0)
+    w = c - a
+    t = (w[..., 0] * q[..., 1] - w[..., 1] * q[..., 0]) / safe
+    u = (w[..., 0] * r[..., 1] - w[..., 1] * r[..., 0]) / safe
+    crossing = (rxs != 0.0) & (t >= 0.0) & (t <= 1.0) & (u >= 0.0) & (u <= 1.0)
+    return 0.0 if bool(crossing.any()) else float(gap.min())
+
+
+def _points_inside(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    """Even-odd test of points (n, 2) against a polygon's vertices (k, 2)."""
+    x, y = points[:, 0][:, None], points[:, 1][:, None]
+    xi, yi = vertices[:, 0][None, :], vertices[:, 1][None, :]
+    xj, yj = np.roll(vertices[:, 0], 1)[None, :], np.roll(vertices[:, 1], 1)[None, :]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        hit = ((yi > y) != (yj > y)) & (x < (xj - xi) * (y - yi) / (yj - yi) + xi)
+    return (np.count_nonzero(hit, axis=1) % 2) == 1
+
+
 @dataclass(frozen=True, slots=True)
 class CircleZone:
     """A circular zone centred at ``center_ne_m`` (north, east, m) of ``radius_m``."""
@@ -88,6 +117,15 @@ class CircleZone:
             limit = self.radius_m - margin_m
             return bool(np.linalg.norm(a - c) <= limit and np.linalg.norm(b - c) <= limit)
         return bool(_point_segment_distance(c, a, b) > self.radius_m + margin_m)
+
+    def path_clear(self, points_ne: np.ndarray, margin_m: float = 0.0) -> bool:
+        """:meth:`segment_clear` for every segment of a polyline (n, 2), vectorised."""
+        c = np.asarray(self.center_ne_m)
+        if self.inclusion:
+            return bool(np.all(np.linalg.norm(points_ne - c, axis=1) <= self.radius_m - margin_m))
+        if len(points_ne) < 2:
+            return bool(np.all(np.linalg.norm(points_ne - c, axis=1) > self.radius_m + margin_m))
+        return bool(np.all(_point_segment_distance(c, points_ne[:-1], points_ne[1:]) > self.radius_m + margin_m))
 
 
 @dataclass(frozen=True, slots=True)
@@ -131,6 +169,15 @@ class PolygonZone:
         inside_a, inside_b = self.contains(a_ned), self.contains(b_ned)
         return (inside_a and inside_b) if self.inclusion else not (inside_a or inside_b)
 
+    def path_clear(self, points_ne: np.ndarray, margin_m: float = 0.0) -> bool:
+        """:meth:`segment_clear` for every segment of a polyline (n >= 2, 2), vectorised."""
+        starts, ends = self._edges()
+        gap = _polyline_gap(points_ne, starts, ends)
+        if gap <= 0.0 or gap < margin_m:
+            return False
+        inside = _points_inside(points_ne, starts)
+        return bool(inside.all()) if self.inclusion else not bool(inside.any())
+
 
 FenceZone = CircleZone | PolygonZone
 
@@ -172,6 +219,16 @@ class Geofence:
             return False
         groups = self._inclusion_groups()
         return not groups or any(all(z.segment_clear(a_ned, b_ned, margin_m) for z in g) for g in groups)
+
+    def path_clear(self, points_ned: np.ndarray, margin_m: float = 0.0) -> bool:
+        """:meth:`segment_clear` for every segment of a sampled path (n >= 2, 2 or 3), vectorised per zone."""
+        pts = np.ascontiguousarray(np.asarray(points_ned, dtype=float)[:, :2])
+        if len(pts) < 2:
+            return len(pts) == 0 or not self.violates(pts[0], margin_m)
+        if not all(z.path_clear(pts, margin_m) for z in self.exclusions):
+            return False
+        groups = self._inclusion_groups()
+        return not groups or any(all(z.path_clear(pts, margin_m) for z in g) for g in groups)
 
 
 def _check_latlon(index: int, item: MissionItem) -> None:
