@@ -31,9 +31,12 @@ from pathlib import Path
 from types import FrameType
 
 from autopilot.control.airframe import AirframeError
+from autopilot.io_loop import Links, run_loop
 from autopilot.params import ParamError
-from autopilot.runner import Autopilot, AutopilotConfig, AutopilotEndReason, Links, VehicleAdapter, run_loop
+from autopilot.reporting import AutopilotEndReason
+from autopilot.runner import Autopilot, AutopilotConfig
 from autopilot.scripted_commands import CommandScript, ScriptError, load_script
+from autopilot.vehicle_adapter import VehicleAdapter
 from mavlink_bridge.gcs_server import GcsServer
 from mavlink_bridge.link import LinkUrl, LinkUrlError
 from mavlink_bridge.lockstep import LockstepClient, add_spin_option

@@ -111,6 +111,29 @@ def _velocity_target(
     return NavTarget(TargetKind.VELOCITY, _NO_POSITION, yaw_rad, *speeds, vel_ned_m_s, yaw_rate_rad_s)
 
 
+@dataclass(frozen=True, slots=True)
+class CommandContext:
+    """What the commander needs from outside to judge commands and modes (the runner builds it on change)."""
+
+    mission_ready: bool = False  # a valid mission is loaded
+    offboard_streaming: bool = False  # offboard setpoints arrived within COM_OF_LOSS_T
+    manual_fresh: bool = False  # joystick input arrived within COM_RC_LOSS_T
+    failsafe_reasons: frozenset[str] = frozenset()  # the failsafes in force (arming is refused meanwhile)
+
+
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class CommanderInputs:
+    """Everything the commander reads at one step: the estimate, the last thrust, the estimator's local frame,
+    the :class:`CommandContext` and, in AUTO_MISSION, the navigator's target (about the origin)."""
+
+    state: VehicleState
+    thrust_ratio: float  # last collective thrust / hover thrust (land detector)
+    local_frame: LocalNedFrame | None
+    context: CommandContext
+    mission_target: NavTarget | None = None
+
+
 class Commander:
     """Arming, modes, landed state, land detector; one :class:`NavTarget` per :meth:`update`."""
 
@@ -121,11 +144,8 @@ class Commander:
         self.landed_state = LandedState.ON_GROUND
         self.home: Home | None = None
         self.gripper_release = False
-        self.local_frame: LocalNedFrame | None = None
-        self.failsafe_reasons: set[str] = set()
-        self.mission_ready = False  # set by the runner: a valid mission is loaded
-        self.offboard_streaming = False  # set by the runner: setpoints arrived within COM_OF_LOSS_T
-        self.manual_fresh = False  # set by the runner: joystick input arrived within COM_RC_LOSS_T
+        self.local_frame: LocalNedFrame | None = None  # the estimator's, from the latest inputs
+        self.context = CommandContext()  # the latest one given with inputs or a command
         self.last_reason = ""
         self.mode_history: list[tuple[int, FlightMode]] = []
         self._texts: list[StatusText] = []
@@ -281,12 +301,12 @@ class Commander:
         elif mode is FlightMode.AUTO_TAKEOFF:
             self._enter_takeoff(state, self.params.get("MIS_TAKEOFF_ALT"))
         elif mode is FlightMode.AUTO_MISSION:
-            if not self.mission_ready:
+            if not self.context.mission_ready:
                 return self._refuse(CommandResult.DENIED, "MISSION: no valid mission uploaded")
             self._mission_target = None
             self._set_mode(mode)
         elif mode is FlightMode.OFFBOARD:
-            if self._offboard_target is None or not self.offboard_streaming:
+            if self._offboard_target is None or not self.context.offboard_streaming:
                 return self._refuse(CommandResult.DENIED, "OFFBOARD: stream setpoints first")
             self._set_mode(mode)
         else:
@@ -302,11 +322,11 @@ class Commander:
             return "no 3D GPS fix"
         if self.in_air:
             return "not on the ground"
-        if self.failsafe_reasons:
-            return f"failsafe active ({', '.join(sorted(self.failsafe_reasons))})"
+        if self.context.failsafe_reasons:
+            return f"failsafe active ({', '.join(sorted(self.context.failsafe_reasons))})"
         if self.mode not in _ARMABLE_MODES:
             return f"cannot arm in mode {self.mode.name}"
-        if self.mode is FlightMode.AUTO_MISSION and not self.mission_ready:
+        if self.mode is FlightMode.AUTO_MISSION and not self.context.mission_ready:
             return "mission mode without a valid mission"
         return None
 
@@ -347,8 +367,11 @@ class Commander:
         return CommandResult.ACCEPTED
 
     # ------------------------------------------------------------------ commands
-    def handle_command(self, request: CommandRequest) -> CommandResult:
-        """Execute one COMMAND_LONG/COMMAND_INT; ``last_reason`` says why when not ACCEPTED."""
+    def handle_command(self, request: CommandRequest, context: CommandContext | None = None) -> CommandResult:
+        """Execute one COMMAND_LONG/COMMAND_INT (judged with ``context`` when given: it is fresher than the last
+        step's); ``last_reason`` says why when not ACCEPTED."""
+        if context is not None:
+            self.context = context
         self.last_reason = ""
         p = request.params
         if any(math.isinf(v) for v in p):
@@ -467,10 +490,6 @@ class Commander:
             self._say("Payload released" if release else "Gripper closed")
         self.gripper_release = release
 
-    def set_mission_target(self, target: NavTarget | None) -> None:
-        """The executor's current target in AUTO_MISSION (None: hold where it is)."""
-        self._mission_target = target
-
     def set_offboard_target(self, pos_ned_m: Vec3, yaw_rad: float = math.nan) -> None:
         """An external position setpoint (SET_POSITION_TARGET_LOCAL_NED); used in OFFBOARD."""
         self._offboard_target = NavTarget(TargetKind.POSITION, pos_ned_m, yaw_rad, *self._speeds())
@@ -507,7 +526,7 @@ class Commander:
         overshoot and return to a precomputed point."""
         sticks = self._sticks
         demand = None
-        if sticks is not None and self.manual_fresh and state.valid:
+        if sticks is not None and self.context.manual_fresh and state.valid:
             demand = stick_demand(sticks, state.yaw_rad, self.params)
         if demand is not None:
             self._sticks_flying = True
@@ -657,9 +676,13 @@ class Commander:
         if delay_s >= 0.0 and state.time_us - since_us >= delay_s * 1e6:
             self.disarm(reason=why)
 
-    def update(self, state: VehicleState, thrust_ratio: float) -> NavTarget:
-        """Advance the state machine one step; ``thrust_ratio`` = last collective thrust / hover thrust."""
+    def update(self, inputs: CommanderInputs) -> NavTarget:
+        """Advance the state machine one step on ``inputs`` (see :class:`CommanderInputs`)."""
+        state, thrust_ratio = inputs.state, inputs.thrust_ratio
         self._state = state
+        self.local_frame = inputs.local_frame
+        self.context = inputs.context
+        self._mission_target = inputs.mission_target
         if self.local_frame is None:
             return NavTarget(TargetKind.IDLE)
         if self.home is None and state.valid and state.gps_fix_type >= 3:

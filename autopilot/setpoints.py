@@ -93,6 +93,17 @@ def _accel_toward(dv: float, acc_max: float, jerk_max: float) -> float:
     return min(acc_max, math.sqrt(2.0 * jerk_max * dv), dv / TAU_VEL_S)
 
 
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class Reference:
+    """The position controller's reference at one step: NED about the estimator origin, yaw (rad)."""
+
+    pos_ned_m: Vec3
+    vel_ned_m_s: Vec3
+    acc_ned_m_s2: Vec3
+    yaw_rad: float
+
+
 class SetpointGenerator:
     """A jerk-limited reference that flies toward :class:`NavTarget` s; state is scalars (no allocation).
 
@@ -144,12 +155,17 @@ class SetpointGenerator:
             self._next_reference(target, dt_s),
         )
 
-    def update(self, target: NavTarget, dt_s: float, vehicle_pos_ned: Vec3) -> None:
-        """Advance the reference by ``dt_s`` toward ``target``."""
+    def reference(self) -> Reference:
+        """The reference in force (after the latest update, reset or override), as a frozen message."""
+        p, v, a = self.pos_ned, self.vel_ned, self.acc_ned
+        return Reference((p[0], p[1], p[2]), (v[0], v[1], v[2]), (a[0], a[1], a[2]), self.yaw_rad)
+
+    def update(self, target: NavTarget, dt_s: float, vehicle_pos_ned: Vec3) -> Reference:
+        """Advance the reference by ``dt_s`` toward ``target``; returns it."""
         kind = target.kind
         if kind is TargetKind.IDLE:
             self.reset(vehicle_pos_ned, (0.0, 0.0, 0.0), self.yaw_rad)
-            return
+            return self.reference()
         prep = self._prepared
         if (
             prep is not None
@@ -185,6 +201,7 @@ class SetpointGenerator:
             limit = self.limits.yaw_rate_rad_s
             self.yaw_rad += max(-limit, min(limit, target.yaw_rate_rad_s)) * dt_s
             self.yaw_rad = (self.yaw_rad + math.pi) % (2.0 * math.pi) - math.pi
+        return Reference((pos[0], pos[1], pos[2]), (v0, v1, v2), (a0, a1, a2), self.yaw_rad)
 
     def _leash(self, vehicle_pos_ned: Vec3) -> None:
         """Keep the position reference within VELOCITY_MAX_LEAD_M of the vehicle (horizontally, vertically)."""

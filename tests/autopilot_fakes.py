@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
-from autopilot.commander import Commander
+from autopilot.commander import Commander, CommanderInputs
 from autopilot.estimation import VehicleState
 from autopilot.mission.param_decls import mission_param_specs
 from autopilot.nav_params import nav_param_specs
 from autopilot.params import ParamStore
-from autopilot.setpoints import SetpointGenerator, SetpointLimits, TargetKind
+from autopilot.setpoints import NavTarget, SetpointGenerator, SetpointLimits, TargetKind
 from mavlink_bridge.contract.frames import GRAVITY_M_S2, GeoPoint, LocalNedFrame
 from mavlink_bridge.contract.vehicle_api import CommandRequest
 
@@ -53,6 +53,18 @@ def command(cmd: int, *params: float, is_int: bool = False, frame: int = 0) -> C
     return CommandRequest(cmd, tuple(full), 255, 190, is_int=is_int, frame=frame)  # type: ignore[arg-type]
 
 
+def update(
+    commander: Commander, state: VehicleState, thrust_ratio: float = 0.0, mission_target: NavTarget | None = None
+) -> NavTarget:
+    """One commander step with the context it has (tests change it with :func:`set_context`)."""
+    return commander.update(CommanderInputs(state, thrust_ratio, FRAME, commander.context, mission_target))
+
+
+def set_context(commander: Commander, **changes: object) -> None:
+    """What the runner would tell the commander (mission loaded, streams fresh, failsafes in force)."""
+    commander.context = replace(commander.context, **changes)  # type: ignore[arg-type]
+
+
 def make_commander() -> Commander:
     commander = Commander(ParamStore(nav_param_specs() + mission_param_specs()))
     commander.local_frame = FRAME
@@ -74,6 +86,7 @@ class KinematicLoop:
     pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
     vel: tuple[float, float, float] = (0.0, 0.0, 0.0)
     thrust_ratio: float = 0.0
+    mission_target: NavTarget | None = None  # what the navigator would hand over in AUTO_MISSION
 
     def __post_init__(self) -> None:
         self.gen = SetpointGenerator(SetpointLimits())
@@ -84,7 +97,7 @@ class KinematicLoop:
 
     def step(self) -> None:
         state = self.state()
-        target = self.commander.update(state, self.thrust_ratio)
+        target = update(self.commander, state, self.thrust_ratio, self.mission_target)
         if target.kind is not TargetKind.IDLE and self.last_kind is TargetKind.IDLE:
             self.gen.reset(state.pos_ned_m, state.vel_ned_m_s, state.yaw_rad)
         self.last_kind = target.kind

@@ -6,7 +6,8 @@ from collections.abc import Callable
 
 from autopilot_fakes import command
 
-from autopilot.runner import Autopilot, AutopilotConfig, VehicleAdapter
+from autopilot.runner import Autopilot, AutopilotConfig
+from autopilot.vehicle_adapter import VehicleAdapter
 from mavlink_bridge.contract.vehicle_api import CommandResult, FlightMode
 from mavlink_bridge.contract.wire import ActuatorCommand
 from mavlink_bridge.lockstep import LockstepFrame

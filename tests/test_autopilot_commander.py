@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from autopilot_fakes import FRAME, KinematicLoop, command, make_commander, make_state
+from autopilot_fakes import FRAME, KinematicLoop, command, make_commander, make_state, set_context, update
 
 from autopilot.commander import (
     FORCE_MAGIC,
@@ -25,7 +25,7 @@ def test_px4_mode_encoding_round_trips_main_and_sub_mode() -> None:
     for mode in FlightMode:
         assert FlightMode.from_px4(mode.px4_main_mode, mode.px4_sub_mode) is mode
     commander = make_commander()
-    commander.update(make_state(), 0.0)
+    update(commander, make_state(), 0.0)
     assert commander.handle_command(command(MavCmd.DO_SET_MODE, 1, 4, 2)) is CommandResult.ACCEPTED
     assert commander.mode is FlightMode.AUTO_TAKEOFF
     assert commander.handle_command(command(MavCmd.DO_SET_MODE, 1, 4, 0)) is CommandResult.ACCEPTED
@@ -46,7 +46,7 @@ def test_px4_mode_encoding_round_trips_main_and_sub_mode() -> None:
 )
 def test_arming_refused_with_reason(state_kwargs: dict[str, object], reason: str) -> None:
     commander = make_commander()
-    commander.update(make_state(**state_kwargs), 0.0)  # type: ignore[arg-type]
+    update(commander, make_state(**state_kwargs), 0.0)  # type: ignore[arg-type]
     assert commander.handle_command(command(*ARM)) is CommandResult.DENIED
     assert reason in commander.last_reason
     assert not commander.armed
@@ -56,11 +56,11 @@ def test_arming_refused_with_reason(state_kwargs: dict[str, object], reason: str
 def test_arming_refused_without_state_in_air_in_failsafe_and_in_land_mode() -> None:
     commander = make_commander()
     assert commander.handle_command(command(*ARM)) is CommandResult.TEMPORARILY_REJECTED
-    commander.update(make_state(), 0.0)
-    commander.failsafe_reasons.add("geofence breach")
+    update(commander, make_state(), 0.0)
+    set_context(commander, failsafe_reasons=frozenset({"geofence breach"}))
     assert commander.handle_command(command(*ARM)) is CommandResult.DENIED
     assert "failsafe active" in commander.last_reason
-    commander.failsafe_reasons.clear()
+    set_context(commander, failsafe_reasons=frozenset())
     commander.mode = FlightMode.AUTO_LAND
     assert commander.handle_command(command(*ARM)) is CommandResult.DENIED
     assert "AUTO_LAND" in commander.last_reason
@@ -74,7 +74,7 @@ def test_arming_refused_without_state_in_air_in_failsafe_and_in_land_mode() -> N
 
 def test_force_arm_skips_checks_and_disarm_in_air_needs_force() -> None:
     commander = make_commander()
-    commander.update(make_state(gps_fix_type=0), 0.0)
+    update(commander, make_state(gps_fix_type=0), 0.0)
     assert commander.handle_command(command(MavCmd.COMPONENT_ARM_DISARM, 1.0, FORCE_MAGIC)) is CommandResult.ACCEPTED
     assert commander.armed and commander.home is not None
     commander.landed_state = LandedState.IN_AIR
@@ -87,7 +87,7 @@ def test_force_arm_skips_checks_and_disarm_in_air_needs_force() -> None:
 
 def test_commands_that_need_flight_are_refused_on_the_ground() -> None:
     commander = make_commander()
-    commander.update(make_state(), 0.0)
+    update(commander, make_state(), 0.0)
     for cmd in (
         (MavCmd.NAV_LAND,),
         (MavCmd.NAV_RETURN_TO_LAUNCH,),
@@ -102,7 +102,7 @@ def test_commands_that_need_flight_are_refused_on_the_ground() -> None:
 
 def test_takeoff_altitude_frames_and_range() -> None:
     commander = make_commander()
-    commander.update(make_state(), 0.0)
+    update(commander, make_state(), 0.0)
     # COMMAND_LONG param7 is AMSL (PX4): 10 m AMSL is below home at 488 m
     assert commander.handle_command(command(MavCmd.NAV_TAKEOFF, *[0] * 6, 10.0)) is CommandResult.DENIED
     assert "AMSL" in commander.last_reason
@@ -222,24 +222,24 @@ def test_offboard_needs_a_setpoint_and_mission_target_drives_auto_mission() -> N
     assert commander.handle_command(command(MavCmd.DO_SET_MODE, 1, 6, 0)) is CommandResult.DENIED
     commander.set_offboard_target((5.0, 0.0, -12.0))
     assert commander.handle_command(command(MavCmd.DO_SET_MODE, 1, 6, 0)) is CommandResult.DENIED  # not streaming
-    commander.offboard_streaming = True  # the runner: setpoints arrive within COM_OF_LOSS_T
+    set_context(commander, offboard_streaming=True)  # the runner: setpoints arrive within COM_OF_LOSS_T
     assert commander.handle_command(command(MavCmd.DO_SET_MODE, 1, 6, 0)) is CommandResult.ACCEPTED
     assert loop.run_until(lambda: math.dist(loop.pos, (5.0, 0.0, -12.0)) < 0.1, 20.0)
-    commander.mission_ready = True
+    set_context(commander, mission_ready=True)
     assert commander.handle_command(command(MavCmd.MISSION_START)) is CommandResult.ACCEPTED
     from autopilot.setpoints import NavTarget
 
-    commander.set_mission_target(NavTarget(TargetKind.POSITION, (0.0, 8.0, -6.0)))
+    loop.mission_target = NavTarget(TargetKind.POSITION, (0.0, 8.0, -6.0))
     assert loop.run_until(lambda: math.dist(loop.pos, (0.0, 8.0, -6.0)) < 0.1, 20.0)
 
 
 def test_home_is_set_at_the_first_3d_fix_and_moved_at_arming() -> None:
     commander = make_commander()
-    commander.update(make_state(gps_fix_type=2), 0.0)
+    update(commander, make_state(gps_fix_type=2), 0.0)
     assert commander.home is None
-    commander.update(make_state((1.0, 2.0, 0.0)), 0.0)
+    update(commander, make_state((1.0, 2.0, 0.0)), 0.0)
     assert commander.home is not None and commander.home.pos_ned_m == (1.0, 2.0, 0.0)
-    commander.update(make_state((3.0, 4.0, 0.0)), 0.0)
+    update(commander, make_state((3.0, 4.0, 0.0)), 0.0)
     assert commander.home.pos_ned_m == (1.0, 2.0, 0.0)
     assert commander.handle_command(command(*ARM)) is CommandResult.ACCEPTED
     assert commander.home.pos_ned_m == (3.0, 4.0, 0.0)
@@ -252,11 +252,11 @@ def test_cached_speeds_and_land_detector_follow_parameter_changes_in_flight() ->
     _takeoff(loop, 3.0)
     loop.run_s(6.0)
     assert commander.mode is FlightMode.AUTO_LOITER
-    target = commander.update(loop.state(), loop.thrust_ratio)
+    target = update(commander, loop.state(), loop.thrust_ratio)
     assert target.speed_up_m_s == commander.params.get("MPC_Z_VEL_MAX_UP")
     commander.params.set("MPC_Z_VEL_MAX_UP", 2.5)
     commander.params.set("MPC_XY_VEL_MAX", 1.5)
-    target = commander.update(loop.state(), loop.thrust_ratio)
+    target = update(commander, loop.state(), loop.thrust_ratio)
     assert (target.speed_xy_m_s, target.speed_up_m_s) == (1.5, 2.5)
     assert commander.handle_command(command(MavCmd.NAV_LAND)) is CommandResult.ACCEPTED
     commander.params.set("LNDMC_TRIG_TIME", 1.5)  # a longer confirmation before "Landing detected"

@@ -18,8 +18,9 @@ import hashlib
 import math
 import struct
 
-from autopilot.runner import Autopilot, AutopilotConfig, VehicleAdapter
+from autopilot.runner import Autopilot, AutopilotConfig
 from autopilot.scripted_commands import CommandScript, parse_script
+from autopilot.vehicle_adapter import VehicleAdapter
 from mavlink_bridge.contract.frames import LocalNedFrame
 from mavlink_bridge.contract.vehicle_api import (
     CommandRequest,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from autopilot_fakes import set_context
 from test_autopilot_runner import Loop
 
 from autopilot.failsafe import FailsafeKind
@@ -21,7 +22,7 @@ def test_prearm_bit_follows_the_arming_checks_and_geofence_bit_follows_breaches(
     snap = loop.ap.snapshot()
     assert snap.sensors_health & PREARM_CHECK and snap.sensors_health & GPS
     assert snap.sensors_health & GEOFENCE
-    loop.ap.commander.failsafe_reasons = {FailsafeKind.GEOFENCE.value}
+    set_context(loop.ap.commander, failsafe_reasons=frozenset({FailsafeKind.GEOFENCE.value}))
     snap = loop.ap.snapshot()
     assert not snap.sensors_health & GEOFENCE
     assert not snap.sensors_health & PREARM_CHECK  # a failsafe also blocks arming

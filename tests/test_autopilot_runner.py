@@ -12,7 +12,8 @@ import math
 import pytest
 from autopilot_fakes import command
 
-from autopilot.runner import Autopilot, AutopilotConfig, VehicleAdapter
+from autopilot.runner import Autopilot, AutopilotConfig
+from autopilot.vehicle_adapter import VehicleAdapter
 from mavlink_bridge.contract.frames import LocalNedFrame
 from mavlink_bridge.contract.vehicle_api import (
     CommandResult,

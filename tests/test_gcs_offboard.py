@@ -14,7 +14,7 @@ from autopilot_loop import InProcessLockstep, SimLoop
 from conftest import free_udp_port
 from gcs_fakes import FakeVehicle, ServerHarness
 
-from autopilot.runner import Links, run_loop
+from autopilot.io_loop import Links, run_loop
 from mavlink_bridge.contract.vehicle_api import (
     AltitudeFrame,
     CommandResult,

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from autopilot.control.airframe import load_airframe
-from autopilot.control.cascade import CascadeController
+from autopilot.control.cascade import CascadeController, ControlSample
 from autopilot.control.gains import CascadeGains
 from autopilot.setpoints import NavTarget, TargetKind
 from autopilot.telemetry import RerunTelemetry, make_listener
@@ -32,13 +32,13 @@ def flight(tmp_path_factory: pytest.TempPathFactory):
     telemetry = RerunTelemetry(rec, batch_rows=400)  # several batches, the last one partial
     fed = {"t_us": [], "pos": [], "sp": [], "q": [], "kp": [], "att_err": [], "motor": []}
     for record in synthetic_records(N_STEPS):
-        diag = record.controller.diagnostics
+        values = record.control.values if record.control is not None else (math.nan,) * ControlSample.SIZE
         fed["t_us"].append(record.time_us)
         fed["pos"].append(record.state.pos_ned_m)
         fed["sp"].append(record.pos_sp_ned_m)
         fed["q"].append(record.state.q_ned_frd)
-        fed["kp"].append(diag.kp[0].copy())
-        fed["att_err"].append(diag.att_err_rad[0].copy())
+        fed["kp"].append(values[ControlSample.KP])
+        fed["att_err"].append(values[ControlSample.ATT_ERR])
         fed["motor"].append(record.motor_cmd)
         telemetry.on_step(record)
     telemetry.on_step(record)  # a repeated frame is ignored (sim time stays strictly increasing)
@@ -175,7 +175,7 @@ def test_real_cascade_diagnostics_are_gathered_exactly(tmp_path: Path) -> None:
         fed_kp.append(d.kp[0].copy())
         fed_err.append(d.att_err_rad[0].copy())
         fed_thrust.append(float(d.thrust_n[0]))
-        telemetry.on_step(dataclasses.replace(record, controller=controller))
+        telemetry.on_step(dataclasses.replace(record, control=controller.sample()))
     telemetry.close()
     r = read_recording(tmp_path / "real.rrd")
     kp = np.hstack(

@@ -40,6 +40,7 @@ from autopilot.control.gains import CascadeGains, CascadeLimits
 from autopilot.control.mixer import QuadXMixer, mix_one
 from autopilot.control.pid import N_GAIN_COLS, N_STATE_COLS, nlvg_pid_step
 from mavlink_bridge.contract.frames import GRAVITY_M_S2
+from mavlink_bridge.contract.wire import fast_frozen_init
 
 # packed parameter vector: CascadeLimits.as_array() then airframe constants, then A⁻¹ (row-major)
 L_TILT, L_ACC_XY, L_ACC_UP, L_ACC_DOWN, L_AA_RP, L_AA_YAW, L_I_POS, L_I_ATT, L_T_POS, L_T_ATT, L_GYRO = range(11)
@@ -345,6 +346,39 @@ def _vector(x: object, n: int) -> np.ndarray:
     return np.ascontiguousarray(np.broadcast_to(a, (n,)))
 
 
+@fast_frozen_init
+@dataclass(frozen=True, slots=True)
+class ControlSample:
+    """Vehicle 0's last cascade step, copied for listeners (:meth:`CascadeController.sample`).
+
+    ``values`` holds, in order: attitude error (roll, pitch, yaw, rad), attitude setpoint (rad), the live k(s) of
+    each channel in CHANNELS order for k_p, then k_i, then k_d (eqs. 4-9), collective thrust (N) and torque
+    (FRD, N·m); the class constants slice it.
+    """
+
+    values: tuple[float, ...]
+
+    ATT_ERR = slice(0, 3)
+    ATT_SP = slice(3, 6)
+    KP = slice(6, 12)
+    KI = slice(12, 18)
+    KD = slice(18, 24)
+    THRUST = 24
+    TORQUE = slice(25, 28)
+    SIZE = 28
+
+
+def _sample_index() -> np.ndarray:
+    """Offsets into one vehicle's work row, in :class:`ControlSample` order."""
+    kp = [W_K + 3 * c for c in range(6)]
+    index = [*range(W_ERR + 3, W_ERR + 6), *range(W_ATT, W_ATT + 3), *kp, *(k + 1 for k in kp), *(k + 2 for k in kp)]
+    index += [W_THR, *range(W_TQ, W_TQ + 3)]
+    return np.asarray(index, dtype=np.intp)
+
+
+_SAMPLE_INDEX = _sample_index()
+
+
 class CascadeController:
     """NLVG-PID cascade for n vehicles of one airframe (n = 1: the single vehicle, same code).
 
@@ -410,6 +444,18 @@ class CascadeController:
             motor_cmd=wk[:, W_U : W_U + 4],
             valid=wk[:, W_OK],
         )
+
+    def sample(self) -> ControlSample:
+        """Vehicle 0's last step as a frozen message (one gather, one tuple)."""
+        return ControlSample(tuple(self._work[0].take(_SAMPLE_INDEX).tolist()))
+
+    def state_array(self) -> np.ndarray:
+        """The controller's state (integrators, held outputs, last step), copied: :meth:`load_state` takes it."""
+        return self._work.copy()
+
+    def load_state(self, work: np.ndarray) -> None:
+        """Continue from :meth:`state_array` of a cascade with the same n (bumpless rebuild after a limit change)."""
+        self._work[:] = work
 
     @property
     def mass_kg(self) -> np.ndarray:

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import rerun as rr
 
+from autopilot.control.cascade import ControlSample
 from autopilot.setpoints import TargetKind
 from autopilot.telemetry import entities as ent
 from autopilot.telemetry.blueprint import flight_blueprint
@@ -31,7 +32,7 @@ from mavlink_bridge.contract.frames import GeoPoint
 from mavlink_bridge.contract.vehicle_api import FlightMode, MissionItem, Severity
 
 if TYPE_CHECKING:
-    from autopilot.runner import StepRecord
+    from autopilot.reporting import StepRecord
 
 # ---- scalar row layout (angles in rad while buffered, degrees once flushed) ----
 C_POS, C_POS_SP, C_POS_ERR, C_ATT = 0, 3, 6, 9
@@ -41,7 +42,8 @@ C_ATT_ERR, C_ATT_SP = 20, 23
 C_KP, C_KI, C_KD = 26, 32, 38  # 6 channels each: x, y, z, roll, pitch, yaw
 C_THRUST, C_TORQUE = 44, 45
 N_COLS = 48
-_N_CTRL = N_COLS - C_ATT_ERR
+_N_CTRL = N_COLS - C_ATT_ERR  # the ControlSample block
+assert _N_CTRL == ControlSample.SIZE, "the control columns mirror autopilot.control.cascade.ControlSample"
 _ANGLE_COLS = (slice(C_ATT, C_ATT + 3), slice(C_ATT_ERR, C_ATT_SP + 3))
 _NAN_CTRL = (math.nan,) * _N_CTRL
 
@@ -95,56 +97,6 @@ _COLOR_TARGETS = (255, 150, 0)
 _MAX_TARGETS = 2000
 
 
-class _DiagGather:
-    """Copies vehicle 0 of a ``CascadeDiagnostics`` into one row with a single ``np.take``.
-
-    The diagnostics are live views into one work buffer of the controller; their element
-    offsets in that buffer are found once from the views themselves (addresses and strides).
-    When the views do not share one float64 buffer, falls back to per-field copies.
-    """
-
-    __slots__ = ("_diag", "_flat", "_index")
-
-    def __init__(self, diag: Any) -> None:
-        self._diag = diag
-        fields = [diag.att_err_rad, diag.att_sp_rad, diag.kp, diag.ki, diag.kd, diag.thrust_n, diag.torque_frd_nm]
-        self._flat: np.ndarray | None = None
-        self._index = np.zeros(0, dtype=np.intp)
-        base = fields[0].base
-        if not isinstance(base, np.ndarray) or base.dtype != np.float64 or not base.flags.c_contiguous:
-            return
-        origin = base.__array_interface__["data"][0]
-        index: list[int] = []
-        for a in fields:
-            if a.dtype != np.float64 or a.base is not base:
-                return
-            row = a[0] if a.ndim == 2 else a[:1]
-            start = row.__array_interface__["data"][0]
-            index += [(start - origin + j * row.strides[0]) // 8 for j in range(row.shape[0])]
-        if len(index) != _N_CTRL or min(index) < 0 or max(index) >= base.size:
-            return
-        self._flat = base.reshape(-1)
-        self._index = np.asarray(index, dtype=np.intp)
-
-    def matches(self, diag: Any) -> bool:
-        return diag is self._diag
-
-    def gather(self, out: np.ndarray) -> None:
-        """Write the controller block (``_N_CTRL`` values, CHANNELS order for gains) into ``out``."""
-        flat = self._flat
-        if flat is not None:
-            flat.take(self._index, out=out)  # the method: np.take's dispatch wrapper costs as much again
-            return
-        d = self._diag
-        out[0:3] = d.att_err_rad[0]
-        out[3:6] = d.att_sp_rad[0]
-        out[6:12] = d.kp[0]
-        out[12:18] = d.ki[0]
-        out[18:24] = d.kd[0]
-        out[24] = d.thrust_n[0]
-        out[25:28] = d.torque_frd_nm[0]
-
-
 def _time_column(t_us: np.ndarray) -> rr.TimeColumn:
     return rr.TimeColumn(ent.TIMELINE, duration=t_us.astype("timedelta64[us]"))
 
@@ -181,7 +133,6 @@ class RerunTelemetry:
         self._vals: list[float] = []
         self._times: list[int] = []
         self._ctrl = np.full((self._batch_rows, _N_CTRL), math.nan)
-        self._gather: _DiagGather | None = None
         self._has_battery: bool | None = None
         self._vals3: list[float] = []
         self._times3: list[int] = []
@@ -252,13 +203,9 @@ class RerunTelemetry:
             record.mission_seq,
         )
         i = len(self._times)
-        controller = record.controller
-        if controller is not None and record.target.kind is not TargetKind.IDLE:
-            diag = controller.diagnostics
-            gather = self._gather
-            if gather is None or not gather.matches(diag):
-                gather = self._gather = _DiagGather(diag)
-            gather.gather(self._ctrl[i])
+        control = record.control
+        if control is not None:
+            self._ctrl[i] = control.values
         else:
             self._ctrl[i] = math.nan
         self._times.append(t_us)

@@ -15,14 +15,13 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 
-from autopilot.control.cascade import CascadeDiagnostics
+from autopilot.control.cascade import ControlSample
 from autopilot.estimation import VehicleState
-from autopilot.runner import StepRecord
-from autopilot.setpoints import NavTarget, TargetKind
+from autopilot.reporting import StepRecord
+from autopilot.setpoints import NavTarget, Reference, TargetKind
 from autopilot.telemetry import RerunTelemetry
 from autopilot.telemetry.sinks import RerunSink, SinkKind, open_recording
 from mavlink_bridge.contract.frames import quat_from_euler
@@ -51,30 +50,12 @@ class _PlannerOut:
     planned_path_ned: np.ndarray | None
 
 
-def _diagnostics() -> CascadeDiagnostics:
-    return CascadeDiagnostics(
-        pos_err_ned=np.zeros((1, 3)),
-        att_err_rad=np.zeros((1, 3)),
-        kp=np.zeros((1, 6)),
-        ki=np.zeros((1, 6)),
-        kd=np.zeros((1, 6)),
-        acc_sp_ned=np.zeros((1, 3)),
-        att_sp_rad=np.zeros((1, 3)),
-        torque_frd_nm=np.zeros((1, 3)),
-        thrust_n=np.zeros(1),
-        motor_cmd=np.zeros((1, 4)),
-        valid=np.ones(1),
-    )
-
-
 def synthetic_records(n_steps: int, *, with_planner: bool = True, t0_us: int = 1_000_000):
     """Yield ``n_steps`` StepRecords of a climbing helix at 250 Hz (controller diagnostics updated in place).
 
     Deterministic: position at step k is (20 cos(w t), 20 sin(w t), -(2 + 0.05 t)) with w = 0.2 rad/s;
     the first 50 steps are IDLE on the ground, then AUTO_MISSION. Planner output between 30 % and 60 %.
     """
-    diag = _diagnostics()
-    controller = SimpleNamespace(diagnostics=diag)
     home = (0.0, 0.0, 0.0)
     path = np.column_stack([np.linspace(15, 25, 20), np.linspace(-5, 5, 20), np.full(20, -5.0)])
     detour_obj = object()
@@ -88,13 +69,16 @@ def synthetic_records(n_steps: int, *, with_planner: bool = True, t0_us: int = 1
         roll, pitch, yaw = 0.05 * math.sin(t), 0.04 * math.cos(t), w * t + math.pi / 2
         q = tuple(float(c) for c in quat_from_euler(roll, pitch, yaw))
         idle = k < 50
-        diag.att_err_rad[0] = (0.01 * math.sin(3 * t), -0.01 * math.cos(3 * t), 0.002)
-        diag.att_sp_rad[0] = (roll + 0.01, pitch - 0.01, yaw)
-        diag.kp[0] = (5.0, 5.0, 5.0, 8.0, 8.0, 8.0 + math.sin(t))
-        diag.ki[0] = (0.2, 0.2, 0.2, 0.1, 0.1, 0.1)
-        diag.kd[0] = (5.0, 5.0, 5.0, 5.0, 5.0, 5.0)
-        diag.torque_frd_nm[0] = (0.01, -0.01, 0.001)
-        diag.thrust_n[0] = 19.6 + math.sin(t)
+        control = ControlSample(
+            (
+                *(0.01 * math.sin(3 * t), -0.01 * math.cos(3 * t), 0.002),  # attitude error
+                *(roll + 0.01, pitch - 0.01, yaw),  # attitude setpoint
+                *(5.0, 5.0, 5.0, 8.0, 8.0, 8.0 + math.sin(t)),  # k_p
+                *(0.2, 0.2, 0.2, 0.1, 0.1, 0.1),  # k_i
+                *(5.0, 5.0, 5.0, 5.0, 5.0, 5.0),  # k_d
+                *(19.6 + math.sin(t), 0.01, -0.01, 0.001),  # thrust, torque
+            )
+        )
         state = VehicleState(
             t_us, pos, (0.0, 0.0, 0.0), q, (0.0, 0.0, 0.0), roll, pitch, yaw, 30.0, 120.0, 12.0, 3, 12, 0.5, 0.8, True
         )
@@ -113,10 +97,7 @@ def synthetic_records(n_steps: int, *, with_planner: bool = True, t0_us: int = 1
             time_us=t_us,
             state=state,
             target=NavTarget(TargetKind.IDLE if idle else TargetKind.POSITION, (20.0 * (1 + k // 2500), 0.0, -5.0)),
-            pos_sp_ned_m=sp,
-            vel_sp_ned_m_s=(0.0, 0.0, 0.0),
-            acc_sp_ned_m_s2=(0.0, 0.0, 0.0),
-            yaw_sp_rad=yaw,
+            reference=Reference(sp, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), yaw),
             motor_cmd=(0.5, 0.51, 0.52, 0.53) if not idle else (0.05, 0.05, 0.05, 0.05),
             thrust_ratio=1.0,
             armed=k >= 25,
@@ -128,7 +109,7 @@ def synthetic_records(n_steps: int, *, with_planner: bool = True, t0_us: int = 1
             texts=texts,
             detections=(),
             planner_output=planner,
-            controller=controller,
+            control=None if idle else control,
         )
 
 

@@ -1,0 +1,6 @@
+"""Navigation: what to fly in AUTO_MISSION, about home (missions, fences, avoidance)."""
+
+from autopilot.navigation.home_frame import HomeFrame
+from autopilot.navigation.navigator import Navigator, NavOutput, ReferenceOverride
+
+__all__ = ["HomeFrame", "NavOutput", "Navigator", "ReferenceOverride"]
