@@ -45,6 +45,7 @@ class FailsafeKind(Enum):
     BATTERY_LOW = "battery low"
     BATTERY_CRITICAL = "battery critical"
     GEOFENCE = "geofence breach"
+    NO_ROUTE = "no route"  # the navigator found no route to the mission target for CA_NOROUTE_T (CA_NOROUTE_ACT)
 
 
 @dataclass(frozen=True, slots=True)

@@ -244,6 +244,8 @@ def summary(
         "items_total": len(nav.mission),
         "items_reached": len(set(reached)),
         "reached_seqs": list(reached),
+        "items_bypassed": len(set(nav.bypassed_seqs)),  # flown around (a detour rejoined past them), not reached
+        "bypassed_seqs": list(nav.bypassed_seqs),
         "mission_state": nav.mission_state.name,
         "mode": commander.mode.name,
         "mode_history": [{"t_s": t / 1e6, "mode": m.name} for t, m in commander.mode_history],

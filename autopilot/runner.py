@@ -242,6 +242,8 @@ class Autopilot:
             self.progress.add(nav.reached)
         if nav.gripper_release is not None:
             commander.set_gripper(release=nav.gripper_release)
+        if nav.failsafe is not None:  # no route to the mission target for CA_NOROUTE_T
+            commander.apply_failsafe(nav.failsafe)
         fc = self.control
         inputs = CommanderInputs(state, fc.thrust_ratio, self.estimator.local_frame, self._context, nav.mission_target)
         target = commander.update(inputs)
@@ -289,6 +291,7 @@ class Autopilot:
             return
         self.navigator.set_home(frame)
         nav = self.navigator
+        self.update_context(mission_ready=nav.mission_ready)  # the stored mission was checked against home
         if self.listener is not None and home is not None:
             if nav.mission:
                 self.listener.on_mission(nav.mission, home.geo)
