@@ -28,14 +28,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from autopilot.fence_zones import planner_fence_zones
-from autopilot.mission.feasibility import FeasibilityLimits, position_issue
-from autopilot.mission.fence import CircleZone, Geofence, PolygonZone
-from autopilot.planner.mission_router import MissionRouter, RouteStatus
+from autopilot.estimation import VehicleState
+from autopilot.mission.fence import CircleZone, Geofence, PolygonZone, circle_fence_items, polygon_fence_items
+from autopilot.navigation import HomeFrame, Navigator
+from autopilot.param_schema import make_param_store
 from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import AvoidancePlanner
 from autopilot.planner.route_graph import KnownWorld, ObstacleDisc
-from mavlink_bridge.contract.frames import quat_from_euler
+from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame, quat_from_euler
+from mavlink_bridge.contract.mav_enums import MavCmd, MavFrame, MissionState
+from mavlink_bridge.contract.vehicle_api import FlightMode, MissionItem, MissionResult, MissionType
 from sim.obstacle_sensor import ObstacleSensor
 from sim.world import Box, Cylinder, Sphere, WindConfig, World, empty_world
 from tools.benchmarks import BenchResult
@@ -43,6 +45,8 @@ from tools.benchmarks.avoidance import ACCEPT_RADIUS_M, KD_VEL, KP_POS, VEHICLE_
 
 #: Seed of the benchmark's world sequence (world i is the i-th of it, flown with sensor seed i).
 WORLD_SEED = 20261123
+#: Cruise speed of the follower (m/s; the navigator's targets ask for MIS_CRUISE_SPD, capped here).
+CRUISE_M_S = 5.0
 #: Worlds flown by ``make bench`` (and by ``--quick``).
 FULL_WORLDS = 500
 QUICK_WORLDS = 40
@@ -165,19 +169,25 @@ def random_world(rng: np.random.Generator, params: PlannerParams) -> RoutingWorl
     return RoutingWorld(world, wps, fence)
 
 
-def upload_refusal(rw: RoutingWorld, params: PlannerParams) -> str:
-    """What the autopilot's upload check says about this mission and fence ("" = accepted)."""
-    limits = FeasibilityLimits(margin_m=params.fence_margin_m)
-    for i, p in enumerate(rw.waypoints_ned[1:], start=1):
-        issue = position_issue(i, (float(p[0]), float(p[1]), float(p[2])), rw.fence, limits)
-        if issue is not None:
-            return issue.reason
-    world = KnownWorld(rw.fence, params.fence_margin_m)
-    for i in range(len(rw.waypoints_ned) - 1):
-        r = world.route(rw.waypoints_ned[i], rw.waypoints_ned[i + 1])
-        if not r.ok:
-            return f"item {i + 1}: no route around the fence ({r.reason})"
-    return ""
+def mission_uploads(rw: RoutingWorld, home: GeoPoint) -> tuple[list[MissionItem], list[MissionItem]]:
+    """The world's mission (a waypoint per point after the first, accepted within ACCEPT_RADIUS_M) and its
+    fence, as the MISSION and FENCE items a ground station uploads."""
+    frame = LocalNedFrame(home)
+    rel = int(MavFrame.GLOBAL_RELATIVE_ALT)
+    items = []
+    for seq, (n, e, d) in enumerate(rw.waypoints_ned[1:].tolist()):
+        g = frame.geodetic_from_ned(n, e, 0.0)
+        items.append(MissionItem(seq, int(MavCmd.NAV_WAYPOINT), rel, 0.0, ACCEPT_RADIUS_M, 0.0, math.nan,
+                                 g.lat_deg, g.lon_deg, -d))  # fmt: skip
+    fence: list[MissionItem] = []
+    for zone in rw.fence.zones:
+        if isinstance(zone, CircleZone):
+            g = frame.geodetic_from_ned(zone.center_ne_m[0], zone.center_ne_m[1], 0.0)
+            fence += circle_fence_items(len(fence), g.lat_deg, g.lon_deg, zone.radius_m, inclusion=zone.inclusion)
+        else:
+            pts = [frame.geodetic_from_ned(n, e, 0.0) for n, e in zone.vertices_ne_m]
+            fence += polygon_fence_items(len(fence), [(g.lat_deg, g.lon_deg) for g in pts], inclusion=zone.inclusion)
+    return items, fence
 
 
 def fly_mission(
@@ -185,27 +195,38 @@ def fly_mission(
     params: PlannerParams | None = None,
     *,
     seed: int = 0,
-    speed_m_s: float = 5.0,
     dt_s: float = 0.04,
 ) -> MissionFlight:
-    """Fly one world's mission with the router + the reactive planner in the loop (module docstring)."""
-    params = params or PlannerParams()
-    refusal = upload_refusal(rw, params)
+    """Fly one world's mission with the autopilot's :class:`Navigator` in the loop (module docstring).
+
+    The mission and the fence are uploaded *before* home is known (as a ground station syncing on connect),
+    then home is set: a mission the navigator finds infeasible is refused with its reason and not flown.
+    """
+    store = make_param_store()
+    if params is not None:
+        for name, value in _planner_param_values(params).items():
+            store.set(name, value)
+    planner_params = PlannerParams.from_store(store)
     wps = rw.waypoints_ned
-    best = KnownWorld(rw.fence, params.fence_margin_m, [_obstacle_disc(o, params.r_safe_m) for o in rw.world.obstacles])
+    best = KnownWorld(rw.fence, planner_params.fence_margin_m,
+                      [_obstacle_disc(o, planner_params.r_safe_m) for o in rw.world.obstacles])  # fmt: skip
     best_len = sum(best.route(wps[i], wps[i + 1]).length_m for i in range(len(wps) - 1))
-    if refusal:
-        return MissionFlight(refusal, 0, 0, False, math.inf, 0.0, best_len, 0, (), (), (), "refused")
+    home = rw.world.home
+    nav = Navigator(store, AvoidancePlanner(planner_params))
+    items, fence = mission_uploads(rw, home)
+    answers = (nav.replace_mission(MissionType.FENCE, fence), nav.replace_mission(MissionType.MISSION, items))
+    refused = [r for r in answers if r[0] is not MissionResult.ACCEPTED]
+    nav.set_home(HomeFrame(home))
+    reason = refused[0][1] if refused else nav.uploads.mission_issue
+    if reason:
+        return MissionFlight(reason, 0, 0, False, math.inf, 0.0, best_len, 0, (), (), (), "refused")
     sensor = ObstacleSensor(rw.world, seed=seed)
-    planner = AvoidancePlanner(params)
-    planner.set_fences(planner_fence_zones(rw.fence))
-    router = MissionRouter(params, rw.fence)
-    max_time_s = 4.0 * best_len / speed_m_s + 60.0
+    nav.start_mission(0)
+    max_time_s = 4.0 * best_len / CRUISE_M_S + 60.0
     pos, vel = wps[0].copy(), np.zeros(3)
     yaw = math.atan2(wps[1, 1] - wps[0, 1], wps[1, 0] - wps[0, 0])
     sensor_every = max(1, round(1.0 / (sensor.config.rate_hz * dt_s)))
-    target_i = 1
-    collisions = breaches = bypassed = 0
+    collisions = breaches = 0
     inside = breached = False
     min_clear = math.inf
     path_len = 0.0
@@ -213,40 +234,42 @@ def fly_mission(
     known_t: list[float] = []
     texts: list[str] = []
     end = "timeout"
+    zero3 = (0.0, 0.0, 0.0)
     for k in range(int(max_time_s / dt_s)):
         time_us = round(k * dt_s * 1e6)
         q = quat_from_euler(0.0, 0.0, yaw)
         dets = sensor.detect(pos, q, time_us) if k % sensor_every == 0 else ()
+        p = pos.tolist()
+        v = vel.tolist()
+        state = VehicleState(time_us, (p[0], p[1], p[2]), (v[0], v[1], v[2]), q, zero3, 0.0, 0.0, yaw,
+                             home.lat_deg, home.lon_deg, home.alt_amsl_m, 3, 12, 0.5, 0.5, True)  # fmt: skip
         t0 = time.thread_time()
-        step = router.update(time_us, pos, wps[target_i:], target_i, planner.map.obstacles, planner.state)
-        if step.planned:
-            known_t.append(time.thread_time() - t0)
-        texts.extend(step.texts)
-        if step.action is not None:
+        out = nav.update(state, FlightMode.AUTO_MISSION, False, dets)
+        dt_cpu = time.thread_time() - t0
+        step = nav.routing.step
+        if step is not None and step.planned:
+            known_t.append(dt_cpu)
+        if out.failsafe is not None:
+            texts.append(out.failsafe.message)
             end = "no_route_action"
             break
-        goal = np.asarray(step.goal_ned_m, float)
-        ahead = step.route_ahead_ned_m
+        if nav.mission_state is MissionState.COMPLETE:
+            end = "completed"
+            break
+        target = out.mission_target
+        if target is None:
+            continue
         t0 = time.thread_time()
-        out = planner.update(time_us, pos, vel, q, dets, goal, ahead if len(ahead) else None)
-        if out.replanned:
+        override = nav.avoid(state, target)
+        if getattr(nav.planner_output, "replanned", False):
             local_t.append(time.thread_time() - t0)
-        texts.extend(d.text for d in out.decisions)
-        if out.rejoin_route_index:
-            skip = router.consume(out.rejoin_route_index)
-            if skip > 0:
-                bypassed += min(skip, len(wps) - 1 - target_i)
-                target_i = min(target_i + skip, len(wps) - 1)
-        if out.setpoint is not None:
-            sp_p, sp_v, sp_a = (np.array(x) for x in (out.setpoint.pos_ned_m, out.setpoint.vel_ned_m_s,
-                                                      out.setpoint.acc_ned_m_s2))  # fmt: skip
+        if override is not None:
+            sp_p, sp_v, sp_a = (np.array(x) for x in (override.pos_ned_m, override.vel_ned_m_s, override.acc_ned_m_s2))
             acc = sp_a + KP_POS * (sp_p - pos) + KD_VEL * (sp_v - vel)
         else:
-            to_goal = goal - pos
+            to_goal = np.array(target.pos_ned_m) - pos
             dist = float(np.linalg.norm(to_goal))
-            last = step.vias_left == 0 and target_i == len(wps) - 1
-            stop = last or step.status is RouteStatus.NO_ROUTE
-            v_mag = min(speed_m_s, math.sqrt(2.0 * 0.5 * params.a_max_m_s2 * dist)) if stop else speed_m_s
+            v_mag = min(CRUISE_M_S, math.sqrt(2.0 * 0.5 * planner_params.a_max_m_s2 * dist))
             acc = KD_VEL * (to_goal / max(dist, 1e-9) * v_mag - vel)
         norm = float(np.linalg.norm(acc))
         if norm > VEHICLE_ACC_MAX_M_S2:
@@ -255,9 +278,8 @@ def fly_mission(
         move = vel * dt_s
         pos = pos + move
         path_len += float(np.linalg.norm(move))
-        look = np.asarray(out.look_ahead_ned if out.look_ahead_ned is not None else goal)
-        if float(np.hypot(look[0] - pos[0], look[1] - pos[1])) > 0.5:
-            yaw = math.atan2(look[1] - pos[1], look[0] - pos[0])
+        if not math.isnan(target.yaw_rad):
+            yaw = target.yaw_rad
         clear = float(rw.world.clearance_m(pos)[0]) if rw.world.obstacles else math.inf
         min_clear = min(min_clear, clear)
         collisions += clear < 0.0 and not inside
@@ -265,16 +287,20 @@ def fly_mission(
         out_of_fence = rw.fence.violates(pos)
         if out_of_fence and not breached:  # for the report: where and in which state
             where = np.round(pos, 1).tolist()
-            texts.append(f"breach at {where}: planner {planner.state.name}, route {step.status.name}")
+            route = step.status.name if step is not None else "-"
+            texts.append(f"breach at {where}: planner {getattr(nav.planner_output, 'state', None)}, route {route}")
         breaches += out_of_fence and not breached
         breached = out_of_fence
-        if step.vias_left == 0 and float(np.linalg.norm(wps[target_i] - pos)) < ACCEPT_RADIUS_M:
-            if target_i == len(wps) - 1:
-                end = "completed"
-                break
-            target_i += 1
-    return MissionFlight("", collisions, breaches, end == "completed", min_clear, path_len, best_len, bypassed,
-                         tuple(local_t), tuple(known_t), tuple(texts), end)  # fmt: skip
+    texts += [t.text for t in nav.drain_texts()]
+    return MissionFlight("", collisions, breaches, end == "completed", min_clear, path_len, best_len,
+                         len(nav.bypassed_seqs), tuple(local_t), tuple(known_t), tuple(texts), end)  # fmt: skip
+
+
+def _planner_param_values(params: PlannerParams) -> dict[str, float]:
+    """The CA_* values of ``params`` that differ from the defaults."""
+    names = {"r_safe_m": "CA_RSAFE_M", "fence_margin_m": "CA_FENCE_MARG_M", "noroute_t_s": "CA_NOROUTE_T"}
+    default = PlannerParams()
+    return {n: float(getattr(params, f)) for f, n in names.items() if getattr(params, f) != getattr(default, f)}
 
 
 def benchmark_worlds(n: int, params: PlannerParams) -> list[RoutingWorld]:
