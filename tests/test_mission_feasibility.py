@@ -76,7 +76,7 @@ def test_a_mission_with_no_route_is_refused_with_the_reason() -> None:
     ) + circle(0, 0, 150, inclusion=True, seq=4)
     fence = geofence_from_items(walled_in, HOME)
     issue = check_feasibility(mission((100, 0, 15)), HOME, fence)
-    assert issue is not None and issue.result is MissionResult.DENIED and issue.item_index == 1
+    assert issue is not None and issue.result is MissionResult.INVALID and issue.item_index == 1
     assert issue.reason.startswith("item 1: no route from item 0 around the fence (no path")
 
 

@@ -168,8 +168,8 @@ def _upload_when_ready(client: GcsClient, plan: MissionPlan, timeout_s: float) -
         raise GcsScriptError(f"no 3D GPS fix reported within {timeout_s:g} s") from exc
     while True:
         try:
+            client.upload_mission(plan.fence, MissionType.FENCE)  # first: the mission is checked against it
             client.upload_mission(plan.items, MissionType.MISSION)
-            client.upload_mission(plan.fence, MissionType.FENCE)
             return
         except MissionUploadError as exc:
             transient = exc.result in (MissionResult.ERROR, MissionResult.DENIED)

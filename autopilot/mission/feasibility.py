@@ -153,7 +153,7 @@ def check_feasibility(
     same fence and margin, built here when None)."""
     limits = limits or FeasibilityLimits()
     if fence.violates((0.0, 0.0, 0.0)):
-        return _refuse(MissionResult.DENIED, -1, "home", "home lies outside the geofence: no mission can be flown")
+        return _refuse(MissionResult.INVALID, -1, "home", "home lies outside the geofence: no mission can be flown")
     frame = LocalNedFrame(home)
     for i, item in enumerate(items):
         if item.command not in POSITION_COMMANDS or is_wpl_home_line(i, item, home):
@@ -175,6 +175,6 @@ def check_feasibility(
         if not result.ok:
             origin = "home" if leg.from_seq < 0 else f"item {leg.from_seq}"
             return _refuse(
-                MissionResult.DENIED, leg.to_seq, "route", f"no route from {origin} around the fence ({result.reason})"
+                MissionResult.INVALID, leg.to_seq, "route", f"no route from {origin} around the fence ({result.reason})"
             )
     return None

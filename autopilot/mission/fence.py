@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -125,6 +125,10 @@ class CircleZone:
             return bool(np.all(np.linalg.norm(points_ne - c, axis=1) <= self.radius_m - margin_m))
         if len(points_ne) < 2:
             return bool(np.all(np.linalg.norm(points_ne - c, axis=1) > self.radius_m + margin_m))
+        reach = self.radius_m + margin_m  # the path's bounding box out of reach: clear at once
+        lo, hi = points_ne.min(axis=0), points_ne.max(axis=0)
+        if np.any(lo > c + reach) or np.any(hi < c - reach):
+            return True
         return bool(np.all(_point_segment_distance(c, points_ne[:-1], points_ne[1:]) > self.radius_m + margin_m))
 
 
@@ -135,6 +139,12 @@ class PolygonZone:
     vertices_ne_m: tuple[Vec2, ...]
     inclusion: bool
     group: int = 0
+    _box: tuple[float, float, float, float] = field(init=False, repr=False, compare=False)  # n/e min, max
+
+    def __post_init__(self) -> None:
+        ns = [v[0] for v in self.vertices_ne_m]
+        es = [v[1] for v in self.vertices_ne_m]
+        object.__setattr__(self, "_box", (min(ns), min(es), max(ns), max(es)) if ns else (0.0, 0.0, 0.0, 0.0))
 
     def _edges(self) -> tuple[np.ndarray, np.ndarray]:
         v = np.asarray(self.vertices_ne_m, dtype=float)
@@ -170,7 +180,14 @@ class PolygonZone:
         return (inside_a and inside_b) if self.inclusion else not (inside_a or inside_b)
 
     def path_clear(self, points_ne: np.ndarray, margin_m: float = 0.0) -> bool:
-        """:meth:`segment_clear` for every segment of a polyline (n >= 2, 2), vectorised."""
+        """:meth:`segment_clear` for every segment of a polyline (n >= 2, 2), vectorised; an exclusion zone whose
+        bounding box (grown by the margin) misses the path's is clear at once."""
+        if not self.inclusion:
+            lo, hi = points_ne.min(axis=0), points_ne.max(axis=0)
+            n0, e0, n1, e1 = self._box
+            m = margin_m + 1e-9
+            if lo[0] > n1 + m or hi[0] < n0 - m or lo[1] > e1 + m or hi[1] < e0 - m:
+                return True
         starts, ends = self._edges()
         gap = _polyline_gap(points_ne, starts, ends)
         if gap <= 0.0 or gap < margin_m:
