@@ -17,6 +17,8 @@ from dataclasses import dataclass
 from enum import Enum
 from typing import Protocol
 
+import numpy as np
+
 from autopilot.commander import Commander
 from autopilot.control.cascade import ControlSample
 from autopilot.estimation import VehicleState
@@ -80,6 +82,7 @@ class StepRecord:
     control: ControlSample | None  # the cascade's step (None while idle)
     battery_remaining_pct: float = math.nan
     battery_voltage_v: float = math.nan
+    planned_route_home_ned_m: np.ndarray | None = None  # the routed leg (about home); the same array until replanned
 
     @property
     def pos_sp_ned_m(self) -> Vec3:

@@ -394,6 +394,7 @@ class Autopilot:
             control=fc.controller.sample() if flying else None,
             battery_remaining_pct=100.0 * self.battery.remaining,
             battery_voltage_v=self.battery.voltage_v,
+            planned_route_home_ned_m=self.navigator.route_path_home_ned_m,
         )
 
     def snapshot(self) -> TelemetrySnapshot | None:

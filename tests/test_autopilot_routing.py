@@ -9,6 +9,7 @@ planner: no breach, no collision, every item reached or honestly bypassed.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 from autopilot_fakes import command
@@ -17,6 +18,10 @@ from conftest import REPO_ROOT
 
 from autopilot.mission.fence import circle_fence_items, geofence_from_items
 from autopilot.mission.files import load_mission_file
+from autopilot.telemetry import RerunTelemetry
+from autopilot.telemetry import entities as ent
+from autopilot.telemetry.recording_reader import read_recording
+from autopilot.telemetry.sinks import RerunSink, SinkKind, open_recording
 from mavlink_bridge.contract.frames import LocalNedFrame
 from mavlink_bridge.contract.mav_enums import MavCmd, MavFrame
 from mavlink_bridge.contract.vehicle_api import CommandResult, MissionItem, MissionResult, MissionType
@@ -94,3 +99,23 @@ def test_leg_across_a_no_fly_corridor_with_buildings_past_it_flies_clean() -> No
     nav = loop.ap.navigator
     assert sorted(set(loop.ap.reached_seqs) | set(nav.bypassed_seqs)) == list(range(len(plan.items)))
     assert loop.sim.payload_kg == 0.0  # the parcel was delivered
+
+
+def test_the_recording_shows_the_leg_routed_around_the_zones(tmp_path: Path) -> None:
+    plan = load_mission_file(CORRIDOR)
+    world = load_world(CORRIDOR)
+    path = tmp_path / "route.rrd"
+    telemetry = RerunTelemetry(open_recording(RerunSink(SinkKind.SAVE, str(path))))
+    loop = SimLoop(plan.vehicle, world=world, payload_kg=1.0, listener=telemetry)
+    loop.run_s(0.5)
+    assert loop.vehicle.replace_mission(MissionType.FENCE, plan.fence) == (MissionResult.ACCEPTED, "")
+    assert loop.vehicle.replace_mission(MissionType.MISSION, plan.items) == (MissionResult.ACCEPTED, "")
+    assert loop.vehicle.handle_command(command(400, 1.0)) is CommandResult.ACCEPTED
+    assert loop.vehicle.handle_command(command(300, 0.0)) is CommandResult.ACCEPTED
+    assert loop.run_until(lambda: loop.ap.navigator.route_path_home_ned_m is not None, 30.0), loop.texts
+    loop.run_s(1.0)
+    telemetry.close()
+    strip = np.asarray(read_recording(path).latest_component(ent.PLANNED_ROUTE, "LineStrips3D:strips")[0])
+    fence = geofence_from_items(plan.fence, world.home)
+    assert len(strip) > 2  # via points: the leg goes around the corridor
+    assert all(fence.segment_clear(strip[i], strip[i + 1], 2.9) for i in range(len(strip) - 1))

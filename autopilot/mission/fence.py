@@ -62,15 +62,11 @@ def segment_to_segments_distance(a: np.ndarray, b: np.ndarray, starts: np.ndarra
     return np.where(crossing, 0.0, d)
 
 
-def _polyline_gap(points: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> float:
+def _polyline_gap(points: np.ndarray, starts: np.ndarray, ends: np.ndarray, distance: bool = True) -> float:
     """Smallest 2D distance between the segments of a polyline ``points`` (n, 2) and the edges ``starts``-``ends``
-    (k, 2); 0 when any two cross."""
+    (k, 2); 0 when any two cross. ``distance`` False: only whether they cross (0, else inf)."""
     a, b = points[:-1, None, :], points[1:, None, :]  # (m, 1, 2)
     c, d = starts[None, :, :], ends[None, :, :]  # (1, k, 2)
-    gap = np.minimum(
-        np.minimum(_point_segment_distance(a, c, d), _point_segment_distance(b, c, d)),
-        np.minimum(_point_segment_distance(c, a, b), _point_segment_distance(d, a, b)),
-    )
     r, q = b - a, d - c
     rxs = r[..., 0] * q[..., 1] - r[..., 1] * q[..., 0]
     safe = np.where(rxs != 0.0, rxs, 1.0)
@@ -78,7 +74,15 @@ def _polyline_gap(points: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> f
     t = (w[..., 0] * q[..., 1] - w[..., 1] * q[..., 0]) / safe
     u = (w[..., 0] * r[..., 1] - w[..., 1] * r[..., 0]) / safe
     crossing = (rxs != 0.0) & (t >= 0.0) & (t <= 1.0) & (u >= 0.0) & (u <= 1.0)
-    return 0.0 if bool(crossing.any()) else float(gap.min())
+    if bool(crossing.any()):
+        return 0.0
+    if not distance:
+        return math.inf
+    gap = np.minimum(
+        np.minimum(_point_segment_distance(a, c, d), _point_segment_distance(b, c, d)),
+        np.minimum(_point_segment_distance(c, a, b), _point_segment_distance(d, a, b)),
+    )
+    return float(gap.min())
 
 
 def _points_inside(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
@@ -189,7 +193,7 @@ class PolygonZone:
             if lo[0] > n1 + m or hi[0] < n0 - m or lo[1] > e1 + m or hi[1] < e0 - m:
                 return True
         starts, ends = self._edges()
-        gap = _polyline_gap(points_ne, starts, ends)
+        gap = _polyline_gap(points_ne, starts, ends, distance=margin_m > 0.0)
         if gap <= 0.0 or gap < margin_m:
             return False
         inside = _points_inside(points_ne, starts)
