@@ -20,7 +20,6 @@ from dataclasses import dataclass
 from enum import Enum, IntEnum
 from typing import Protocol
 
-from autopilot.mission.fence import Geofence
 from autopilot.params import ParamStore
 
 BATTERY_FULL_V = 16.8
@@ -68,6 +67,7 @@ class FailsafeInputs:
     battery_remaining: float  # fraction 0..1
     pos_ned_m: tuple[float, float, float]  # about the local origin
     home_ned_m: tuple[float, float, float]  # home about the local origin
+    geofence: FenceCheck | None = None  # the uploaded FENCE (about home), None without one
 
 
 class BatteryModel:
@@ -76,6 +76,10 @@ class BatteryModel:
     def __init__(self, hover_endurance_s: float) -> None:
         self.hover_endurance_s = hover_endurance_s
         self.remaining = 1.0
+
+    def set_hover_endurance_s(self, hover_endurance_s: float) -> None:
+        """BAT_HOVER_ENDUR changed: the charge left stays, the drain rate follows."""
+        self.hover_endurance_s = hover_endurance_s
 
     def update(self, thrust_ratio: float, dt_s: float) -> float:
         """Drain for ``dt_s`` at ``thrust_ratio`` (collective thrust / hover thrust); returns the fraction left."""
@@ -104,7 +108,6 @@ class FailsafeMonitor:
 
     def __init__(self, params: ParamStore) -> None:
         self._params = params
-        self.geofence: FenceCheck = Geofence()  # replaced by the runner when a FENCE list is uploaded
         self.active: set[FailsafeKind] = set()
 
     def _action(self, name: str) -> FailsafeAction:
@@ -130,7 +133,7 @@ class FailsafeMonitor:
             reason = f"{math.hypot(n, e):.0f} m from home (max {max_hor:g})"
         elif max_ver > 0.0 and -d > max_ver:
             reason = f"{-d:.0f} m above home (max {max_ver:g})"
-        elif self.geofence.violates((n, e, d)):
+        elif inp.geofence is not None and inp.geofence.violates((n, e, d)):
             reason = "outside the uploaded geofence"
         if reason is not None:
             out[FailsafeKind.GEOFENCE] = ("GF_ACTION", reason)

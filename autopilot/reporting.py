@@ -10,11 +10,13 @@
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import Enum
+from pathlib import Path
 from typing import Protocol
 
 import numpy as np
@@ -260,3 +262,10 @@ def summary(
         **tracking.summary(),
         "truth_sha256": truth_hash.hexdigest(),
     }
+
+
+def write_json(path: Path, content: dict[str, object]) -> Path:
+    """Write ``content`` as indented JSON (the folder is created); returns ``path``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(content, indent=2) + "\n")
+    return path

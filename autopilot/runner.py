@@ -5,23 +5,13 @@ Per frame (:meth:`Autopilot.step`), in sim time only::
     estimator -> failsafes (10 Hz) -> navigator (AUTO_MISSION) -> commander -> setpoint generator
     -> [navigator's avoidance override] -> NLVG-PID cascade -> ActuatorCommand (armed flag, gripper)
 
-The command is answered *before* the bookkeeping (:meth:`Autopilot.after_answer`: truth hash, battery model,
-tracking statistics, the next step's reference prepared), so the simulator integrates the next step while the
-autopilot does the rest. The modules (one job each):
-
-- ``estimation``: frame -> :class:`VehicleState` + ``EstimatorStatus`` (about the estimator origin);
-- ``navigation.Navigator``: missions, fences, avoidance, about home (:class:`HomeFrame` converts);
-- ``commander.Commander``: arming, modes, failsafe actions, one :class:`CommanderInputs` per step;
-- ``setpoints.SetpointGenerator`` -> :class:`Reference`; ``control.cascade`` -> motor commands;
-- ``link_health.LinkHealth``: wall-clock freshness of offboard, joystick and GCS peers;
-- ``param_binding.ParamBindings``: which component re-reads which parameter;
-- ``reporting``: step records, tracking, truth hash, mission progress; ``telemetry_report`` the snapshot and
-  summary; ``io_loop.run_loop`` the sockets; ``vehicle_adapter.VehicleAdapter`` the GCS-facing API.
+The command is answered *before* the bookkeeping (:meth:`Autopilot.after_answer`: truth hash, battery,
+tracking, the next step's reference prepared), so the simulator integrates while the autopilot does the rest.
+The runner only composes and steps the modules; ``docs/architecture.md`` says what each owns, reads and emits.
 """
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -141,7 +131,7 @@ class Autopilot:
         bindings.bind(SETPOINT_PARAMS, lambda _n, _v: fc.apply_setpoint_params())
         bindings.bind((s.name for s in controller_param_specs()), self._apply_controller_params)
         bindings.bind(("PLD_MASS_KG",), lambda _n, _v: fc.set_payload_released(fc.payload_released))
-        bindings.bind(("BAT_HOVER_ENDUR",), lambda _n, v: setattr(self.battery, "hover_endurance_s", v))
+        bindings.bind(("BAT_HOVER_ENDUR",), lambda _n, v: self.battery.set_hover_endurance_s(v))
         mission_names = [s.name for s in mission_param_specs()] + ["MIS_TAKEOFF_ALT"]
         bindings.bind(mission_names, lambda _n, _v: nav.apply_mission_params())
         bindings.bind([s.name for s in planner_param_specs()], lambda _n, _v: nav.apply_planner_params())
@@ -307,7 +297,6 @@ class Autopilot:
             offboard_streaming=offboard_age is not None and offboard_age <= p("COM_OF_LOSS_T"),
             manual_fresh=self.links.manual_fresh(p("COM_RC_LOSS_T")),
         )
-        self.failsafe.geofence = self.navigator.geofence
         events = self.failsafe.update(
             FailsafeInputs(
                 armed=commander.armed,
@@ -317,6 +306,7 @@ class Autopilot:
                 battery_remaining=self.battery.remaining,
                 pos_ned_m=state.pos_ned_m,
                 home_ned_m=self.home_ned,
+                geofence=self.navigator.geofence,
             )
         )
         for event in events:
@@ -424,10 +414,7 @@ class Autopilot:
         """Write ``LOG_DIR/autopilot_summary.json`` (None without a log dir)."""
         if not self.config.log_dir:
             return None
-        path = Path(self.config.log_dir) / "autopilot_summary.json"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(self.summary(wall_time_s), indent=2) + "\n")
-        return path
+        return reporting.write_json(Path(self.config.log_dir) / "autopilot_summary.json", self.summary(wall_time_s))
 
     @property
     def controller(self) -> CascadeController:

@@ -79,14 +79,15 @@ def test_geofence_breach_and_max_height_take_gf_action() -> None:
     params.set("GF_ACTION", 4)
     params.set("GF_MAX_VER_DIST", 50.0)
     mon = FailsafeMonitor(params)
-    mon.geofence = fence
-    assert mon.update(_inputs(pos_ned_m=(-50.0, 15.0, -10.0))) == []
-    (event,) = mon.update(_inputs(pos_ned_m=(55.0, 0.0, -10.0)))
+    assert mon.update(_inputs(pos_ned_m=(-50.0, 15.0, -10.0), geofence=fence)) == []
+    (event,) = mon.update(_inputs(pos_ned_m=(55.0, 0.0, -10.0), geofence=fence))
     assert event.kind is FailsafeKind.GEOFENCE and event.action is FailsafeAction.LAND
-    assert mon.update(_inputs(pos_ned_m=(0.0, 0.0, -10.0))) == []
-    assert [e.kind for e in mon.update(_inputs(pos_ned_m=(-50.0, 0.0, -10.0)))] == [FailsafeKind.GEOFENCE]
-    assert mon.update(_inputs(pos_ned_m=(0.0, 0.0, -10.0))) == []
-    assert [e.kind for e in mon.update(_inputs(pos_ned_m=(0.0, 120.0, -10.0)))] == [FailsafeKind.GEOFENCE]
+    assert mon.update(_inputs(pos_ned_m=(0.0, 0.0, -10.0), geofence=fence)) == []
+    breach = mon.update(_inputs(pos_ned_m=(-50.0, 0.0, -10.0), geofence=fence))
+    assert [e.kind for e in breach] == [FailsafeKind.GEOFENCE]
+    assert mon.update(_inputs(pos_ned_m=(0.0, 0.0, -10.0), geofence=fence)) == []
+    breach = mon.update(_inputs(pos_ned_m=(0.0, 120.0, -10.0), geofence=fence))
+    assert [e.kind for e in breach] == [FailsafeKind.GEOFENCE]
     mon2 = FailsafeMonitor(params)
     (event,) = mon2.update(_inputs(pos_ned_m=(0.0, 0.0, -60.0)))
     assert "above home" in event.message
