@@ -83,4 +83,5 @@ def test_mission_through_unknown_obstacles(tmp_path: Path, name: str) -> None:
     decisions = [t for t in texts if t.startswith("avoid: ")]
     assert decisions, texts  # the obstacles were in the way: the planner had to go around them
     ap = read_json(tmp_path / "autopilot_summary.json")
-    assert ap["reached_seqs"] == list(range(n)) and ap["landed"] and ap["disarmed"]
+    assert ap["reached_seqs"] == list(status.items_reached) and ap["bypassed_seqs"] == sorted(bypassed), ap
+    assert ap["items_bypassed"] == len(bypassed) and ap["landed"] and ap["disarmed"]
