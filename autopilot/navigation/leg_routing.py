@@ -110,7 +110,7 @@ class LegRouting:
                 self._pts, self._seqs = np.array((target.pos_ned_m,), float), (target.seq,)
         state = getattr(planner_output, "state", PlannerState.CLEAR)
         obstacles: Sequence[object] = getattr(planner_output, "obstacles", ())
-        step = self.router.update(time_us, pos_home_ned_m, self._pts, key, obstacles, state)
+        step = self.router.update(time_us, pos_home_ned_m, self._pts, key, obstacles, state, f"item {target.seq}")
         for text in step.texts:
             say(text, Severity.WARNING if step.status is RouteStatus.NO_ROUTE else Severity.INFO)
         failsafe = None

@@ -78,6 +78,7 @@ class MissionRouter:
         self._fence = fence or Geofence()
         self._fence_world: KnownWorld | None = None
         self._target_key: object = None
+        self._label = ""  # the target in messages (e.g. "item 3")
         self._target: Vec3 | None = None
         self._vias: list[Vec3] = []
         self._path: np.ndarray | None = None
@@ -134,6 +135,7 @@ class MissionRouter:
         target_key: object,
         obstacles: Sequence[object] = (),
         planner_state: PlannerState = PlannerState.CLEAR,
+        label: str = "",
     ) -> RouteStep:
         """The route for this step. ``route_ned_m`` (k, 3) is the mission's route from the target on (row 0 the
         target, then the points after it, e.g. ``MissionExecutor.route_ahead``); ``target_key`` identifies it
@@ -147,6 +149,7 @@ class MissionRouter:
             return self._step
         if target_key != self._target_key:
             self._target_key = target_key
+            self._label = label or str(target_key)
             t = route_ned_m[0]
             self._target = (float(t[0]), float(t[1]), float(t[2]))
             self._plan_later_legs(np.asarray(route_ned_m, float))
@@ -154,7 +157,7 @@ class MissionRouter:
             self._action_sent = False
             self._use_known = False
             self._planner_state = planner_state
-            return self._plan(time_us, pos_ned_m, (), f"new target {target_key}")
+            return self._plan(time_us, pos_ned_m, (), f"new target {self._label}")
         step = self._step
         if step.texts or step.planned or step.action is not None:  # one-shot fields: this step only
             self._step = replace(step, texts=(), planned=False, known_world=False, action=None)
@@ -241,7 +244,7 @@ class MissionRouter:
         texts: tuple[str, ...] = ()
         if first:
             texts = (
-                f"No route to {self._target_key}: {result.reason}; holding, "
+                f"No route to {self._label}: {result.reason}; holding, "
                 f"action {self.params.noroute_action} (CA_NOROUTE_ACT) in {self.params.noroute_t_s:g} s",
             )
         self._step = RouteStep(
@@ -267,12 +270,12 @@ class MissionRouter:
         if time_us - self._last_try_us >= NO_ROUTE_RETRY_S * 1e6:
             step = self._plan(time_us, pos, obstacles, "retry")
             if step.status is not RouteStatus.NO_ROUTE:
-                self._step = self._make_step((f"Route found to {self._target_key} after holding",), planned=True)
+                self._step = self._make_step((f"Route found to {self._label} after holding",), planned=True)
         return self._step
 
     def _action_text(self) -> str:
         p = self.params
-        return f"No route to {self._target_key} for {p.noroute_t_s:g} s: action {p.noroute_action} (CA_NOROUTE_ACT)"
+        return f"No route to {self._label} for {p.noroute_t_s:g} s: action {p.noroute_action} (CA_NOROUTE_ACT)"
 
     def _plan_later_legs(self, route: np.ndarray) -> None:
         """The legs after the target, each routed around the fence (their via points and the mission points)."""
