@@ -92,6 +92,7 @@ class MissionRouter:
         self._checked_obstacles: Sequence[object] | None = None
         self._use_known = False  # the reactive planner held on this leg: route around the tracked obstacles too
         self._planner_state = PlannerState.CLEAR
+        self._route = _NO_POINTS  # the mission's route from the target on
         self._later = _NO_POINTS  # the route after the target: later legs' via points and mission points
         self._later_is_mission = np.zeros(0, bool)
         self.searches = 0  # route searches run
@@ -152,7 +153,8 @@ class MissionRouter:
             self._label = label or str(target_key)
             t = route_ned_m[0]
             self._target = (float(t[0]), float(t[1]), float(t[2]))
-            self._plan_later_legs(np.asarray(route_ned_m, float))
+            self._route = np.asarray(route_ned_m, float)
+            self._plan_later_legs(self._route, self.fence_world)
             self._no_route_since_us = None
             self._action_sent = False
             self._use_known = False
@@ -200,6 +202,8 @@ class MissionRouter:
         self.searches += 1
         known = bool(obstacles)
         world = self._world(obstacles)
+        if known:  # the blocker may sit on a later leg (the reactive planner checks the route past the target)
+            self._plan_later_legs(self._route, world)
         start = (float(pos[0]), float(pos[1]), float(pos[2]))
         result = world.route(start, self._target, self.params.r_safe_m) if not world.empty else None
         texts: tuple[str, ...] = ()
@@ -277,11 +281,10 @@ class MissionRouter:
         p = self.params
         return f"No route to {self._label} for {p.noroute_t_s:g} s: action {p.noroute_action} (CA_NOROUTE_ACT)"
 
-    def _plan_later_legs(self, route: np.ndarray) -> None:
-        """The legs after the target, each routed around the fence (their via points and the mission points)."""
+    def _plan_later_legs(self, route: np.ndarray, world: KnownWorld) -> None:
+        """The legs after the target, each routed around ``world`` (their via points and the mission points)."""
         pts: list[np.ndarray] = []
         flags: list[bool] = []
-        world = self.fence_world
         for i in range(1, len(route)):
             r = world.route(route[i - 1], route[i]) if not world.empty else None
             if r is not None and r.ok and len(r.path_ned_m) > 2:
