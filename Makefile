@@ -4,21 +4,24 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: venv run test bench lint paper interop clean
+.PHONY: venv run test bench lint paper interop screenshot clean
 
+# The first setup takes about 2.5 min (pip ~1.5 min, then the kernel compile ~1 min); it says what it does.
 $(STAMP): pyproject.toml
+	@echo "[setup] creating $(VENV) and installing quadsitl with its dependencies (pip, 1-2 min the first time)..."
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
+	@echo "[setup] packages installed"
 
 # numba caches compiled kernels on disk; compiling them here (~1 min the first time, ~2 s when cached
 # or after an edit to one kernel file) keeps the first compile out of the lockstep loop.
 venv: $(STAMP)
-	$(BIN)/python -m tools.warm_jit
+	@$(BIN)/python -m tools.warm_jit
 
 run: venv
-	$(BIN)/python -m tools.run_delivery
+	$(BIN)/python -m tools.run_delivery --speed max
 
 test: venv
 	$(BIN)/python -m pytest -q
@@ -37,6 +40,12 @@ paper: venv
 interop: venv
 	$(BIN)/python -m pip install --quiet -e '.[dev,interop]'
 	$(BIN)/python -m pytest -q tests/test_interop_mavproxy.py tests/test_interop_mavsdk.py
+
+# Refresh docs/recording_web_viewer.png: fly the city-block delivery and screenshot its recording in Rerun's
+# web viewer with headless Chromium (software rendering, no GPU). Needs Chromium, which `make test` does not:
+#   apt-get update && apt-get install -y chromium
+screenshot: venv
+	$(BIN)/python -m tools.screenshot
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .ruff_cache

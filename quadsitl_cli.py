@@ -1,6 +1,6 @@
 """The ``quadsitl`` console script: dispatches to the simulator, the autopilot or both.
 
-``sim`` and ``autopilot`` never import each other (SPEC §2), so this dispatcher imports
+``sim`` and ``autopilot`` never import each other, so this dispatcher imports
 the chosen side only by name: ``quadsitl sim`` runs ``sim.cli``, ``quadsitl autopilot``
 runs ``autopilot.cli`` and ``quadsitl up`` runs ``autopilot.launcher``, which starts both as
 separate processes.
@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import importlib
 import sys
+
+from mavlink_bridge.contract.about import version_text
 
 _COMMANDS = {
     "sim": ("sim.cli", "run the lockstep simulator (UDP server)"),
@@ -21,6 +23,7 @@ _COMMANDS = {
 def _usage() -> str:
     lines = ["usage: quadsitl {sim,autopilot,up} [options]   (quadsitl CMD --help for options)", ""]
     lines += [f"  {name:<10} {help_text}" for name, (_, help_text) in _COMMANDS.items()]
+    lines += ["", "  --version  print the version", "", "Start here: quadsitl up --world missions/delivery.yaml"]
     return "\n".join(lines)
 
 
@@ -29,6 +32,9 @@ def main(argv: list[str] | None = None) -> int:
     if not args or args[0] in ("-h", "--help"):
         print(_usage())
         return 0 if args else 2
+    if args[0] == "--version":
+        print(version_text("quadsitl"))
+        return 0
     name, rest = args[0], args[1:]
     if name not in _COMMANDS:
         print(f"quadsitl: unknown command {name!r}\n\n{_usage()}", file=sys.stderr)

@@ -1,6 +1,6 @@
 """``quadsitl autopilot`` / ``python -m autopilot``: the autopilot process (SPEC §3, §12).
 
-Links (``--instance N`` adds N to every port):
+Links (``--instance N`` adds N to every default port; an address given explicitly is used as typed):
 
 - ``--sim``  lockstep client of the simulator, default ``udpout:127.0.0.1:14560``;
 - ``--gcs``  GCS link, default ``udpin:127.0.0.1:18570`` sending to ``127.0.0.1:14550`` until someone
@@ -31,14 +31,16 @@ from pathlib import Path
 from types import FrameType
 
 from autopilot.control.airframe import AirframeError
+from autopilot.estimation import DEFAULT_ESTIMATOR, ESTIMATORS
 from autopilot.io_loop import Links, run_loop
 from autopilot.params import ParamError
 from autopilot.reporting import AutopilotEndReason
 from autopilot.runner import Autopilot, AutopilotConfig
 from autopilot.scripted_commands import CommandScript, ScriptError, load_script
 from autopilot.vehicle_adapter import VehicleAdapter
+from mavlink_bridge.contract.about import version_text
 from mavlink_bridge.gcs_server import GcsServer
-from mavlink_bridge.link import LinkUrl, LinkUrlError
+from mavlink_bridge.link import LinkUrlError, resolve_url
 from mavlink_bridge.lockstep import LockstepClient, add_spin_option
 from mavlink_bridge.signing import SigningKeyError, signing_key_from_text
 
@@ -67,11 +69,21 @@ def _speed(text: str) -> float:
 
 def add_autopilot_options(p: argparse.ArgumentParser) -> None:
     """The autopilot's options (shared with ``quadsitl up``)."""
-    p.add_argument("--sim", default=DEFAULT_SIM, metavar="URL", help=f"simulator address (default {DEFAULT_SIM})")
-    p.add_argument("--gcs", default=DEFAULT_GCS, metavar="URL|off", help=f"GCS link (default {DEFAULT_GCS})")
-    p.add_argument("--gcs-target", default=DEFAULT_GCS_TARGET, metavar="URL", help="where the GCS link sends first")
-    p.add_argument("--api", default=DEFAULT_API, metavar="URL|off", help=f"API link (default {DEFAULT_API})")
-    p.add_argument("--api-target", default=DEFAULT_API_TARGET, metavar="URL", help="where the API link sends first")
+    p.add_argument("--sim", default=None, metavar="URL", help=f"simulator address (default {DEFAULT_SIM})")
+    p.add_argument("--gcs", default=None, metavar="URL|off", help=f"GCS link (default {DEFAULT_GCS})")
+    p.add_argument(
+        "--gcs-target",
+        default=None,
+        metavar="URL",
+        help=f"where the GCS link sends first (default {DEFAULT_GCS_TARGET})",
+    )
+    p.add_argument("--api", default=None, metavar="URL|off", help=f"API link (default {DEFAULT_API})")
+    p.add_argument(
+        "--api-target",
+        default=None,
+        metavar="URL",
+        help=f"where the API link sends first (default {DEFAULT_API_TARGET})",
+    )
     p.add_argument("--params", default=None, metavar="FILE", help="YAML of NAME: value applied at start")
     p.add_argument("--rerun", default="off", metavar="off|save:PATH|connect:URL", help="Rerun telemetry")
     p.add_argument(
@@ -84,35 +96,71 @@ def add_autopilot_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--require-signing", action="store_true", help="reject unsigned or wrongly signed messages on GCS and API links"
     )
-    p.add_argument("--estimator", default="truth", choices=["truth"], help="state estimator")
+    p.add_argument(
+        "--estimator",
+        default=DEFAULT_ESTIMATOR,
+        choices=sorted(ESTIMATORS),
+        help="state estimator: ekf (sensor fusion, default) or truth (the sim's ground truth, controller studies)",
+    )
     p.add_argument("--script", default=None, metavar="FILE", help="commands at fixed sim times (YAML)")
-    p.add_argument("--sim-timeout-s", type=float, default=3.0, help="wall s of sim silence that ends the run")
-    p.add_argument("--connect-timeout-s", type=float, default=60.0, help="wall s to wait for the first frame")
+    p.add_argument(
+        "--sim-timeout-s", type=float, default=3.0, metavar="S", help="wall s of sim silence that ends the run"
+    )
+    p.add_argument(
+        "--connect-timeout-s", type=float, default=60.0, metavar="S", help="wall s to wait for the first frame"
+    )
     add_spin_option(p, "the next frame")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="quadsitl autopilot", description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(
+        prog="quadsitl autopilot",
+        description="The autopilot: flies the simulator's vehicle (lockstep client) and serves ground stations.",
+        epilog="Usually started by 'quadsitl up' together with the simulator. --gcs off / --api off disable a link.",
+    )
+    p.add_argument("--version", action="version", version=version_text("quadsitl autopilot"))
     add_autopilot_options(p)
-    p.add_argument("--instance", type=int, default=0, metavar="N", help="add N to every port")
+    p.add_argument("--instance", type=int, default=0, metavar="N", help="add N to every default port")
     p.add_argument("--vehicle", default="x500", metavar="NAME", help="airframe the controller assumes")
     p.add_argument("--log-dir", type=Path, default=None, metavar="DIR", help="where autopilot_summary.json goes")
-    p.add_argument("--speed", type=_speed, default=0.0, metavar="{max|FLOAT}", help="the sim's speed (GCS timeouts)")
-    p.add_argument("-v", "--verbose", action="store_true")
+    p.add_argument(
+        "--speed",
+        type=_speed,
+        default=0.0,
+        metavar="{max|FLOAT}",
+        help="the simulator's pace, to scale the ground-station link timeouts (default max)",
+    )
+    p.add_argument("-v", "--verbose", action="store_true", help="log link and mission events")
     return p
 
 
-def _offset(url: str, instance: int) -> str:
-    return str(LinkUrl.parse(url).with_port_offset(instance))
+def link_urls(args: argparse.Namespace) -> dict[str, str]:
+    """The URL of each link option (``sim``, ``gcs``, ``gcs_target``, ``api``, ``api_target``): as typed when given,
+    else its default shifted by ``--instance``; ``off`` stays ``off`` (LinkUrlError for a malformed one)."""
+    defaults = {
+        "sim": DEFAULT_SIM,
+        "gcs": DEFAULT_GCS,
+        "gcs_target": DEFAULT_GCS_TARGET,
+        "api": DEFAULT_API,
+        "api_target": DEFAULT_API_TARGET,
+    }
+    return {
+        name: "off" if getattr(args, name) == "off" else resolve_url(getattr(args, name), default, args.instance)
+        for name, default in defaults.items()
+    }
 
 
-def _make_listener(spec: str, vehicle: str, world: str | None, safety_radius_m: float) -> object | None:
+def _make_listener(
+    spec: str, vehicle: str, world: str | None, safety_radius_m: float, rtl_alt_m: float | None = None
+) -> object | None:
     """The Rerun telemetry listener for ``--rerun`` (None for ``off``); ``world`` is drawn only."""
     if spec == "off":
         return None
     from autopilot.telemetry import make_listener  # imports rerun: only when a recording is asked for
 
-    return make_listener(spec, vehicle=vehicle, mission_file=world, safety_radius_m=safety_radius_m)
+    return make_listener(
+        spec, vehicle=vehicle, mission_file=world, safety_radius_m=safety_radius_m, rtl_alt_m=rtl_alt_m
+    )
 
 
 def _signing_key(args: argparse.Namespace) -> bytes | None:
@@ -141,26 +189,31 @@ def main(argv: list[str] | None = None) -> int:
     client: LockstepClient | None = None
     autopilot: Autopilot | None = None
     try:
+        urls = link_urls(args)
         script = CommandScript(load_script(args.script)) if args.script else None
         key = _signing_key(args)
         autopilot = Autopilot(config, script=script)
         autopilot.listener = _make_listener(  # type: ignore[assignment]
-            args.rerun, args.vehicle, args.rerun_world, autopilot.params.get("CA_RSAFE_M")
+            args.rerun,
+            args.vehicle,
+            args.rerun_world,
+            autopilot.params.get("CA_RSAFE_M"),
+            autopilot.params.get("MIS_RTL_ALT"),
         )
         client = LockstepClient(
-            _offset(args.sim, args.instance),
+            urls["sim"],
             sim_lost_timeout_s=args.sim_timeout_s,
             spin_s=args.lockstep_spin_us * 1e-6,
         )
         vehicle = VehicleAdapter(autopilot)
-        for url, target in ((args.gcs, args.gcs_target), (args.api, args.api_target)):
+        for url, target in ((urls["gcs"], urls["gcs_target"]), (urls["api"], urls["api_target"])):
             if url != "off":
                 servers.append(
                     GcsServer(
-                        _offset(url, args.instance),
+                        url,
                         vehicle,
                         speed_factor=args.speed if args.speed > 0.0 else 1.0,
-                        default_target_url=_offset(target, args.instance),
+                        default_target_url=target,
                         signing_key=key,
                         require_signing=args.require_signing,
                     )
@@ -183,6 +236,11 @@ def main(argv: list[str] | None = None) -> int:
         stop["requested"] = True
 
     previous = {sig: signal.signal(sig, _stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+    links = ", ".join(f"{name} {urls[key]}" for name, key in (("GCS", "gcs"), ("API", "api")) if urls[key] != "off")
+    print(
+        f"quadsitl autopilot: {args.vehicle}, simulator at {urls['sim']}{', ' + links if links else ''}; Ctrl-C stops",
+        flush=True,
+    )
     t0 = time.monotonic()
     try:
         reason = run_loop(
@@ -195,7 +253,7 @@ def main(argv: list[str] | None = None) -> int:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
         wall_s = time.monotonic() - t0
-        autopilot.write_summary(wall_s)
+        autopilot.write_summary(wall_s, lockstep=client.stats.as_dict())
         close = getattr(autopilot.listener, "close", None)
         if close is not None:
             close()

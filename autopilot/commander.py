@@ -14,7 +14,10 @@ does); ``gripper_release``. Modes:
   no joystick: hold (see :mod:`autopilot.manual_control`).
 - AUTO_TAKEOFF: climb to the takeoff altitude above home at ``MPC_TKO_SPEED``, then HOLD.
 - AUTO_LAND: descend (``MPC_Z_VEL_MAX_DN``, then ``MPC_LAND_SPEED`` below ``MPC_LAND_ALT2``)
-  until the land detector sees touchdown, then auto-disarm after ``COM_DISARM_LAND``.
+  until the land detector sees touchdown, then auto-disarm after ``COM_DISARM_LAND``. After a position-loss
+  failsafe (``FailsafeKind.POSITION_LOSS``) it descends without horizontal position control (a DESCEND
+  target: it brakes on its dead-reckoned velocity and descends level; the land detector ignores that
+  velocity's horizontal part) until the position comes back.
 - AUTO_RTL: climb to ``MIS_RTL_ALT`` (if lower), fly home, wait ``RTL_LAND_DELAY``, land.
 - AUTO_MISSION: the target comes from the mission executor (:meth:`set_mission_target`).
 - OFFBOARD: the target is the latest external position or velocity setpoint (:meth:`set_offboard_target`,
@@ -34,11 +37,12 @@ altitudes are in its ``frame`` (3/6 = relative to home, 0/5 = AMSL); NaN means "
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from enum import Enum
 
-from autopilot.estimation import VehicleState
-from autopilot.failsafe import FailsafeAction, FailsafeEvent
+from autopilot.estimation import EstimatorStatus, VehicleState
+from autopilot.failsafe import FailsafeAction, FailsafeEvent, FailsafeKind
 from autopilot.manual_control import stick_demand
 from autopilot.params import ParamStore
 from autopilot.setpoints import NavTarget, TargetKind
@@ -74,6 +78,8 @@ _FACE_TARGET_MIN_M = 2.0
 #: Outside AUTO_TAKEOFF, a climbing vehicle counts as in the air above this height over home (m).
 _AIRBORNE_ALT_M = 1.0
 _RELATIVE_ALT_FRAMES = frozenset({3, 6, 11})
+#: A command handled outside the commander (e.g. MAV_CMD_INJECT_FAILURE): (result, reason when refused).
+CommandHandler = Callable[[CommandRequest], tuple[CommandResult, str]]
 
 
 _ARMABLE_MODES = frozenset(
@@ -119,6 +125,7 @@ class CommandContext:
     offboard_streaming: bool = False  # offboard setpoints arrived within COM_OF_LOSS_T
     manual_fresh: bool = False  # joystick input arrived within COM_RC_LOSS_T
     failsafe_reasons: frozenset[str] = frozenset()  # the failsafes in force (arming is refused meanwhile)
+    estimator_status: EstimatorStatus | None = None  # arming waits until it is aligned and healthy (None: unchecked)
 
 
 @fast_frozen_init
@@ -147,6 +154,7 @@ class Commander:
         self.local_frame: LocalNedFrame | None = None  # the estimator's, from the latest inputs
         self.context = CommandContext()  # the latest one given with inputs or a command
         self.last_reason = ""
+        self.command_handlers: dict[int, CommandHandler] = {}  # MAV_CMD number -> handler (e.g. INJECT_FAILURE)
         self.mode_history: list[tuple[int, FlightMode]] = []
         self._texts: list[StatusText] = []
         self._state: VehicleState | None = None
@@ -161,6 +169,9 @@ class Commander:
         self._land_ne: tuple[float, float] = (0.0, 0.0)
         self._land_key: tuple[object, ...] = ()
         self._land_nav: NavTarget | None = None
+        self._land_blind = False  # AUTO_LAND without a horizontal position (position-loss failsafe)
+        self._descend_nav: NavTarget | None = None
+        self._descend_version = -1
         self._rtl_phase = RtlPhase.CLIMB
         self._rtl_down_m = 0.0
         self._rtl_loiter_until_us = 0
@@ -222,6 +233,7 @@ class Commander:
         if mode is self.mode:
             return
         self.mode = mode
+        self._land_blind = self._land_blind and mode is FlightMode.AUTO_LAND
         t_us = self._state.time_us if self._state is not None else 0
         self.mode_history.append((t_us, mode))
         self._say(f"Mode {mode.name}")
@@ -316,10 +328,18 @@ class Commander:
     # ------------------------------------------------------------------ arming
     def arming_refusal(self, state: VehicleState | None) -> str | None:
         """Why arming is refused now, or None (checks: estimate, GPS 3D fix, on ground, failsafe, mode)."""
+        status = self.context.estimator_status
         if state is None or not state.valid:
-            return "estimator not ready"
-        if state.gps_fix_type < 3 and self.params.get("COM_ARM_WO_GPS") < 0.5:
+            return (
+                f"estimator not ready ({status.reason})"
+                if status is not None and status.reason
+                else "estimator not ready"
+            )
+        need_gps = self.params.get("COM_ARM_WO_GPS") < 0.5
+        if state.gps_fix_type < 3 and need_gps:
             return "no 3D GPS fix"
+        if status is not None and not self.armed and (not status.aligned or (need_gps and not status.healthy)):
+            return f"estimator: {status.reason}"
         if self.in_air:
             return "not on the ground"
         if self.context.failsafe_reasons:
@@ -385,6 +405,10 @@ class Commander:
             if p[0] == 0.0:
                 return self.disarm(force)
             return self._refuse(CommandResult.DENIED, f"ARM_DISARM param1 must be 0 or 1, got {p[0]:g}")
+        handler = self.command_handlers.get(cmd)
+        if handler is not None:
+            result, reason = handler(request)
+            return result if result is CommandResult.ACCEPTED else self._refuse(result, reason)
         if state is None:
             return self._refuse(CommandResult.TEMPORARILY_REJECTED, "no vehicle state yet")
         if cmd == MavCmd.NAV_TAKEOFF:
@@ -546,9 +570,20 @@ class Commander:
         return _velocity_target((0.0, 0.0, 0.0), self._speeds())
 
     def apply_failsafe(self, event: FailsafeEvent) -> None:
-        """React to a failsafe that just triggered (action from its parameter)."""
+        """React to a failsafe that just triggered (action from its parameter) or cleared. A position loss lands
+        without horizontal position control until a cleared POSITION_LOSS gives it back (land where it is)."""
+        if event.cleared:
+            self._say(event.message, Severity.NOTICE)
+            if event.kind is FailsafeKind.POSITION_LOSS and self._land_blind and self._state is not None:
+                self._land_blind = False
+                self._land_ne = (self._state.pos_ned_m[0], self._state.pos_ned_m[1])
+            return
         self._say(event.message, Severity.CRITICAL if event.action >= FailsafeAction.HOLD else Severity.WARNING)
         if not (self.armed and self.in_air) or event.action <= FailsafeAction.WARN or self._state is None:
+            return
+        if event.kind is FailsafeKind.POSITION_LOSS:
+            self._enter_land(self._state)
+            self._land_blind = True
             return
         if event.action is FailsafeAction.RTL and self.home is not None:
             self.request_mode(FlightMode.AUTO_RTL)
@@ -596,6 +631,17 @@ class Commander:
             )
         return nav
 
+    def _descend_target(self, state: VehicleState) -> NavTarget:
+        """DESCEND (position lost): stop and descend at the land speeds; one object while they and the parameters
+        stay (no allocation per step)."""
+        speed_dn = self.land_speed_m_s(state)
+        nav = self._descend_nav
+        if nav is None or nav.speed_down_m_s != speed_dn or self._descend_version != self.params.version:
+            self._descend_version = self.params.version
+            speeds = (self.speed_xy_m_s, self.params.get("MPC_Z_VEL_MAX_UP"), speed_dn)
+            nav = self._descend_nav = NavTarget(TargetKind.DESCEND, _NO_POSITION, math.nan, *speeds)
+        return nav
+
     def _mode_target(self, state: VehicleState) -> NavTarget:
         """The target of the current mode, as if airborne."""
         p = self.params.get
@@ -608,6 +654,8 @@ class Commander:
                 vxy = self.speed_xy_m_s
                 return NavTarget(TargetKind.POSITION, self._hold_ned, math.nan, vxy, p("MPC_TKO_SPEED"), vxy)
         if mode is FlightMode.AUTO_LAND:
+            if self._land_blind:  # no horizontal position: brake and descend level (autopilot.setpoints DESCEND)
+                return self._descend_target(state)
             return self._land_target(state)
         if mode is FlightMode.AUTO_RTL:
             return self._rtl_target(state)
@@ -658,7 +706,8 @@ class Commander:
         """Touchdown: slow and low thrust for LNDMC_TRIG_TIME (sim time)."""
         z_vel_max, xy_vel_max, low_thrust, trig_us = self._land_detector_limits()
         vn, ve, vd = state.vel_ned_m_s
-        quiet = abs(vd) < z_vel_max and math.hypot(vn, ve) < xy_vel_max and thrust_ratio < low_thrust
+        xy_quiet = self._land_blind or math.hypot(vn, ve) < xy_vel_max  # blind: the xy velocity is dead reckoned
+        quiet = abs(vd) < z_vel_max and xy_quiet and thrust_ratio < low_thrust
         if not quiet:
             self._landed_since_us = None
             return False
@@ -708,7 +757,7 @@ class Commander:
             self._say("Takeoff")
             return target
         target = self._mode_target(state)
-        if target.kind is TargetKind.LAND:
+        if target.kind is TargetKind.LAND or target.kind is TargetKind.DESCEND:
             self.landed_state = LandedState.LANDING
         elif self.landed_state is LandedState.TAKEOFF:
             if self.mode is not FlightMode.AUTO_TAKEOFF and self.alt_rel_home_m(state) > _AIRBORNE_ALT_M:

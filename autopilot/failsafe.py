@@ -1,4 +1,4 @@
-"""Failsafes: GCS link loss, offboard setpoint loss, low battery, geofence breach (SPEC §10).
+"""Failsafes: GCS link loss, offboard setpoint loss, low battery, geofence breach (SPEC §10); sensor loss (§5b).
 
 :class:`FailsafeMonitor` is a pure function of its inputs per step: it raises a
 :class:`FailsafeEvent` once when a condition starts (edge-triggered, like PX4's
@@ -10,6 +10,11 @@ The lockstep wire carries no battery telemetry, so :class:`BatteryModel` estimat
 remaining charge from the commanded thrust: at hover thrust the pack lasts
 ``BAT_HOVER_ENDUR`` seconds and the drain scales with thrust^1.5 (momentum theory:
 rotor power ∝ T^1.5). Voltage is a linear 4S curve (16.8 V full, 14.0 V empty).
+
+:class:`SensorFailsafe` watches the estimator's :class:`EstimatorStatus` in sim time (PX4's commander and
+EKF2 in spirit): GPS lost -> dead reckoning for ``COM_POS_FS_DELAY``, then the position-loss action
+``COM_POS_LOSS_ACT`` (land on baro height without horizontal position control), recovery when GPS returns
+first; baro lost -> height from GPS; mag lost -> heading from the gyro. Every transition is an event.
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ from dataclasses import dataclass
 from enum import Enum, IntEnum
 from typing import Protocol
 
+from autopilot.estimation.state import EstimatorStatus
 from autopilot.params import ParamStore
 
 BATTERY_FULL_V = 16.8
@@ -44,16 +50,22 @@ class FailsafeKind(Enum):
     BATTERY_LOW = "battery low"
     BATTERY_CRITICAL = "battery critical"
     GEOFENCE = "geofence breach"
+    GPS_LOSS = "GPS lost"
+    POSITION_LOSS = "position lost"
+    BARO_LOSS = "baro lost"
+    MAG_LOSS = "mag lost"
     NO_ROUTE = "no route"  # the navigator found no route to the mission target for CA_NOROUTE_T (CA_NOROUTE_ACT)
 
 
 @dataclass(frozen=True, slots=True)
 class FailsafeEvent:
-    """A failsafe that just triggered, the action to take and a message for STATUSTEXT."""
+    """A failsafe that just triggered (or, ``cleared``, whose condition just ended), the action to take and a
+    message for STATUSTEXT."""
 
     kind: FailsafeKind
     action: FailsafeAction
     message: str
+    cleared: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -149,3 +161,122 @@ class FailsafeMonitor:
                 events.append(FailsafeEvent(kind, action, f"Failsafe: {kind.value}: {message}"))
         self.active = set(now)
         return events
+
+
+class PositionLossAction(IntEnum):
+    """COM_POS_LOSS_ACT: what to do once GPS has been lost for COM_POS_FS_DELAY."""
+
+    WARN = 0  # keep flying on dead reckoning
+    LAND = 1  # descend on baro height without horizontal position control (PX4's "descend")
+
+
+_NO_EVENTS: tuple[FailsafeEvent, ...] = ()
+
+
+class SensorFailsafe:
+    """Sensor-loss failsafes from :class:`EstimatorStatus` (sim time; see the module docstring).
+
+    A source counts as lost only once it has been fused since arming; everything resets at disarm. GPS is
+    lost while ``gps_fused`` is false or the filter is ``dead_reckoning``. The position-loss action comes
+    ``COM_POS_FS_DELAY`` after the loss, or at once when the filter reports the horizontal position invalid
+    (it can no longer dead-reckon); it is taken only in the air. GPS back before that: the flight goes on
+    (the mission continues); GPS back after it: a ``cleared`` POSITION_LOSS event (the commander lands with
+    position control again).
+    """
+
+    def __init__(self, params: ParamStore) -> None:
+        self._params = params
+        self._status: EstimatorStatus | None = None
+        self._armed = False
+        self._seen = [False, False, False]  # GPS, baro, mag fused since arming
+        self.gps_lost_since_us: int | None = None
+        self.position_action_taken = False
+        self._landing = False  # the position-loss action taken was LAND
+        self.baro_lost = False
+        self.mag_lost = False
+
+    def _reset(self) -> None:
+        self._seen = [False, False, False]
+        self.gps_lost_since_us = None
+        self.position_action_taken = self._landing = False
+        self.baro_lost = self.mag_lost = False
+
+    def update(self, time_us: int, status: EstimatorStatus, armed: bool, in_air: bool) -> Sequence[FailsafeEvent]:
+        """Events for the transitions at ``time_us`` (an empty tuple, no allocation, while nothing changes)."""
+        if not armed:
+            if self._armed:
+                self._reset()
+            self._armed = False
+            self._status = status
+            return _NO_EVENTS
+        if status is self._status and self._armed and self.gps_lost_since_us is None:
+            return _NO_EVENTS  # the estimator hands out the same object while nothing changed
+        self._armed = True
+        self._status = status
+        events: list[FailsafeEvent] = []
+        self._gps(time_us, status, in_air, events)
+        self._baro_mag(status, events)
+        return events if events else _NO_EVENTS
+
+    def _gps(self, time_us: int, status: EstimatorStatus, in_air: bool, events: list[FailsafeEvent]) -> None:
+        p = self._params.get
+        gps_ok = status.gps_fused and not status.dead_reckoning
+        if gps_ok:
+            self._seen[0] = True
+            lost_since = self.gps_lost_since_us
+            if lost_since is None:
+                return
+            self.gps_lost_since_us = None
+            after_s = (time_us - lost_since) * 1e-6
+            landing = self.position_action_taken and self._landing
+            self.position_action_taken = self._landing = False
+            if landing:
+                message = f"GPS regained after {after_s:.1f} s: position control back, landing continues"
+                events.append(FailsafeEvent(FailsafeKind.POSITION_LOSS, FailsafeAction.NONE, message, cleared=True))
+            else:
+                message = f"GPS regained after {after_s:.1f} s: flight continues"
+                events.append(FailsafeEvent(FailsafeKind.GPS_LOSS, FailsafeAction.NONE, message, cleared=True))
+            return
+        if not self._seen[0]:
+            return
+        delay_s = p("COM_POS_FS_DELAY")
+        if self.gps_lost_since_us is None:
+            self.gps_lost_since_us = time_us
+            action = "land" if round(p("COM_POS_LOSS_ACT")) == PositionLossAction.LAND else "warn"
+            message = f"GPS lost: dead reckoning, position-loss action ({action}) in {delay_s:g} s unless it returns"
+            events.append(FailsafeEvent(FailsafeKind.GPS_LOSS, FailsafeAction.WARN, message))
+        if self.position_action_taken or not in_air:
+            return
+        lost_s = (time_us - self.gps_lost_since_us) * 1e-6
+        if lost_s < delay_s and status.pos_horiz_valid:
+            return
+        self.position_action_taken = True
+        why = f"no GPS for {lost_s:.1f} s" if lost_s >= delay_s else "horizontal position invalid"
+        self._landing = round(p("COM_POS_LOSS_ACT")) == PositionLossAction.LAND
+        if self._landing:
+            height = "baro height" if status.baro_fused else "no height source"
+            message = f"Failsafe: position lost ({why}): landing without position control on {height}"
+            events.append(FailsafeEvent(FailsafeKind.POSITION_LOSS, FailsafeAction.LAND, message))
+        else:
+            message = f"Failsafe: position lost ({why}): still dead reckoning (COM_POS_LOSS_ACT 0)"
+            events.append(FailsafeEvent(FailsafeKind.POSITION_LOSS, FailsafeAction.WARN, message))
+
+    def _baro_mag(self, status: EstimatorStatus, events: list[FailsafeEvent]) -> None:
+        if status.baro_fused:
+            self._seen[1] = True
+            if self.baro_lost:
+                self.baro_lost = False
+                events.append(FailsafeEvent(FailsafeKind.BARO_LOSS, FailsafeAction.NONE, "Baro regained", cleared=True))
+        elif self._seen[1] and not self.baro_lost:
+            self.baro_lost = True
+            source = "height from GPS" if status.gps_fused else "no height source left"
+            events.append(FailsafeEvent(FailsafeKind.BARO_LOSS, FailsafeAction.WARN, f"Baro lost: {source}"))
+        if status.mag_fused:
+            self._seen[2] = True
+            if self.mag_lost:
+                self.mag_lost = False
+                events.append(FailsafeEvent(FailsafeKind.MAG_LOSS, FailsafeAction.NONE, "Mag regained", cleared=True))
+        elif self._seen[2] and not self.mag_lost:
+            self.mag_lost = True
+            message = "Mag lost: heading from the gyro only (it drifts)"
+            events.append(FailsafeEvent(FailsafeKind.MAG_LOSS, FailsafeAction.WARN, message))

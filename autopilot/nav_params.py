@@ -6,7 +6,8 @@ every auto mode), ``MIS_ACC_RAD``/``MIS_ALT_ACC_RAD`` (acceptance) and ``MIS_RTL
 altitude), so each of those has one knob. Speeds and accelerations shape the setpoint generator
 (:mod:`autopilot.setpoints`); the ``LNDMC_*`` ones are the land detector of
 :mod:`autopilot.commander`; ``COM_*``/``NAV_DLL_*``/``BAT_*``/``GF_*`` are the failsafes of
-:mod:`autopilot.failsafe`. Failsafe action values are :class:`autopilot.failsafe.FailsafeAction`.
+:mod:`autopilot.failsafe`; ``SYS_FAILURE_EN`` gates :mod:`autopilot.failure_injection`. Failsafe action
+values are :class:`autopilot.failsafe.FailsafeAction`.
 """
 
 from __future__ import annotations
@@ -60,4 +61,8 @@ def nav_param_specs() -> list[ParamSpec]:
         ParamSpec("GF_ACTION", 1.0, 0.0, 4.0, "", f"Geofence breach action: {_ACTIONS}"),
         ParamSpec("GF_MAX_HOR_DIST", 0.0, 0.0, 100000.0, "m", "Max horizontal distance from home (0 off)"),
         ParamSpec("GF_MAX_VER_DIST", 0.0, 0.0, 10000.0, "m", "Max height above home (0 off)"),
+        # -- sensor failures (autopilot.failure_injection) and sensor-loss failsafes -------------
+        ParamSpec("SYS_FAILURE_EN", 0.0, 0.0, 1.0, "", "1: accept MAV_CMD_INJECT_FAILURE (sensor/motor failures)"),
+        ParamSpec("COM_POS_FS_DELAY", 5.0, 0.0, 120.0, "s", "GPS lost: dead-reckoning time before COM_POS_LOSS_ACT"),
+        ParamSpec("COM_POS_LOSS_ACT", 1.0, 0.0, 1.0, "", "Position loss: 0 warn, 1 land (baro height, no xy control)"),
     ]

@@ -9,7 +9,13 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 
+from autopilot.control.param_decls import controller_param_specs
+from autopilot.failsafe import BatteryModel
+from autopilot.flight_control import SETPOINT_PARAMS, FlightControl
+from autopilot.mission.param_decls import mission_param_specs
+from autopilot.navigation import Navigator
 from autopilot.params import ParamStore
+from autopilot.planner.param_decls import planner_param_specs
 
 Handler = Callable[[str, float], None]
 
@@ -45,3 +51,25 @@ class ParamBindings:
         if unknown:
             raise ValueError(f"parameter bindings name undeclared parameters: {', '.join(unknown)}")
         store.subscribe(self)
+
+
+def autopilot_bindings(
+    nav: Navigator,
+    control: FlightControl,
+    battery: BatteryModel,
+    on_controller_params: Handler,
+    on_safety_radius: Handler,
+) -> ParamBindings:
+    """The autopilot's table: which component re-reads which parameter (attach it to the store)."""
+    bindings = ParamBindings()
+    bindings.bind_every(lambda _name, _value: nav.params_changed())  # cached mission targets are rebuilt
+    bindings.bind(SETPOINT_PARAMS, lambda _n, _v: control.apply_setpoint_params())
+    bindings.bind((s.name for s in controller_param_specs()), on_controller_params)
+    bindings.bind(("PLD_MASS_KG",), lambda _n, _v: control.set_payload_released(control.payload_released))
+    bindings.bind(("BAT_HOVER_ENDUR",), lambda _n, v: battery.set_hover_endurance_s(v))
+    mission_names = [s.name for s in mission_param_specs()] + ["MIS_TAKEOFF_ALT"]
+    bindings.bind(mission_names, lambda _n, _v: nav.apply_mission_params())
+    bindings.bind([s.name for s in planner_param_specs()], lambda _n, _v: nav.apply_planner_params())
+    bindings.bind(("GF_MAX_VER_DIST",), lambda _n, _v: nav.apply_altitude_limits())
+    bindings.bind(("CA_RSAFE_M",), on_safety_radius)  # drawn safety spheres follow R_safe
+    return bindings

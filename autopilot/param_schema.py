@@ -99,7 +99,10 @@ def markdown_reference(groups: Iterable[tuple[str, list[ParamSpec]]] | None = No
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m autopilot.param_schema", description=__doc__)
+    parser = argparse.ArgumentParser(
+        prog="python -m autopilot.param_schema",
+        description="Print the parameter reference (name, default, range, unit, description) as markdown.",
+    )
     parser.add_argument("--markdown", action="store_true", help="print the parameter reference as markdown")
     parser.add_argument("--out", default=None, help="write the markdown to this file instead of stdout")
     args = parser.parse_args(argv)

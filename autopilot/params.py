@@ -12,7 +12,7 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-import yaml
+from mavlink_bridge.contract.source_lines import YamlSyntaxError, did_you_mean, read_yaml
 
 
 class ParamError(ValueError):
@@ -50,6 +50,11 @@ class ParamSpec:
 
 
 Listener = Callable[[str, float], None]
+
+
+def difflike(name: object, names: Iterable[str]) -> bool:
+    """Whether ``name`` is close to one of ``names`` (a typo worth a "did you mean")."""
+    return did_you_mean(name, names).startswith("did you mean")
 
 
 class ParamStore:
@@ -102,18 +107,38 @@ class ParamStore:
         self._listeners.append(listener)
 
     def load_file(self, path: str | Path) -> None:
-        """Apply a YAML file of ``NAME: value`` pairs; all are checked before any is set."""
-        data = yaml.safe_load(Path(path).read_text()) or {}
+        """Apply a YAML file of ``NAME: value`` pairs; all are checked before any is set.
+
+        ParamError is one line ``FILE:LINE: what is wrong; fix: ...`` (a missing file, bad YAML, an unknown
+        name, a value that is not a number or out of range).
+        """
+        try:
+            source = read_yaml(path)
+        except OSError as exc:
+            raise ParamError(f"{path}: cannot read: {exc.strerror}; fix: check the path given to --params") from None
+        except YamlSyntaxError as exc:
+            raise ParamError(str(exc)) from None
+        data = source.data or {}
         if not isinstance(data, dict):
-            raise ParamError(f"{path}: expected a mapping of NAME: value, got {type(data).__name__}")
+            raise ParamError(
+                f"{source.where()}: expected a mapping of NAME: value, got {type(data).__name__}; "
+                "fix: write one 'NAME: value' per line, e.g. 'MPC_XY_CRUISE: 5.0'"
+            )
         checked = {}
         for name, value in data.items():
+            where = source.where(str(name))
             spec = self._specs.get(str(name))
             if spec is None:
-                raise ParamError(f"{path}: unknown parameter {name!r}")
+                fix = (
+                    did_you_mean(name, self._specs) if difflike(name, self._specs) else "list the names: gcs param list"
+                )
+                raise ParamError(f"{where}: unknown parameter {name!r}; fix: {fix}")
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                fix = f"write e.g. '{spec.name}: {spec.default:g}'"
+                raise ParamError(f"{where}: {spec.name}: expected a number, got {value!r}; fix: {fix}")
             try:
                 checked[spec.name] = spec.check(value)
             except (TypeError, ValueError) as exc:
-                raise ParamError(f"{path}: {exc}") from None
+                raise ParamError(f"{where}: {exc}; fix: use a value from {spec.min:g} to {spec.max:g}") from None
         for name, value in checked.items():
             self.set(name, value)

@@ -2,7 +2,8 @@
 
 - Reads: the frozen messages of one step (vehicle state, reference, cascade output, commander and navigator
   status) and the ground truth, which is used for the determinism hash only.
-- Owns: tracking-error statistics, the truth hash, mission progress (items reached), SYS_STATUS bits.
+- Owns: tracking-error statistics, the truth hash, mission progress (items reached), SYS_STATUS bits (the
+  estimator's AHRS/GPS/baro/mag health from ``CommandContext.estimator_status``) and ESTIMATOR_STATUS contents.
 - Emits: :class:`StepRecord` (telemetry listeners), ``TelemetrySnapshot`` (GCS links) and the
   ``autopilot_summary.json`` dict (SPEC §12).
 """
@@ -16,6 +17,7 @@ import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import Enum
+from functools import lru_cache
 from pathlib import Path
 from typing import Protocol
 
@@ -23,13 +25,15 @@ import numpy as np
 
 from autopilot.commander import Commander
 from autopilot.control.cascade import ControlSample
-from autopilot.estimation import VehicleState
+from autopilot.estimation import EstimatorStatus, VehicleState
+from autopilot.estimation.report import apply_estimator_health, estimator_report
 from autopilot.failsafe import BatteryModel, FailsafeKind
 from autopilot.flight_control import FlightControl
 from autopilot.navigation import Navigator
 from autopilot.setpoints import NavTarget, Reference
 from mavlink_bridge.contract.frames import GeoPoint, Vec3
 from mavlink_bridge.contract.vehicle_api import (
+    EstimatorReport,
     FlightMode,
     LandedState,
     MissionItem,
@@ -197,6 +201,10 @@ def snapshot(
     gps_ok = state.gps_fix_type >= 3
     geofence_ok = FailsafeKind.GEOFENCE.value not in commander.context.failsafe_reasons
     prearm_ok = commander.armed or commander.arming_refusal(state) is None
+    health = sensors_health(gps_ok, geofence_ok, prearm_ok)
+    status = commander.context.estimator_status
+    if status is not None:  # AHRS, GPS, baro and mag health as the estimator uses them (PX4's health checks)
+        health = apply_estimator_health(health, status)
     return TelemetrySnapshot(
         time_us=state.time_us,
         armed=commander.armed,
@@ -224,12 +232,19 @@ def snapshot(
         throttle_pct=100.0 * min(1.0, control.thrust_ratio * control.hover_fraction),
         sensors_present=SENSORS_REPORTED,
         sensors_enabled=SENSORS_REPORTED,
-        sensors_health=sensors_health(gps_ok, geofence_ok, prearm_ok),
+        sensors_health=health,
         mission_seq_current=nav.current_seq,
         mission_count=len(nav.mission),
         mission_reached=progress.take_pending(),
         mission_state=int(nav.mission_state),
+        estimator=None if status is None else _estimator_report(status),
     )
+
+
+@lru_cache(maxsize=4)
+def _estimator_report(status: EstimatorStatus) -> EstimatorReport:
+    """ESTIMATOR_STATUS contents, built once per status object (the estimator keeps one while nothing changes)."""
+    return estimator_report(status)
 
 
 def summary(

@@ -2,8 +2,9 @@
 
 Per frame (:meth:`Autopilot.step`), in sim time only::
 
-    estimator -> failsafes (10 Hz) -> navigator (AUTO_MISSION) -> commander -> setpoint generator
-    -> [navigator's avoidance override] -> NLVG-PID cascade -> ActuatorCommand (armed flag, gripper)
+    [injected sensor failures] -> [stale-data check] -> estimator -> failsafes (10 Hz) -> navigator (AUTO_MISSION)
+    -> commander -> setpoint generator -> [navigator's avoidance override] -> NLVG-PID cascade
+    -> [injected motor failures] -> ActuatorCommand (armed flag, gripper)
 
 The command is answered *before* the bookkeeping (:meth:`Autopilot.after_answer`: truth hash, battery,
 tracking, the next step's reference prepared), so the simulator integrates while the autopilot does the rest.
@@ -21,23 +22,22 @@ from pathlib import Path
 from autopilot import reporting
 from autopilot.commander import CommandContext, Commander, CommanderInputs
 from autopilot.control.airframe import Airframe, load_airframe
-from autopilot.control.cascade import CascadeController, SingleStep
-from autopilot.control.gains import CascadeGains
-from autopilot.control.param_decls import controller_param_specs
+from autopilot.control.cascade import SingleStep
 from autopilot.estimation import Estimator, FrameLike, VehicleState, make_estimator
-from autopilot.failsafe import BatteryModel, FailsafeInputs, FailsafeMonitor
-from autopilot.flight_control import SETPOINT_PARAMS, FlightControl
+from autopilot.failsafe import BatteryModel, FailsafeInputs, FailsafeMonitor, SensorFailsafe
+from autopilot.failure_injection import FailureInjector
+from autopilot.flight_control import FlightControl
 from autopilot.link_health import LinkHealth
-from autopilot.mission.param_decls import mission_param_specs
 from autopilot.navigation import HomeFrame, Navigator
-from autopilot.param_binding import ParamBindings
+from autopilot.param_binding import autopilot_bindings
 from autopilot.param_schema import make_param_store
 from autopilot.params import ParamStore
-from autopilot.planner.param_decls import PlannerParams, planner_param_specs
+from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import AvoidancePlanner
 from autopilot.reporting import AutopilotEndReason, MissionProgress, StepListener, StepRecord, Tracking, TruthHash
 from autopilot.scripted_commands import CommandScript
-from autopilot.setpoints import NavTarget, SetpointGenerator, TargetKind
+from autopilot.sensor_validation import StaleSensorCheck
+from autopilot.setpoints import NavTarget, TargetKind
 from mavlink_bridge.contract.frames import GeoPoint, Vec3
 from mavlink_bridge.contract.mav_enums import MavCmd
 from mavlink_bridge.contract.vehicle_api import (
@@ -98,8 +98,12 @@ class Autopilot:
         self.script = script
         self.links = LinkHealth(self.config.speed_factor, wall_clock)
         self.commander = Commander(self.params)
+        self.failures = FailureInjector(self.params)  # what the estimator sees and the motors get (SYS_FAILURE_EN)
+        self.commander.command_handlers[MavCmd.INJECT_FAILURE] = self.failures.handle_command
+        self.sensor_check = StaleSensorCheck()  # a stuck mag/baro is dropped before the estimator
         self.control = FlightControl(self.params, self.airframe)
         self.failsafe = FailsafeMonitor(self.params)
+        self.sensor_failsafe = SensorFailsafe(self.params)
         self.battery = BatteryModel(self.params.get("BAT_HOVER_ENDUR"))
         self.state: VehicleState | None = None
         self.tracking = Tracking()
@@ -119,25 +123,9 @@ class Autopilot:
         self._pending_control: SingleStep | None = None  # this step's cascade output, booked by after_answer
         self._motor = (0.0, 0.0, 0.0, 0.0)
         self._next_failsafe_us = 0
-        self._bind_params()
-
-    # ------------------------------------------------------------------ composition
-    def _bind_params(self) -> None:
-        """Parameter changes take effect at once (in flight too); see :mod:`autopilot.param_binding`."""
-        nav = self.navigator
-        bindings = ParamBindings()
-        bindings.bind_every(lambda _name, _value: nav.params_changed())  # cached mission targets are rebuilt
-        fc = self.control
-        bindings.bind(SETPOINT_PARAMS, lambda _n, _v: fc.apply_setpoint_params())
-        bindings.bind((s.name for s in controller_param_specs()), self._apply_controller_params)
-        bindings.bind(("PLD_MASS_KG",), lambda _n, _v: fc.set_payload_released(fc.payload_released))
-        bindings.bind(("BAT_HOVER_ENDUR",), lambda _n, v: self.battery.set_hover_endurance_s(v))
-        mission_names = [s.name for s in mission_param_specs()] + ["MIS_TAKEOFF_ALT"]
-        bindings.bind(mission_names, lambda _n, _v: nav.apply_mission_params())
-        bindings.bind([s.name for s in planner_param_specs()], lambda _n, _v: nav.apply_planner_params())
-        bindings.bind(("GF_MAX_VER_DIST",), lambda _n, _v: nav.apply_altitude_limits())
-        bindings.bind(("CA_RSAFE_M",), self._listener_safety_radius)
-        bindings.attach(self.params)
+        autopilot_bindings(
+            self.navigator, self.control, self.battery, self._apply_controller_params, self._listener_safety_radius
+        ).attach(self.params)
 
     def _apply_controller_params(self, _name: str, _value: float) -> None:
         problem = self.control.apply_controller_params()
@@ -147,10 +135,6 @@ class Autopilot:
     def _listener_safety_radius(self, _name: str, value: float) -> None:
         if hasattr(self.listener, "safety_radius_m"):
             self.listener.safety_radius_m = value  # type: ignore[union-attr]  # drawn safety spheres follow R_safe
-
-    @property
-    def planner(self) -> object | None:
-        return self.navigator.planner
 
     # ------------------------------------------------------------------ geography
     @property
@@ -212,7 +196,8 @@ class Autopilot:
         self._prev_time_us = t_us
         self.frames += 1
         self.frame_detections = getattr(frame, "detections", ())
-        state = self.estimator.update(frame)
+        seen = self.sensor_check.apply(self.failures.apply_to_frame(frame), self.commander.in_air)
+        state = self.estimator.update(seen)
         self._pending_truth = frame.truth
         commander = self.commander
         if state is None:
@@ -243,7 +228,7 @@ class Autopilot:
             self.navigator.mode_changed(commander.mode, self._last_mode, state.time_us)
             self._last_mode = commander.mode
         self._target = target
-        motor = self._control(state, target)
+        motor = self.failures.apply_to_motors(self._control(state, target))
         self._motor = motor
         return ActuatorCommand(t_us, motor, commander.armed, commander.gripper_release)
 
@@ -311,6 +296,9 @@ class Autopilot:
         )
         for event in events:
             commander.apply_failsafe(event)
+        status = self.estimator.status
+        for event in self.sensor_failsafe.update(state.time_us, status, commander.armed, commander.in_air):
+            commander.apply_failsafe(event)
         self.update_context(failsafe_reasons=frozenset(kind.value for kind in self.failsafe.active))
 
     def _control(self, state: VehicleState, target: NavTarget) -> tuple[float, float, float, float]:
@@ -352,6 +340,8 @@ class Autopilot:
         """Events (commander, navigator, runner) since the last call."""
         texts = self.commander.drain_texts()
         texts += self.navigator.drain_texts()
+        texts += self.failures.drain_texts()
+        texts += self.sensor_check.drain_texts()
         if self._texts:
             texts += self._texts
             self._texts = []
@@ -392,12 +382,15 @@ class Autopilot:
         self.after_answer()
         if self.state is None:
             return None
-        return reporting.snapshot(
+        snap = reporting.snapshot(
             self.state, self.commander, self.navigator, self.control, self.battery, self.progress, self.estimator.origin
         )
+        failed = self.failures.unhealthy_bits  # a failed motor clears the motor-outputs bit
+        return replace(snap, sensors_health=snap.sensors_health & ~failed) if failed else snap
 
-    def summary(self, wall_time_s: float) -> dict[str, object]:
-        """``autopilot_summary.json`` (SPEC §12): mission progress, modes, landing, tracking errors."""
+    def summary(self, wall_time_s: float, lockstep: dict[str, int] | None = None) -> dict[str, object]:
+        """``autopilot_summary.json`` (SPEC §12): mission progress, modes, landing, tracking errors; ``lockstep``:
+        the link's counters (frames, strangers and invalid frames dropped), from the I/O edge."""
         self.after_answer()
         flight = {
             "end_reason": (self.end_reason or AutopilotEndReason.STOPPED).value,
@@ -406,28 +399,15 @@ class Autopilot:
             "frames": self.frames,
             "vehicle": self.airframe.name,
         }
+        if lockstep is not None:
+            flight["lockstep"] = lockstep
         return reporting.summary(
             self.commander, self.navigator, self.battery, self.progress, self.tracking, self.truth_hash, flight
         )
 
-    def write_summary(self, wall_time_s: float) -> Path | None:
+    def write_summary(self, wall_time_s: float, lockstep: dict[str, int] | None = None) -> Path | None:
         """Write ``LOG_DIR/autopilot_summary.json`` (None without a log dir)."""
         if not self.config.log_dir:
             return None
-        return reporting.write_json(Path(self.config.log_dir) / "autopilot_summary.json", self.summary(wall_time_s))
-
-    @property
-    def controller(self) -> CascadeController:
-        return self.control.controller
-
-    @property
-    def gains(self) -> CascadeGains:
-        return self.control.gains
-
-    @property
-    def setpoints(self) -> SetpointGenerator:
-        return self.control.setpoints
-
-    @property
-    def reached_seqs(self) -> list[int]:
-        return self.progress.reached_seqs
+        summary = self.summary(wall_time_s, lockstep)
+        return reporting.write_json(Path(self.config.log_dir) / "autopilot_summary.json", summary)

@@ -11,7 +11,13 @@ one command; altitudes are metres above home, positions metres north/east of hom
     - {at_s: 25.0, cmd: land}
 
 Commands: ``arm``, ``disarm``, ``takeoff`` (alt_m), ``land``, ``rtl``, ``mission_start``, ``hold``,
-``goto`` (north_m, east_m, alt_m). Each runs through the same commander path as a GCS command.
+``goto`` (north_m, east_m, alt_m), ``inject_failure`` (unit, type, optional instance: MAV_CMD_INJECT_FAILURE,
+``SYS_FAILURE_EN`` must be 1). Each runs through the same commander path as a GCS command. Failure units and
+types are FAILURE_UNIT / FAILURE_TYPE names without their prefix (``gps``, ``baro``, ``mag``, ``gyro``,
+``accel``, ``motor``; ``off``, ``stuck``, ``ok``) or their numbers; a motor instance is 1-based, 0 = all::
+
+    - {at_s: 30, cmd: inject_failure, unit: gps, type: off}
+    - {at_s: 32, cmd: inject_failure, unit: motor, type: off, instance: 2}
 """
 
 from __future__ import annotations
@@ -21,8 +27,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import yaml
-
+from mavlink_bridge.contract.mav_enums import FailureType, FailureUnit, MavCmd
+from mavlink_bridge.contract.source_lines import YamlSource, YamlSyntaxError, did_you_mean, read_yaml
 from mavlink_bridge.contract.vehicle_api import CommandRequest
 
 _ARGS = {
@@ -34,6 +40,14 @@ _ARGS = {
     "mission_start": (),
     "hold": (),
     "goto": ("north_m", "east_m", "alt_m"),
+    "inject_failure": ("unit", "type", "instance"),
+}
+#: Arguments that may be left out, with their value.
+_OPTIONAL = {"instance": 0.0}
+#: Arguments that may be given by name: ``gps`` for FailureUnit.SENSOR_GPS, ``off`` for FailureType.OFF.
+_NAMED: dict[str, dict[str, int]] = {
+    "unit": {unit.name.split("_", 1)[1].lower(): int(unit) for unit in FailureUnit},
+    "type": {kind.name.lower(): int(kind) for kind in FailureType},
 }
 _GLOBAL_RELATIVE_ALT_INT = 6
 
@@ -61,49 +75,84 @@ class ScriptStep:
             "rtl": (),
             "mission_start": (0.0, 0.0),
             "hold": (1.0, 4.0, 3.0),
+            "inject_failure": self.args,
         }.get(self.cmd)
         number = {"arm": 400, "disarm": 400, "takeoff": 22, "land": 21, "rtl": 20, "mission_start": 300, "hold": 176}
+        number["inject_failure"] = MavCmd.INJECT_FAILURE
         if params is None:
             return None
         full = (*params, *([0.0] * (7 - len(params))))
         return CommandRequest(number[self.cmd], full, 0, 0, is_int=True, frame=_GLOBAL_RELATIVE_ALT_INT)  # type: ignore[arg-type]
 
 
-def parse_script(entries: object, origin: str = "<script>") -> list[ScriptStep]:
-    """Validate a list of ``{at_s, cmd, ...}`` mappings into steps sorted by time."""
+def parse_script(entries: object, origin: str = "<script>", source: YamlSource | None = None) -> list[ScriptStep]:
+    """Validate a list of ``{at_s, cmd, ...}`` mappings into steps sorted by time.
+
+    ``source`` (the parsed file) adds the line to each message: ``FILE:LINE: step N: ...; fix: ...``.
+    """
+
+    def place(*path: str | int) -> str:
+        return source.where(*path) if source is not None else origin
+
     if not isinstance(entries, list):
-        raise ScriptError(f"{origin}: expected a list of steps")
+        raise ScriptError(f"{place()}: expected a list of steps; fix: write '- {{at_s: 5, cmd: takeoff, alt_m: 10}}'")
     steps = []
     for i, entry in enumerate(entries):
-        where = f"{origin}: step {i}"
+        where = f"{place(i)}: step {i}"
         if not isinstance(entry, dict):
-            raise ScriptError(f"{where}: expected a mapping with at_s and cmd")
+            raise ScriptError(f"{where}: expected a mapping with at_s and cmd; fix: write '- {{at_s: 5, cmd: arm}}'")
         cmd = entry.get("cmd")
         if cmd not in _ARGS:
-            raise ScriptError(f"{where}: cmd must be one of {sorted(_ARGS)}, got {cmd!r}")
-        unknown = set(entry) - {"at_s", "cmd", *_ARGS[cmd]}
+            where = f"{place(i, 'cmd')}: step {i}"
+            fix = did_you_mean(cmd, sorted(_ARGS))
+            raise ScriptError(f"{where}: cmd must be one of {sorted(_ARGS)}, got {cmd!r}; fix: {fix}")
+        unknown = sorted(str(k) for k in set(entry) - {"at_s", "cmd", *_ARGS[cmd]})
         if unknown:
-            raise ScriptError(f"{where}: unknown keys {sorted(unknown)} for {cmd}")
+            fix = f"{cmd} takes at_s{''.join(', ' + a for a in _ARGS[cmd])}"
+            raise ScriptError(f"{place(i, unknown[0])}: step {i}: unknown keys {unknown} for {cmd}; fix: {fix}")
         try:
             at_s = float(entry["at_s"])
-            args = tuple(float(entry[k]) for k in _ARGS[cmd])
+            args = tuple(_argument(entry, k, where) for k in _ARGS[cmd])
+        except ScriptError:
+            raise
         except KeyError as exc:
-            raise ScriptError(f"{where}: missing {exc.args[0]}") from None
+            raise ScriptError(f"{where}: missing {exc.args[0]}; fix: add '{exc.args[0]}: <number>'") from None
         except (TypeError, ValueError):
-            raise ScriptError(f"{where}: at_s and the arguments must be numbers") from None
+            raise ScriptError(f"{where}: at_s and the arguments must be numbers; fix: write plain numbers") from None
         if not (math.isfinite(at_s) and at_s >= 0.0) or not all(math.isfinite(a) for a in args):
-            raise ScriptError(f"{where}: times and arguments must be finite, at_s >= 0")
+            raise ScriptError(f"{where}: times and arguments must be finite, at_s >= 0; fix: use finite numbers")
         steps.append(ScriptStep(round(at_s * 1e6), cmd, args))
     return sorted(steps, key=lambda s: s.at_us)
+
+
+def _argument(entry: dict[object, object], key: str, where: str) -> float:
+    """The number of ``entry[key]`` (a name where ``_NAMED`` allows one; ``_OPTIONAL`` when absent)."""
+    if key not in entry and key in _OPTIONAL:
+        return _OPTIONAL[key]
+    value = entry[key]
+    if isinstance(value, bool):  # YAML 1.1 reads an unquoted off/no as false, on/yes as true
+        if key == "type" and value is False:
+            return float(FailureType.OFF)
+        named = " or a name" if key in _NAMED else ""
+        raise ScriptError(f"{where}: {key} must be a number{named}, got {value!r}; fix: write a number{named}")
+    names = _NAMED.get(key)
+    if names is not None and isinstance(value, str):
+        if value.lower() not in names:
+            fix = did_you_mean(value.lower(), sorted(names))
+            raise ScriptError(f"{where}: {key} must be a number or one of {sorted(names)}, got {value!r}; fix: {fix}")
+        return float(names[value.lower()])
+    return float(value)  # type: ignore[arg-type]
 
 
 def load_script(path: str | Path) -> list[ScriptStep]:
     """Read a script YAML file (ScriptError on any problem)."""
     try:
-        data = yaml.safe_load(Path(path).read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise ScriptError(f"{path}: {exc}") from None
-    return parse_script(data, str(path))
+        source = read_yaml(path)
+    except OSError as exc:
+        raise ScriptError(f"{path}: cannot read: {exc.strerror}; fix: check the path given to --script") from None
+    except YamlSyntaxError as exc:
+        raise ScriptError(str(exc)) from None
+    return parse_script(source.data, str(path), source)
 
 
 class CommandScript:

@@ -19,7 +19,11 @@ Per step (horizontal plane and vertical axis shaped separately, as PX4 does):
 
 ``LAND`` targets descend at a fixed speed instead of stopping; the reference is kept at
 most :data:`LAND_MAX_LEAD_M` below the vehicle so that, on the ground, the controller asks
-for less-than-hover thrust (what the land detector looks for) without winding up.
+for less-than-hover thrust (what the land detector looks for) without winding up. ``DESCEND``
+(landing without a horizontal position) descends the same way with no position control: the horizontal
+position reference stays on the vehicle (no position error, ever) while the velocity reference brakes to
+``vel_ned_m_s`` (zero) within the acceleration and jerk limits, so the cascade stops the vehicle on its
+(dead-reckoned) velocity and then holds its attitude level with the integrators' wind trim.
 
 ``VELOCITY`` targets (OFFBOARD velocity setpoints, POSCTL sticks) replace step 1 by the commanded velocity within the
 speed limits; the position reference integrates it but stays within :data:`VELOCITY_MAX_LEAD_M` of the
@@ -55,6 +59,7 @@ class TargetKind(Enum):
     POSITION = "position"  # reach ``pos_ned_m`` and hold it
     LAND = "land"  # hold xy of ``pos_ned_m``, descend at ``speed_down_m_s`` until touchdown
     VELOCITY = "velocity"  # fly at ``vel_ned_m_s`` (within the speed limits); ``pos_ned_m`` is not used
+    DESCEND = "descend"  # no position control: brake to ``vel_ned_m_s``, descend at ``speed_down_m_s``
 
 
 @fast_frozen_init
@@ -68,7 +73,7 @@ class NavTarget:
     speed_xy_m_s: float = 5.0
     speed_up_m_s: float = 3.0
     speed_down_m_s: float = 1.5
-    vel_ned_m_s: Vec3 = (0.0, 0.0, 0.0)  # VELOCITY only
+    vel_ned_m_s: Vec3 = (0.0, 0.0, 0.0)  # VELOCITY and DESCEND (horizontal part only)
     yaw_rate_rad_s: float = math.nan  # VELOCITY only, used when ``yaw_rad`` is NaN (NaN: keep the heading)
 
 
@@ -140,8 +145,8 @@ class SetpointGenerator:
         this after answering the sim); ``update`` uses them when its target has the same kind, position and
         speed objects, ``dt_s`` and limits are the same and the reference did not change since: the same floats
         as computing them then (they depend on nothing else), so a step with the same target costs less."""
-        if target.kind is TargetKind.IDLE or target.kind is TargetKind.VELOCITY:
-            self._prepared = None  # VELOCITY: the reference is clamped about the vehicle in update()
+        if target.kind is TargetKind.IDLE or target.kind is TargetKind.VELOCITY or target.kind is TargetKind.DESCEND:
+            self._prepared = None  # VELOCITY, DESCEND: the reference is set about the vehicle in update()
             return
         self._prepared = (
             self._version,
@@ -191,6 +196,9 @@ class SetpointGenerator:
             pos[2] = vehicle_pos_ned[2] + LAND_MAX_LEAD_M
         elif kind is TargetKind.VELOCITY:
             self._leash(vehicle_pos_ned)
+        elif kind is TargetKind.DESCEND:  # no position error, ever: only the velocity reference acts
+            pos[0], pos[1] = vehicle_pos_ned[0], vehicle_pos_ned[1]
+            pos[2] = min(p2, vehicle_pos_ned[2] + LAND_MAX_LEAD_M)
         # yaw: rate-limited turn toward the target heading along the shorter way
         if not math.isnan(target.yaw_rad):
             err = (target.yaw_rad - self.yaw_rad + math.pi) % (2.0 * math.pi) - math.pi
@@ -225,7 +233,7 @@ class SetpointGenerator:
         acc_xy, jerk = lim.acc_xy_m_s2, lim.jerk_m_s3
         kind = target.kind
         tn, te, td = target.pos_ned_m
-        if kind is TargetKind.VELOCITY:  # the commanded velocity, within the speed limits
+        if kind is TargetKind.VELOCITY or kind is TargetKind.DESCEND:  # the commanded velocity, within the limits
             vn_des, ve_des, vd_cmd = target.vel_ned_m_s
             s_xy = math.hypot(vn_des, ve_des)
             if s_xy > target.speed_xy_m_s:
@@ -246,7 +254,7 @@ class SetpointGenerator:
         else:
             an_des = ae_des = 0.0
         # vertical (down positive): a braking profile, or a constant descent when landing
-        if kind is TargetKind.LAND:
+        if kind is TargetKind.LAND or kind is TargetKind.DESCEND:
             vd_des = target.speed_down_m_s
         elif kind is TargetKind.VELOCITY:
             vd_des = max(-target.speed_up_m_s, min(target.speed_down_m_s, vd_cmd))

@@ -1,16 +1,15 @@
-"""The sim's lockstep datagram written in one numba call, byte-identical to ``lockstep.encode_frame`` (SPEC §4).
+"""The sim's lockstep datagram written in one numba call (SPEC §4): the implementation of the sim's encoding.
 
-``encode_frame(Encoder(SIM_SYSTEM_ID, SIM_COMPONENT_ID), frame)`` costs ~20 µs of Python per step (three
-``struct`` packs, saturating conversions, CRCs, joins). ``FrameWriter`` writes the same bytes from a flat
-float64 array of SI values (``values``, laid out by the ``V_*`` indices below, filled by the simulator)
-into a preallocated buffer: HIL_GPS (when due), HIL_STATE_QUATERNION, OBSTACLE_DISTANCE_3D (per
-detection), HIL_SENSOR last; MAVLink 2 header, one sequence counter, trailing-zero truncation and
-CRC-16/MCRF4XX with crc_extra exactly as ``codec.Encoder._frame``. Integer conversions follow the codec:
-round half to even, saturation at the wire range, NaN -> 0 (or "unknown"), the course-over-ground rule.
-A finite value too large for a float32 field raises ``OverflowError`` as ``struct.pack`` does.
+``FrameWriter`` writes the datagram from the flat float64 sensor-values array the simulator fills (laid out
+by ``mavlink_bridge.contract.sensor_values``) into a preallocated buffer: HIL_GPS (when due),
+HIL_STATE_QUATERNION, OBSTACLE_DISTANCE_3D (per detection), HIL_SENSOR last; MAVLink 2 header, one sequence
+counter, trailing-zero truncation and CRC-16/MCRF4XX with crc_extra as ``codec.Encoder._frame``. Integer
+conversions follow the codec: round half to even, saturation at the wire range, NaN -> 0 (or "unknown"),
+the course-over-ground rule. A finite value too large for a float32 field raises ``OverflowError`` as
+``struct.pack`` does.
 
-``tests/test_sim_frame_writer.py`` checks the bytes against ``encode_frame`` (noise, GPS steps,
-detections, NaN/inf, saturation, truncation).
+``tests/test_sim_frame_writer.py`` decodes its datagrams with pymavlink (the oracle: CRCs, layouts, scaling)
+and checks NaN/inf, saturation and truncation.
 """
 
 from __future__ import annotations
@@ -33,31 +32,34 @@ from mavlink_bridge.codec import (
     SIM_SYSTEM_ID,
 )
 from mavlink_bridge.contract.frames import DEG_E7
+from mavlink_bridge.contract.sensor_values import (
+    D_OBSTACLE_ID,
+    D_POS_FRD,
+    D_RADIUS,
+    D_SHAPE,
+    D_TIME_US,
+    N_DET,
+    N_VALUES,
+    V_ACCEL_FRD,
+    V_ACCEL_TRUTH_FRD,
+    V_ALT_AMSL,
+    V_GPS_ALT_AMSL,
+    V_GPS_EPH,
+    V_GPS_EPV,
+    V_GPS_FIX_TYPE,
+    V_GPS_LAT_DEG,
+    V_GPS_LON_DEG,
+    V_GPS_SATELLITES,
+    V_GPS_VEL_NED,
+    V_LAT_DEG,
+    V_LON_DEG,
+    V_PRESSURE_ALT,
+    V_PRESSURE_HPA,
+    V_Q_NED_FRD,
+    V_TEMPERATURE,
+    V_VEL_NED,
+)
 from mavlink_bridge.contract.wire import ObstacleDetection
-
-# --- the values array: SI units, the fields of SensorSample, GroundTruth and GpsSample -----------
-V_ACCEL_FRD = 0  # 3, m/s²
-V_GYRO_FRD = 3  # 3, rad/s
-V_MAG_FRD = 6  # 3, gauss
-V_PRESSURE_HPA = 9
-V_PRESSURE_ALT = 10  # m
-V_TEMPERATURE = 11  # °C
-V_Q_NED_FRD = 12  # 4, w first
-V_RATE_FRD = 16  # 3, rad/s
-V_LAT_DEG = 19
-V_LON_DEG = 20
-V_ALT_AMSL = 21  # m
-V_VEL_NED = 22  # 3, m/s
-V_ACCEL_TRUTH_FRD = 25  # 3, m/s² (specific force)
-V_GPS_LAT_DEG = 28
-V_GPS_LON_DEG = 29
-V_GPS_ALT_AMSL = 30  # m
-V_GPS_VEL_NED = 31  # 3, m/s
-V_GPS_EPH = 34  # m
-V_GPS_EPV = 35  # m
-V_GPS_FIX_TYPE = 36
-V_GPS_SATELLITES = 37
-N_VALUES = 38
 
 # the payload layouts this writer hard-codes (wire order); a different pymavlink fails here, not on the wire
 _FORMATS = {
@@ -85,7 +87,6 @@ _DEG_E7 = DEG_E7
 _MG = _MG_PER_M_S2
 _RAD_TO_DEG = 180.0 / math.pi  # math.degrees (same bits, checked by the tests)
 _U16_UNKNOWN = 0xFFFF
-_DBL_MIN = 2.2250738585072014e-308
 
 # ints array (int64): inputs and the sequence counter (in/out)
 I_TIME_US = 0
@@ -94,13 +95,6 @@ I_GPS_DUE = 2
 I_SYSTEM_ID = 3
 I_COMPONENT_ID = 4
 N_INTS = 5
-# detection rows (float64; the integers are exact below 2**53)
-D_POS_FRD = 0  # 3, m
-D_RADIUS = 3  # m
-D_TIME_US = 4
-D_OBSTACLE_ID = 5
-D_SHAPE = 6
-N_DET = 7
 SCRATCH_LEN = 4
 
 
@@ -179,7 +173,7 @@ def _finish(buf: np.ndarray, at: int, seq: int, sys_id: int, comp_id: int, msg_i
 def write_frame(buf: np.ndarray, v: np.ndarray, ints: np.ndarray, det: np.ndarray) -> int:
     """The lockstep datagram of one control step into ``buf``; returns its length (``ints[I_SEQ]`` advances).
 
-    ``v``: the ``V_*`` values; ``ints``: the ``I_*`` integers; ``det`` (k, ``N_DET``): the detections
+    ``v``: the ``V_*`` values (``N_VALUES``); ``ints``: the ``I_*`` integers; ``det`` (k, ``N_DET``): the detections
     (``D_*`` columns). The last ``SCRATCH_LEN`` bytes of ``buf`` are scratch (float32 conversion).
     """
     scratch = buf[buf.shape[0] - SCRATCH_LEN :]
@@ -187,6 +181,8 @@ def write_frame(buf: np.ndarray, v: np.ndarray, ints: np.ndarray, det: np.ndarra
     f32b = scratch
     if buf.shape[0] < buffer_len(det.shape[0]):
         raise ValueError("frame buffer too small for the detections")
+    if v.shape[0] < N_VALUES:
+        raise ValueError("sensor values array shorter than N_VALUES")
     t_us = ints[I_TIME_US]
     seq = ints[I_SEQ]
     sys_id = ints[I_SYSTEM_ID]
@@ -198,7 +194,7 @@ def write_frame(buf: np.ndarray, v: np.ndarray, ints: np.ndarray, det: np.ndarra
         vn = vn if math.isfinite(vn) else 0.0
         ve = ve if math.isfinite(ve) else 0.0
         vd = vd if math.isfinite(vd) else 0.0
-        speed_m_s = python_hypot(vn, ve)
+        speed_m_s = math.hypot(vn, ve)
         cog_deg = math.atan2(ve, vn) * _RAD_TO_DEG
         cog_cdeg = int(np.rint(cog_deg * 100.0)) % 36000 if speed_m_s > 0.0 else _U16_UNKNOWN
         eph, epv = v[V_GPS_EPH] * 100.0, v[V_GPS_EPV] * 100.0
@@ -271,63 +267,6 @@ def write_frame(buf: np.ndarray, v: np.ndarray, ints: np.ndarray, det: np.ndarra
     return at
 
 
-@njit(cache=True)
-def _two_product_error(a: float, b: float) -> float:
-    """Exact ``a*b - fl(a*b)`` (Dekker/Veltkamp split; what CPython's ``dl_mul`` gets with fma)."""
-    p = a * b
-    t = a * 134217729.0
-    ah = t - (t - a)
-    al = a - ah
-    t = b * 134217729.0
-    bh = t - (t - b)
-    bl = b - bh
-    return al * bl - (((p - ah * bh) - al * bh) - ah * bl)
-
-
-@njit(cache=True)
-def python_hypot(x: float, y: float) -> float:
-    """CPython's ``math.hypot(x, y)`` to the last bit (its ``vector_norm``; libm's ``hypot`` differs in ~0.6 %)."""
-    x = abs(x)
-    y = abs(y)
-    mx = x if x > y else y
-    if math.isinf(x) or math.isinf(y):
-        return math.inf
-    if x != x or y != y:
-        return math.nan
-    if mx == 0.0:
-        return mx
-    result_scale = 1.0
-    _, max_e = math.frexp(mx)
-    if max_e < -1023:  # ldexp(1.0, -max_e) would overflow: scale the subnormals up by DBL_MIN first
-        x /= _DBL_MIN
-        y /= _DBL_MIN
-        mx /= _DBL_MIN
-        result_scale = _DBL_MIN
-        _, max_e = math.frexp(mx)
-    scale = math.ldexp(1.0, -max_e)
-    csum = 1.0
-    frac1 = 0.0
-    frac2 = 0.0
-    for c in (x, y):
-        c *= scale
-        hi = c * c
-        lo = _two_product_error(c, c)
-        s = csum + hi
-        frac2 += (csum - s) + hi
-        csum = s
-        frac1 += lo
-    h = math.sqrt(csum - 1.0 + (frac1 + frac2))
-    hi = -h * h
-    lo = _two_product_error(-h, h)
-    s = csum + hi
-    frac2 += (csum - s) + hi
-    csum = s
-    frac1 += lo
-    x = csum - 1.0 + (frac1 + frac2)
-    h += x / (2.0 * h)
-    return result_scale * (h / scale)
-
-
 def detection_rows(detections: Sequence[ObstacleDetection]) -> np.ndarray:
     """(k, ``N_DET``) rows of ``detections`` for ``write_frame``."""
     rows = np.zeros((len(detections), N_DET))
@@ -341,16 +280,14 @@ def detection_rows(detections: Sequence[ObstacleDetection]) -> np.ndarray:
 
 
 class FrameWriter:
-    """One sender's lockstep datagrams (its own sequence counter), from ``values`` filled by the sim.
+    """One sender's lockstep datagrams (its own sequence counter), from a sensor-values array filled by the sim.
 
-    ``buffer`` and ``ints`` are what ``write_frame`` takes; a caller that fills the values in its own
-    numba kernel may call ``write_frame`` with them directly (one dispatch instead of two).
+    ``write`` packs into the preallocated ``buffer`` in one compiled call and returns the datagram's bytes.
     """
 
-    __slots__ = ("buffer", "ints", "no_detections", "values")
+    __slots__ = ("buffer", "ints", "no_detections")
 
     def __init__(self, system_id: int = SIM_SYSTEM_ID, component_id: int = SIM_COMPONENT_ID) -> None:
-        self.values = np.zeros(N_VALUES)
         self.ints = np.zeros(N_INTS, dtype=np.int64)
         self.ints[I_SYSTEM_ID] = system_id
         self.ints[I_COMPONENT_ID] = component_id
@@ -370,12 +307,14 @@ class FrameWriter:
             self.buffer = np.zeros(buffer_len(len(detections)), dtype=np.uint8)
         return detection_rows(detections)
 
-    def write(self, time_us: int, gps_due: bool, detections: Sequence[ObstacleDetection] = ()) -> bytes:
-        """The datagram of ``values`` at ``time_us``: HIL_GPS (if ``gps_due``), HIL_STATE_QUATERNION,
-        OBSTACLE_DISTANCE_3D per detection, HIL_SENSOR last."""
+    def write(
+        self, values: np.ndarray, time_us: int, gps_due: bool, detections: Sequence[ObstacleDetection] = ()
+    ) -> bytes:
+        """The datagram of ``values`` (``N_VALUES`` long) at ``time_us``: HIL_GPS (if ``gps_due``),
+        HIL_STATE_QUATERNION, OBSTACLE_DISTANCE_3D per detection, HIL_SENSOR last."""
         ints = self.ints
         ints[I_TIME_US] = time_us
         ints[I_GPS_DUE] = gps_due
-        det = self.detections(detections)
-        n = write_frame(self.buffer, self.values, ints, det)
+        det = self.detections(detections) if detections else self.no_detections
+        n = write_frame(self.buffer, values, ints, det)
         return self.buffer[:n].tobytes()

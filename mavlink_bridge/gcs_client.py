@@ -63,8 +63,20 @@ class MissionDownloadError(GcsError):
     """A download was refused or did not complete."""
 
 
+#: What a COMMAND_ACK result means, for a refusal the vehicle sent no STATUSTEXT about.
+RESULT_MEANING = {
+    CommandResult.TEMPORARILY_REJECTED: "not now: the vehicle is not ready for it yet (try again in a moment)",
+    CommandResult.DENIED: "the vehicle refused it in its present state and gave no reason",
+    CommandResult.UNSUPPORTED: "the vehicle does not support this command",
+    CommandResult.FAILED: "the vehicle accepted it but could not carry it out",
+    CommandResult.CANCELLED: "cancelled by the vehicle",
+}
+#: Wall seconds to wait after a refusal for the STATUSTEXT that says why (the vehicle sends it after the ack).
+REASON_WAIT_S = 0.5
+
+
 class CommandFailedError(GcsError):
-    """A command was acked with something other than ACCEPTED."""
+    """A command was acked with something other than ACCEPTED; ``text`` is the vehicle's reason."""
 
     def __init__(self, command: int, result: CommandResult, text: str = "") -> None:
         name = M.enums["MAV_CMD"][command].name if command in M.enums["MAV_CMD"] else str(command)
@@ -82,7 +94,10 @@ class ParamRefusedError(GcsError):
     """A PARAM_SET was refused; ``value_in_force`` is what the vehicle kept."""
 
     def __init__(self, name: str, requested: float, value_in_force: float, reason: str) -> None:
-        super().__init__(f"{name} = {requested:g} refused (still {value_in_force:g}): {reason}")
+        said = reason
+        for prefix in (f"{name} refused: ", f"{name}: "):  # the vehicle's text names the parameter too: once is enough
+            said = said.removeprefix(prefix)
+        super().__init__(f"{name} = {requested:g} refused (still {value_in_force:g}): {said}")
         self.name = name
         self.requested = requested
         self.value_in_force = value_in_force
@@ -396,7 +411,17 @@ class GcsClient:
         serial = self._text_serial
         result = self.command(command, *params)
         if result is not CommandResult.ACCEPTED:
-            raise CommandFailedError(command, result, self._reason(serial, ""))
+            raise CommandFailedError(command, result, self.refusal_reason(serial, result))
+
+    def refusal_reason(self, serial: int, result: CommandResult) -> str:
+        """Why the vehicle refused: its warning STATUSTEXT since ``serial`` (waited for up to
+        :data:`REASON_WAIT_S`, as it may follow the ack), else what ``result`` means."""
+        deadline = time.monotonic() + REASON_WAIT_S
+        reason = self._reason(serial, "")
+        while not reason and time.monotonic() < deadline:
+            self.pump(0.05)
+            reason = self._reason(serial, "")
+        return reason or RESULT_MEANING.get(result, result.name)
 
     def arm(self, force: bool = False) -> None:
         self._command_ok(M.MAV_CMD_COMPONENT_ARM_DISARM, 1.0, _FORCE_ARM_MAGIC if force else 0.0)

@@ -9,6 +9,11 @@
 The link moves whole datagrams only: it knows nothing of MAVLink (framing, signing and
 decoding belong to ``mavlink_bridge.codec``). ``recv`` never raises on what a peer sends;
 socket errors caused by a vanished peer (ICMP port unreachable) are swallowed and counted.
+
+Ports are exclusive: a listening link never sets ``SO_REUSEADDR``/``SO_REUSEPORT`` (on Linux either lets a
+second process bind the same UDP port and steal its traffic), and a taken port raises ``PortInUseError``
+naming the port and the fix. ``--instance N`` shifts default ports only (``resolve_url``): an address the
+user typed is used as typed, as PX4's and ArduPilot's instance offsets do.
 """
 
 from __future__ import annotations
@@ -20,6 +25,8 @@ import socket
 import time
 from dataclasses import dataclass
 from enum import Enum
+
+import numpy as np
 
 Address = tuple[str, int]
 
@@ -39,6 +46,21 @@ def spin_allowed() -> bool:
 
 class LinkUrlError(ValueError):
     """A connection string that is not ``udpin:``, ``udpout:`` or ``udp:`` HOST:PORT."""
+
+
+class PortInUseError(OSError):
+    """A UDP port to listen on is taken (another quadsitl instance, or another program); one-line message."""
+
+    def __init__(self, host: str, port: int) -> None:
+        super().__init__(
+            f"UDP port {port} on {host} is already in use (another quadsitl instance?); "
+            "run this one with --instance N to shift every default port by N"
+        )
+        self.host = host
+        self.port = port
+
+    def __str__(self) -> str:
+        return str(self.args[0])
 
 
 class LinkMode(Enum):
@@ -80,6 +102,40 @@ class LinkUrl:
         return f"{self.mode.value}:{self.host}:{self.port}"
 
 
+def bind_exclusive(sock: socket.socket, host: str, port: int) -> None:
+    """Bind ``sock`` to (host, port) without address reuse; ``PortInUseError`` when the port is taken."""
+    try:
+        sock.bind((host, port))
+    except OSError as exc:
+        if exc.errno == errno.EADDRINUSE:
+            raise PortInUseError(host, port) from None
+        raise
+
+
+def check_ports_free(urls: list[str]) -> None:
+    """Raise ``PortInUseError`` for the first listening URL of ``urls`` whose port is taken (``udpout:``, ``off``
+    skipped).
+
+    For launchers: fail before starting any process rather than leave one running on a half-taken set.
+    """
+    for text in urls:
+        if text == "off":
+            continue
+        url = LinkUrl.parse(text)
+        if url.mode is not LinkMode.LISTEN or url.port == 0:
+            continue
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+            bind_exclusive(sock, url.host, url.port)
+
+
+def resolve_url(given: str | None, default: str, instance: int) -> str:
+    """The link URL to use: ``given`` exactly as typed, else ``default`` with its port shifted by ``instance``."""
+    if given is not None:
+        LinkUrl.parse(given)  # LinkUrlError now, not when the link opens
+        return given
+    return str(LinkUrl.parse(default).with_port_offset(instance))
+
+
 class UdpLink:
     """A non-blocking UDP socket that sends and receives whole datagrams.
 
@@ -97,6 +153,7 @@ class UdpLink:
         "_spin_backoff",
         "_spin_skip",
         "_view",
+        "array",
         "follow_sender",
         "last_sender",
         "peer",
@@ -118,8 +175,7 @@ class UdpLink:
         sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
             if url.mode is LinkMode.LISTEN:
-                sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-                sock.bind((url.host, url.port))
+                bind_exclusive(sock, url.host, url.port)
             else:
                 local = "127.0.0.1" if url.host.startswith("127.") or url.host == "localhost" else "0.0.0.0"
                 sock.bind((local, 0))
@@ -133,6 +189,7 @@ class UdpLink:
         self._poll.register(sock.fileno(), select.POLLIN)
         self._buf = bytearray(_MAX_DATAGRAM_BYTES)
         self._view = memoryview(self._buf)
+        self.array = np.frombuffer(self._buf, dtype=np.uint8)  # the receive buffer, for compiled readers
 
     @classmethod
     def from_url(cls, url: str, *, follow_sender: bool = True, spin_s: float = 0.0) -> UdpLink:
@@ -154,7 +211,14 @@ class UdpLink:
         self.peer = address
 
     def recv(self, timeout_s: float) -> bytes | None:
-        """The next whole datagram, waiting at most ``timeout_s`` (0 = poll); None on timeout.
+        """The next whole datagram (a copy), waiting at most ``timeout_s`` (0 = poll); None on timeout (see
+        ``recv_into_buffer``)."""
+        n = self.recv_into_buffer(timeout_s)
+        return None if n < 0 else bytes(self._view[:n])
+
+    def recv_into_buffer(self, timeout_s: float) -> int:
+        """The next whole datagram's length, its bytes in ``array[:length]`` (no copy, valid until the next
+        receive), waiting at most ``timeout_s`` (0 = poll); -1 on timeout.
 
         ``last_sender`` is set to its source; in LISTEN mode with ``follow_sender`` the
         peer follows it. With ``spin_s`` > 0 the socket is first polled without sleeping for up to
@@ -167,49 +231,52 @@ class UdpLink:
         if timeout_s > 0.0:
             if self.spin_s > 0.0:
                 if self._spin_skip == 0:
-                    data = self._spin(min(self.spin_s, timeout_s))
-                    if data is not None:
+                    n = self._spin(min(self.spin_s, timeout_s))
+                    if n >= 0:
                         self._spin_backoff = 1
-                        return data
+                        return n
                     timeout_s -= self.spin_s
                     self._spin_skip = self._spin_backoff  # the peer is slower than the spin (or busy): back off
                     self._spin_backoff = min(2 * self._spin_backoff, _SPIN_BACKOFF_MAX)
                 else:
                     self._spin_skip -= 1
             if timeout_s > 0.0 and not self._poll.poll(timeout_s * 1000.0):
-                return None
+                return -1
         return self._take()
 
-    def _spin(self, spin_s: float) -> bytes | None:
-        """Busy-poll the socket for up to ``spin_s`` (wall); the datagram or None."""
+    def _spin(self, spin_s: float) -> int:
+        """Busy-poll the socket for up to ``spin_s`` (wall); the datagram's length or -1."""
         take, clock, yield_cpu = self._take, time.perf_counter, _yield_cpu
         end = clock() + spin_s
         while True:
-            data = take()
-            if data is not None or clock() >= end:
-                return data
+            n = take()
+            if n >= 0 or clock() >= end:
+                return n
             yield_cpu()  # polite: another runnable process on this CPU (a peer, another SITL) goes first
 
-    def _take(self) -> bytes | None:
-        """One datagram if the socket has one (never blocks)."""
+    def _take(self) -> int:
+        """One datagram into the buffer if the socket has one (never blocks): its length, else -1."""
         try:
             n, address = self._sock.recvfrom_into(self._buf)
         except OSError as exc:
             if exc.errno not in _TRANSIENT_ERRNOS:
                 raise
-            return None
+            return -1
         self.last_sender = address
         if self.follow_sender and self._listening:
             self.peer = address
-        return bytes(self._view[:n])
+        return n
 
-    def send(self, data: bytes) -> bool:
+    def send(self, data: bytes | memoryview) -> bool:
         """Send one datagram to the peer; False when there is no peer yet or the kernel refused it."""
-        peer = self.peer
-        if peer is None:
+        return self.send_to(data, self.peer)
+
+    def send_to(self, data: bytes | memoryview, address: Address | None) -> bool:
+        """Send one datagram to ``address`` (not the peer); False when it is None or the kernel refused it."""
+        if address is None:
             return False
         try:
-            self._sock.sendto(data, peer)
+            self._sock.sendto(data, address)
         except OSError:
             self.send_errors += 1
             return False

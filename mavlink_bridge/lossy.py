@@ -3,12 +3,14 @@
 ``LossyUdpProxy`` sits between a client and a fixed target (e.g. autopilot → proxy → sim):
 the client sends to ``proxy.listen_address``; datagrams are impaired in both directions
 with a seeded RNG and relayed; replies from the target go back to the client's last
-address. A "reordered" datagram is held back until the next datagram in the same
+address (with ``exclusive``: only the first client's; datagrams from others are counted in ``foreign`` and
+dropped, as the lockstep ends do). A "reordered" datagram is held back until the next datagram in the same
 direction has passed (or ``hold_s`` elapsed), so it arrives after a newer one.
 """
 
 from __future__ import annotations
 
+import argparse
 import random
 import select
 import socket
@@ -16,7 +18,20 @@ import threading
 import time
 from dataclasses import dataclass
 
+from mavlink_bridge.link import bind_exclusive
+
 Address = tuple[str, int]
+
+
+def loss_fraction(text: str) -> float:
+    """``--sim-loss FRACTION``: the share of datagrams dropped each way, in [0, 1)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a fraction in [0, 1), got {text!r}") from None
+    if not 0.0 <= value < 1.0:
+        raise argparse.ArgumentTypeError(f"expected a fraction in [0, 1), got {text!r}")
+    return value
 
 
 @dataclass(frozen=True, slots=True)
@@ -44,25 +59,40 @@ class LossStats:
     dropped: int
     duplicated: int
     reordered: int
+    foreign: int = 0  # datagrams from a second client of an ``exclusive`` proxy (dropped)
 
 
 class LossyUdpProxy:
     """Relay between whoever sends to ``listen_address`` and ``target``, impairing datagrams."""
 
-    def __init__(self, target: Address, profile: LossProfile, *, listen_host: str = "127.0.0.1", listen_port: int = 0):
+    def __init__(
+        self,
+        target: Address,
+        profile: LossProfile,
+        *,
+        listen_host: str = "127.0.0.1",
+        listen_port: int = 0,
+        exclusive: bool = False,
+    ) -> None:
         self.target = target
         self.profile = profile
+        self.exclusive = exclusive
         self._rng = random.Random(profile.seed)
         self._front = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self._front.bind((listen_host, listen_port))
         self._back = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self._back.bind((listen_host, 0))
+        try:
+            bind_exclusive(self._front, listen_host, listen_port)
+            self._back.bind((listen_host, 0))
+        except OSError:
+            self._front.close()
+            self._back.close()
+            raise
         self._client: Address | None = None
         # held datagrams per direction: (release time, payload)
         self._held: dict[str, list[tuple[float, bytes]]] = {"up": [], "down": []}
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="lossy-udp-proxy", daemon=True)
-        self._seen = self._dropped = self._duplicated = self._reordered = 0
+        self._seen = self._dropped = self._duplicated = self._reordered = self._foreign = 0
 
     @property
     def listen_address(self) -> Address:
@@ -73,7 +103,7 @@ class LossyUdpProxy:
     @property
     def stats(self) -> LossStats:
         """A snapshot of the counters."""
-        return LossStats(self._seen, self._dropped, self._duplicated, self._reordered)
+        return LossStats(self._seen, self._dropped, self._duplicated, self._reordered, self._foreign)
 
     def start(self) -> LossyUdpProxy:
         """Start relaying in a daemon thread."""
@@ -141,6 +171,9 @@ class LossyUdpProxy:
                 except OSError:
                     continue
                 if sock is front:
+                    if self.exclusive and self._client is not None and address != self._client:
+                        self._foreign += 1
+                        continue
                     self._client = address
                     self._impair("up", data, now)
                 elif address == self.target:

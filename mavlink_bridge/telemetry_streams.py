@@ -52,6 +52,7 @@ DEFAULT_RATES_HZ: dict[int, float] = {
     M.MAVLINK_MSG_ID_HOME_POSITION: 0.5,
     M.MAVLINK_MSG_ID_BATTERY_STATUS: 1.0,
     M.MAVLINK_MSG_ID_MISSION_CURRENT: 1.0,
+    M.MAVLINK_MSG_ID_ESTIMATOR_STATUS: 1.0,
 }
 
 
@@ -110,6 +111,7 @@ class TelemetryStreams:
             M.MAVLINK_MSG_ID_HOME_POSITION: self._home_position,
             M.MAVLINK_MSG_ID_BATTERY_STATUS: self._battery_status,
             M.MAVLINK_MSG_ID_MISSION_CURRENT: self._mission_current,
+            M.MAVLINK_MSG_ID_ESTIMATOR_STATUS: self._estimator_status,
         }
         self._default_interval_us = {msg_id: round(1e6 / hz) for msg_id, hz in DEFAULT_RATES_HZ.items()}
         self.interval_us: dict[int, int] = dict(self._default_interval_us)
@@ -354,6 +356,29 @@ class TelemetryStreams:
         self._mav.mission_current_send(
             seq, max(0, min(_UINT16_MAX, s.mission_count)), max(0, min(255, s.mission_state))
         )
+
+    def _estimator_status(self, s: TelemetrySnapshot) -> None:
+        """ESTIMATOR_STATUS from the snapshot's estimator report (nothing when the autopilot gave none)."""
+        e = s.estimator
+        if e is None:
+            return
+        self._mav.estimator_status_send(
+            s.time_us,
+            int(e.flags),
+            _ratio(e.vel_ratio),
+            _ratio(e.pos_horiz_ratio),
+            _ratio(e.pos_vert_ratio),
+            _ratio(e.mag_ratio),
+            0.0,
+            0.0,
+            _ratio(e.pos_horiz_accuracy_m),
+            _ratio(e.pos_vert_accuracy_m),
+        )
+
+
+def _ratio(value: float) -> float:
+    """A test ratio or accuracy for the wire: 0 when unknown (not fused), capped at 1e6."""
+    return min(value, 1e6) if math.isfinite(value) and value >= 0.0 else 0.0
 
 
 def _clamp_int(value: float, lo: int, hi: int) -> int:

@@ -15,15 +15,20 @@ import sys
 from pathlib import Path
 from types import FrameType
 
-from mavlink_bridge.link import LinkMode, LinkUrl, LinkUrlError
+from mavlink_bridge.contract.about import version_text
+from mavlink_bridge.link import LinkMode, LinkUrl, LinkUrlError, resolve_url
 from mavlink_bridge.lockstep import DEFAULT_SIM_PORT, add_spin_option
+from mavlink_bridge.lossy import loss_fraction
 from sim.end_reason import EndReason
-from sim.server import SimConfig, SimServer, SimSetupError
+from sim.server import DEFAULT_VEHICLE, SimConfig, SimServer, SimSetupError, mission_vehicle
+from sim.vehicle_config import load_vehicle
+from sim.world import load_world
 
 EXIT_OK = 0
 EXIT_USAGE = 2
 EXIT_AUTOPILOT_LOST = 3
 EXIT_VEHICLE_ENDED = 4
+DEFAULT_LISTEN = f"udp:127.0.0.1:{DEFAULT_SIM_PORT}"
 
 
 def _speed(text: str) -> float | None:
@@ -39,9 +44,16 @@ def _speed(text: str) -> float | None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The option set of SPEC §12 plus run-length, rates and test helpers."""
-    p = argparse.ArgumentParser(prog="quadsitl sim", description="Lockstep quadrotor simulator (MAVLink over UDP).")
-    p.add_argument("--world", type=Path, default=None, metavar="MISSION.yaml", help="mission/world YAML (obstacles)")
+    """The simulator's options: world, vehicle, pace, address, logs, plus run length, rates and test helpers."""
+    p = argparse.ArgumentParser(
+        prog="quadsitl sim",
+        description="The lockstep quadrotor simulator: waits for an autopilot on UDP, then steps the world with it.",
+        epilog="Usually started by 'quadsitl up' together with the autopilot.",
+    )
+    p.add_argument("--version", action="version", version=version_text("quadsitl sim"))
+    p.add_argument(
+        "--world", type=Path, default=None, metavar="MISSION.yaml", help="mission file whose world: is simulated"
+    )
     p.add_argument(
         "--vehicle",
         default=None,
@@ -49,38 +61,64 @@ def build_parser() -> argparse.ArgumentParser:
         help="vehicle config name or YAML path (default: the mission's vehicle:, else x500)",
     )
     p.add_argument("--seed", type=int, default=0, help="seed of sensor noise and gusts")
-    p.add_argument("--speed", type=_speed, default=None, metavar="{max|FLOAT}", help="sim s per wall s (default max)")
+    p.add_argument(
+        "--speed",
+        type=_speed,
+        default=None,
+        metavar="{max|FLOAT}",
+        help="sim seconds per wall second: 1 is real time, max (default) as fast as the autopilot answers",
+    )
     p.add_argument("--instance", type=int, default=0, metavar="N", help="offset of the listen port (14560 + N)")
     p.add_argument(
         "--listen",
-        default=f"udp:127.0.0.1:{DEFAULT_SIM_PORT}",
+        default=None,
         metavar="udp:HOST:PORT",
-        help="lockstep server address (udp: or udpin:); --instance is added to its port",
+        help=f"lockstep server address (udp: or udpin:; default {DEFAULT_LISTEN}, + --instance), used as typed",
+    )
+    p.add_argument(
+        "--sim-loss",
+        type=loss_fraction,
+        default=0.0,
+        metavar="FRACTION",
+        help="drop this share of lockstep datagrams each way (a lossy relay on the listen address; default 0)",
     )
     p.add_argument("--log-dir", type=Path, default=None, metavar="DIR", help="where sim_summary.json is written")
-    p.add_argument("--duration-s", type=float, default=None, help="stop after this much sim time")
-    p.add_argument("--physics-hz", type=int, default=1000)
-    p.add_argument("--control-hz", type=int, default=250)
+    p.add_argument("--duration-s", type=float, default=None, metavar="S", help="stop after this much sim time")
+    p.add_argument("--physics-hz", type=int, default=1000, metavar="HZ", help="physics rate (default 1000)")
+    p.add_argument("--control-hz", type=int, default=250, metavar="HZ", help="lockstep/control rate (default 250)")
     p.add_argument(
         "--autopilot-timeout-s", type=float, default=3.0, help="wall s of silence before AUTOPILOT_LOST (default 3)"
     )
-    p.add_argument("--start-timeout-s", type=float, default=None, help="give up waiting for the first HEARTBEAT")
+    p.add_argument(
+        "--start-timeout-s", type=float, default=None, metavar="S", help="give up waiting for the first HEARTBEAT"
+    )
     p.add_argument("--no-sensor-noise", action="store_true", help="noiseless sensors (truth + quantisation)")
     p.add_argument("--truth-log", type=Path, default=None, metavar="PATH.npz", help="truth state at control rate")
     add_spin_option(p, "the answer")
+    p.add_argument(
+        "--check", action="store_true", help="only check the world and vehicle files, then exit (0 fine, 2 refused)"
+    )
     p.add_argument("-v", "--verbose", action="store_true", help="log lockstep events")
     return p
 
 
+def check_inputs(args: argparse.Namespace) -> None:
+    """Load the world and the vehicle as the server would, without opening a port (ValueError: refused)."""
+    if args.world is not None:
+        load_world(args.world)
+    load_vehicle(args.vehicle or mission_vehicle(args.world) or DEFAULT_VEHICLE)
+
+
 def config_from_args(args: argparse.Namespace) -> SimConfig:
-    """Validate the parsed options into a ``SimConfig``; ``--instance`` offsets the listen port."""
-    url = LinkUrl.parse(args.listen)
-    if url.mode is not LinkMode.LISTEN:
-        raise LinkUrlError(f"--listen: the simulator listens, use udp:HOST:PORT or udpin:HOST:PORT, got {args.listen}")
+    """Validate the parsed options into a ``SimConfig``; ``--instance`` offsets the default listen port only."""
     if args.instance < 0:
         raise SimSetupError(f"--instance: expected N >= 0, got {args.instance}")
+    listen = resolve_url(args.listen, DEFAULT_LISTEN, args.instance)
+    url = LinkUrl.parse(listen)
+    if url.mode is not LinkMode.LISTEN:
+        raise LinkUrlError(f"--listen: the simulator listens, use udp:HOST:PORT or udpin:HOST:PORT, got {args.listen}")
     return SimConfig(
-        listen_url=str(url.with_port_offset(args.instance)),
+        listen_url=str(url),
         world_path=args.world,
         vehicle=args.vehicle,
         seed=args.seed,
@@ -93,6 +131,7 @@ def config_from_args(args: argparse.Namespace) -> SimConfig:
         sensor_noise=not args.no_sensor_noise,
         truth_log=args.truth_log,
         lockstep_spin_s=args.lockstep_spin_us * 1e-6,
+        loss_fraction=args.sim_loss,
     )
 
 
@@ -113,6 +152,13 @@ def main(argv: list[str] | None = None) -> int:
         format="sim %(levelname)s %(message)s",
         stream=sys.stderr,
     )
+    if args.check:
+        try:
+            check_inputs(args)
+        except (ValueError, OSError) as exc:
+            print(f"quadsitl sim: {exc}", file=sys.stderr)
+            return EXIT_USAGE
+        return EXIT_OK
     try:
         server = SimServer(config_from_args(args))
     except (ValueError, OSError) as exc:  # refused world/vehicle/options, or the port is taken
@@ -121,6 +167,10 @@ def main(argv: list[str] | None = None) -> int:
 
     def _stop(signum: int, _frame: FrameType | None) -> None:
         server.request_stop()
+
+    host, port = server.local_address
+    pace = "as fast as possible" if args.speed is None else f"{args.speed:g}x real time"
+    print(f"quadsitl sim: waiting for an autopilot on udp {host}:{port} ({pace}); Ctrl-C stops", flush=True)
 
     previous = {sig: signal.signal(sig, _stop) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:

@@ -1,27 +1,20 @@
-"""The simulator's per-step measurements and truth in one numba call, feeding ``mavlink_bridge.frame_writer``.
+"""The simulator's per-step measurements and truth in one numba call: the implementation of the sim's sensors.
 
-``FusedFrame.datagram()`` returns, for the current state, the very bytes of
-``encode_frame(Encoder(SIM_SYSTEM_ID, SIM_COMPONENT_ID), LockstepFrame(sensors.imu_baro_mag(v),
-sensors.gps(v), v.ground_truth(), detections))`` and advances the ``SensorModel`` exactly as those
-calls would (noise position, GPS error process, next GPS time), so a run is the same trajectory
-either way. The reference methods stay the specification; this kernel repeats their arithmetic
-operation for operation (no fastmath) — including CPython's ``math.hypot`` (``python_hypot``) and
-``round(x, 3)`` — and ``tests/test_sim_frame_writer.py`` checks the two byte for byte.
+``SensorValues.fill()`` writes, for the current state of row 0, the IMU/baro/mag sample, the GPS fix (when
+due) and the ground truth into one float64 array laid out by ``mavlink_bridge.contract.sensor_values`` (the
+bridge's compiled frame writer packs that array into the lockstep datagram), and advances the
+``SensorModel``'s state (noise position, GPS error process, next GPS time) as its Python methods do.
+``tests/test_sim_frame_writer.py`` checks the values against the sensor model's Python methods, and the
+geodetic conversion against pymap3d.
 """
 
 from __future__ import annotations
 
-import hashlib
 import math
-from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
 from numba import njit
 
-import mavlink_bridge.contract.frames
-import mavlink_bridge.frame_writer
-import sim.sensors
 from mavlink_bridge.contract.frames import (
     _GEODETIC_ITERATIONS,
     _WGS84_A_M,
@@ -31,10 +24,7 @@ from mavlink_bridge.contract.frames import (
     DEG_E7,
     LocalNedFrame,
 )
-from mavlink_bridge.contract.wire import ObstacleDetection
-from mavlink_bridge.frame_writer import (
-    I_GPS_DUE,
-    I_TIME_US,
+from mavlink_bridge.contract.sensor_values import (
     N_VALUES,
     V_ACCEL_FRD,
     V_ACCEL_TRUTH_FRD,
@@ -56,30 +46,11 @@ from mavlink_bridge.frame_writer import (
     V_Q_NED_FRD,
     V_TEMPERATURE,
     V_VEL_NED,
-    FrameWriter,
-    python_hypot,
-    write_frame,
 )
 from sim.sensors import _SEA_LEVEL_PA, GPS_PERIOD_US, MAG_FIELD_NED_GAUSS, SensorModel
 from sim.vehicle import VehicleSim
 
-#: sha256 of ``mavlink_bridge/frame_writer.py`` + ``sim/sensors.py`` + ``mavlink_bridge/contract/frames.py`` (WGS-84
-#: constants, ``geodetic_from_ned``) that these kernels mirror. numba's cache
-#: only watches this file, not the ones whose kernels and constants get compiled in: when they change, the
-#: kernels compile without the cache (correct, slower start-up) until this line is updated after a review
-#: that the kernel still matches the reference (``tests/test_sim_frame_writer.py`` fails meanwhile).
-DEPENDENCIES_SHA256 = "43801f9026a2f5c75cfaacc48e74d956527a7cc02a22702a5c9e569eef3a4738"
-
-
-def dependencies_sha256() -> str:
-    """The current sha256 of the files named by ``DEPENDENCIES_SHA256``."""
-    digest = hashlib.sha256()
-    for module in (mavlink_bridge.frame_writer, sim.sensors, mavlink_bridge.contract.frames):
-        digest.update(Path(module.__file__ or "").read_bytes())
-    return digest.hexdigest()
-
-
-_njit = njit(cache=dependencies_sha256() == DEPENDENCIES_SHA256)
+_njit = njit(cache=True)
 
 # --- constants array layout ---------------------------------------------------------------------
 C_HOME_ALT = 0  # sensor model home altitude, m AMSL
@@ -117,12 +88,12 @@ def frame_constants(frame: LocalNedFrame) -> list[float]:
 
 @_njit
 def _geodetic(c: np.ndarray, o: int, north_m: float, east_m: float, down_m: float) -> tuple[float, float, float]:
-    """``LocalNedFrame.geodetic_from_ned`` operation for operation: (lat °, lon °, alt m AMSL)."""
+    """``LocalNedFrame.geodetic_from_ned`` in numba: (lat °, lon °, alt m AMSL)."""
     x = c[o] + c[o + 3] * north_m + c[o + 6] * east_m + c[o + 9] * down_m
     y = c[o + 1] + c[o + 4] * north_m + c[o + 7] * east_m + c[o + 10] * down_m
     z = c[o + 2] + c[o + 5] * north_m + c[o + 8] * east_m + c[o + 11] * down_m
     lon = math.atan2(y, x)
-    p = python_hypot(x, y)
+    p = math.hypot(x, y)
     theta = math.atan2(z * _WGS84_A_M, p * _WGS84_B_M)
     st, ct = math.sin(theta), math.cos(theta)
     lat = math.atan2(z + _WGS84_EP2 * _WGS84_B_M * st * st * st, p - _WGS84_E2 * _WGS84_A_M * ct * ct * ct)
@@ -133,29 +104,6 @@ def _geodetic(c: np.ndarray, o: int, north_m: float, east_m: float, down_m: floa
         alt = p / math.cos(lat) - n
         lat = math.atan2(z, p * (1.0 - _WGS84_E2 * n / (n + alt)))
     return lat * _RAD_TO_DEG, lon * _RAD_TO_DEG, alt
-
-
-@_njit
-def python_round3(x: float) -> float:
-    """Python's ``round(x, 3)``: the exact binary ``x`` rounded to 3 decimals (half to even), nearest double.
-
-    ``x*1000`` is split into its rounded product and exact error (Dekker); only a tie of the rounded
-    product needs the error's sign. Values beyond 1e12 (or non-finite) are returned unchanged.
-    """
-    if not math.isfinite(x) or abs(x) >= 1e12:
-        return x
-    p = x * 1000.0
-    t = x * 134217729.0
-    xh = t - (t - x)
-    xl = x - xh
-    t = 1000.0 * 134217729.0
-    yh = t - (t - 1000.0)
-    yl = 1000.0 - yh
-    err = xl * yl - (((p - xh * yh) - xl * yh) - xh * yl)
-    k = np.rint(p)
-    if abs(p - k) == 0.5 and err != 0.0:
-        k = p + 0.5 if err > 0.0 else p - 0.5
-    return k / 1000.0
 
 
 @_njit
@@ -229,7 +177,7 @@ def fill_values(
     )
     v[V_GPS_LAT_DEG] = np.rint(lat * _DEG_E7) / _DEG_E7 if math.isfinite(lat) else lat
     v[V_GPS_LON_DEG] = np.rint(lon * _DEG_E7) / _DEG_E7 if math.isfinite(lon) else lon
-    v[V_GPS_ALT_AMSL] = python_round3(alt)
+    v[V_GPS_ALT_AMSL] = np.rint(alt * 1000.0) / 1000.0 if math.isfinite(alt) else alt
     vs = c[C_GPS_VEL_SIGMA]
     for k in range(3):
         v[V_GPS_VEL_NED + k] = x[3 + k] + vs * noise[j + 3 + k]
@@ -266,62 +214,32 @@ def sensor_constants(sensors: SensorModel, vehicle: VehicleSim) -> np.ndarray:
     return c
 
 
-@_njit
-def fused_datagram(
-    state: np.ndarray,
-    specific_force_frd: np.ndarray,
-    noise: np.ndarray,
-    counters: np.ndarray,
-    gps_error_ned_m: np.ndarray,
-    work: np.ndarray,
-    ints: np.ndarray,
-    buf: np.ndarray,
-    det: np.ndarray,
-) -> int:
-    """``fill_values`` then ``frame_writer.write_frame`` in one dispatch; returns the datagram length in ``buf``.
+class SensorValues:
+    """The sim's measurements and truth of each step in one numba call (``fill_values``) into ``values``.
 
-    ``work``: the ``C_*`` constants followed by the ``V_*`` values; ``ints``: ``frame_writer``'s integers
-    (``I_TIME_US`` set by the caller).
-    """
-    v = work[N_CONSTANTS:]
-    gps_due = fill_values(state, specific_force_frd, ints[I_TIME_US], work, noise, counters, gps_error_ned_m, v)
-    ints[I_GPS_DUE] = gps_due
-    return write_frame(buf, v, ints, det)
-
-
-class FusedFrame:
-    """The sim's lockstep datagram of each step in one numba call (``fused_datagram``); ``writer`` owns the
-    sequence counter and the buffer.
-
-    Equal to ``encode_frame`` of the reference ``LockstepFrame`` with an encoder used only for these frames.
+    ``values`` (``N_VALUES``, layout ``mavlink_bridge.contract.sensor_values``) is reused every step.
     """
 
-    __slots__ = ("_batch", "_sensors", "_work", "writer")
+    __slots__ = ("_batch", "_constants", "_sensors", "values")
 
-    def __init__(self, vehicle: VehicleSim, sensors: SensorModel, writer: FrameWriter | None = None) -> None:
+    def __init__(self, vehicle: VehicleSim, sensors: SensorModel) -> None:
         self._batch = vehicle.batch
         self._sensors = sensors
-        self._work = np.concatenate((sensor_constants(sensors, vehicle), np.zeros(N_VALUES)))
-        self.writer = writer or FrameWriter()
+        self._constants = sensor_constants(sensors, vehicle)
+        self.values = np.zeros(N_VALUES)
 
-    def datagram(self, detections: Sequence[ObstacleDetection] = ()) -> bytes:
-        """Measurements, GPS (when due), truth and ``detections`` of now, as one datagram."""
-        s, b, w = self._sensors, self._batch, self.writer
+    def fill(self) -> bool:
+        """Measurements, GPS (when due) and truth of now into ``values``; True when a GPS fix is in it."""
+        s, b = self._sensors, self._batch
         if s._counters[0] + NOISE_PER_STEP > s._noise.shape[0]:
             s._reserve_noise(NOISE_PER_STEP)
-        ints = w.ints
-        ints[I_TIME_US] = b.t_us
-        det = w.detections(detections) if detections else w.no_detections
-        buf = w.buffer
-        n = fused_datagram(
+        return fill_values(
             b.state,
             b.specific_force_frd,
+            b.t_us,
+            self._constants,
             s._noise,
             s._counters,
             s._gps_error_ned_m,
-            self._work,
-            ints,
-            buf,
-            det,
+            self.values,
         )
-        return buf[:n].tobytes()

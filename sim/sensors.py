@@ -112,8 +112,8 @@ class SensorModel:
         self._mag_bias: list[float] = self.mag_bias_frd_gauss.tolist()
         #: scaled standard normals (those before ``_counters[0]`` are used); refilled by blocks
         self._noise = np.zeros(0)
-        #: [next noise index, sim time of the next GPS fix (µs)]: an array so that the fused
-        #: frame kernel (``sim.frame_kernel``) advances the same state as these methods
+        #: [next noise index, sim time of the next GPS fix (µs)]: an array so that the compiled
+        #: sensor kernel (``sim.frame_kernel``) advances the same state as these methods
         self._counters = np.zeros(2, dtype=np.int64)
 
     def _reserve_noise(self, count: int) -> None:

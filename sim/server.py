@@ -2,7 +2,8 @@
 
 Loop per control step (``control_hz``, default 250 Hz)::
 
-    sensors(state, t) → frame datagram (one numba call, ``sim.frame_kernel``) → send (HIL_* out)
+    sensors(state, t) → values (one numba call, ``sim.frame_kernel``) → datagram (one numba call,
+    ``mavlink_bridge.frame_writer``) → send (HIL_* out)
     → record the previous step (truth hash, tilt, truth log: overlaps the autopilot's step)
     → wait (HIL_ACTUATOR_CONTROLS back)
     → apply (armed → motors, else 0; gripper release → payload dropped) → physics (substeps RK4)
@@ -31,10 +32,14 @@ from typing import Any, Protocol
 import numpy as np
 import yaml
 
-from mavlink_bridge.contract.wire import ActuatorCommand, ObstacleDetection
-from mavlink_bridge.lockstep import DEFAULT_SPIN_S, AutopilotLost, LockstepFrame, LockstepInterrupted, LockstepServer
+from mavlink_bridge.answer_kernel import A_ARMED, A_GRIPPER_RELEASE, A_MOTORS
+from mavlink_bridge.contract.wire import ObstacleDetection
+from mavlink_bridge.frame_writer import FrameWriter
+from mavlink_bridge.link import LinkUrl
+from mavlink_bridge.lockstep import DEFAULT_SPIN_S, AutopilotLost, LockstepInterrupted, LockstepServer
+from mavlink_bridge.lossy import LossProfile, LossyUdpProxy
 from sim.end_reason import EndReason
-from sim.frame_kernel import FusedFrame
+from sim.frame_kernel import SensorValues
 from sim.sensors import SensorModel
 from sim.vehicle import VehicleSim
 from sim.vehicle_config import load_vehicle
@@ -43,7 +48,6 @@ from sim.world import World, empty_world, load_world
 log = logging.getLogger(__name__)
 
 DEFAULT_VEHICLE = "x500"
-_MOTORS_OFF = (0.0, 0.0, 0.0, 0.0)
 SUMMARY_FILE = "sim_summary.json"
 
 
@@ -65,10 +69,11 @@ class SimConfig:
     control_hz: int = 250
     autopilot_timeout_s: float = 3.0  # wall seconds of silence before AUTOPILOT_LOST
     start_timeout_s: float | None = None  # wall seconds to wait for the first HEARTBEAT; None = forever
-    resend_timeout_s: float = 0.02
+    resend_timeout_s: float = 0.02  # ceiling of the adaptive resend timeout (wall s)
     sensor_noise: bool = True
     truth_log: Path | None = None  # .npz of the truth state at control rate
     lockstep_spin_s: float = DEFAULT_SPIN_S  # busy-poll for the answer before sleeping (0 = never)
+    loss_fraction: float = 0.0  # > 0: a lossy relay on the listen address drops this share of datagrams each way
 
 
 @dataclass(frozen=True, slots=True)
@@ -91,6 +96,11 @@ class SimSummary:
     resends: int
     stale_answers: int
     malformed: int
+    foreign_datagrams: int  # lockstep datagrams from anyone but the autopilot that started it: dropped unread
+    invalid_answers: int  # answers stamped ahead of the frame or with motors NaN / outside [0, 1]: never applied
+    resend_timeout_us: float  # the adaptive resend timeout at the end of the run
+    exchange_us: float  # smoothed frame-to-answer time (the resend timeout's basis)
+    relay_dropped: int  # datagrams the --sim-loss relay dropped (0 without it)
     final_pos_ned_m: tuple[float, float, float]
     truth_sha256: str  # hash of the truth state after every control step (determinism checks)
     sim_step_us: float  # mean wall time per step in the sim itself (all but the answer wait and pacing sleeps)
@@ -123,7 +133,8 @@ def _load_obstacle_sensor(world: World, seed: int) -> ObstacleSensorLike | None:
     return module.ObstacleSensor(world, seed)
 
 
-def _mission_vehicle(world_path: Path | None) -> str | None:
+def mission_vehicle(world_path: Path | None) -> str | None:
+    """The ``vehicle:`` of a mission YAML (None: no file, or none named)."""
     if world_path is None:
         return None
     doc: Any = yaml.safe_load(world_path.read_text())
@@ -152,7 +163,7 @@ class SimServer:
         if config.world_path is not None and not config.world_path.is_file():
             raise SimSetupError(f"world: no such file {str(config.world_path)!r}")
         self.world = load_world(config.world_path) if config.world_path else empty_world()
-        vehicle_name = config.vehicle or _mission_vehicle(config.world_path) or DEFAULT_VEHICLE
+        vehicle_name = config.vehicle or mission_vehicle(config.world_path) or DEFAULT_VEHICLE
         self.vehicle_config = load_vehicle(vehicle_name)
         try:
             self.vehicle = VehicleSim(
@@ -165,24 +176,42 @@ class SimServer:
         except ValueError as exc:
             raise SimSetupError(str(exc)) from exc
         self.sensors = SensorModel(self.vehicle_config, self.world.home, config.seed, noise=config.sensor_noise)
-        self._fused = FusedFrame(self.vehicle, self.sensors)  # the lockstep frames' bytes (owns their sequence)
+        self._values = SensorValues(self.vehicle, self.sensors)  # this step's measurements and truth
+        self._writer = FrameWriter()  # their lockstep datagram (owns the sequence counter)
         self.obstacle_sensor = _load_obstacle_sensor(self.world, config.seed)
         rate_hz = getattr(getattr(self.obstacle_sensor, "config", None), "rate_hz", 10.0)
         self._detection_period_us = round(1e6 / rate_hz)
         self._next_detection_us = 0
+        if not 0.0 <= config.loss_fraction < 1.0:
+            raise SimSetupError(f"sim loss: expected a fraction in [0, 1), got {config.loss_fraction}")
+        listen = LinkUrl.parse(config.listen_url)
+        self.relay: LossyUdpProxy | None = None
         self.lockstep = LockstepServer(
-            config.listen_url,
+            f"udpin:{listen.host}:0" if config.loss_fraction > 0.0 else config.listen_url,
             resend_timeout_s=config.resend_timeout_s,
             peer_lost_timeout_s=config.autopilot_timeout_s,
             spin_s=config.lockstep_spin_s,
         )
+        if config.loss_fraction > 0.0:  # the relay takes the public address and impairs both directions
+            try:
+                self.relay = LossyUdpProxy(
+                    self.lockstep.local_address,
+                    LossProfile(drop_p=config.loss_fraction, seed=config.seed),
+                    listen_host=listen.host,
+                    listen_port=listen.port,
+                    exclusive=True,
+                )
+            except OSError:
+                self.lockstep.close()
+                raise
         self._stop_requested = False
-        self._motor_cmd: tuple[float, ...] = _MOTORS_OFF
+        self._answer_motors = self.lockstep.answer[A_MOTORS : A_MOTORS + 4]  # a view: the answer, in place
+        self._motors_off = np.zeros(4)
 
     @property
     def local_address(self) -> tuple[str, int]:
-        """Where the lockstep server listens."""
-        return self.lockstep.local_address
+        """Where the autopilot sends (the lockstep server, or the lossy relay in front of it)."""
+        return self.relay.listen_address if self.relay is not None else self.lockstep.local_address
 
     def request_stop(self) -> None:
         """Finish the run at the next step (signal-handler safe): end reason STOPPED."""
@@ -197,32 +226,19 @@ class SimServer:
         self._next_detection_us += self._detection_period_us
         return tuple(self.obstacle_sensor.detect(v.pos_ned, v.q_ned_frd, v.t_us))
 
-    def _frame(self) -> LockstepFrame:
-        """Sensors, GPS (10 Hz), truth and obstacle detections for now, as typed messages (reference path).
-
-        ``run`` sends ``_datagram()`` instead: the same bytes (``tests/test_sim_frame_writer.py``), ~10x cheaper.
-        """
-        v = self.vehicle
-        detections = self._detections()
-        return LockstepFrame(self.sensors.imu_baro_mag(v), self.sensors.gps(v), v.ground_truth(), detections)
-
     def _datagram(self) -> bytes:
-        """What ``encode_frame`` makes of ``_frame()``, written by the fused kernel (``sim.frame_kernel``)."""
-        return self._fused.datagram(self._detections())
+        """Sensors, GPS (10 Hz), truth and obstacle detections of now as the lockstep datagram (two numba calls)."""
+        gps_due = self._values.fill()
+        return self._writer.write(self._values.values, self.vehicle.t_us, gps_due, self._detections())
 
-    def _apply(self, cmd: ActuatorCommand) -> None:
-        """Motors when armed (else stopped; non-finite commands stop that motor), gripper release."""
-        if cmd.armed:
-            u = cmd.motor_cmd
-            if math.isfinite(u[0] + u[1] + u[2] + u[3]):  # one check for the usual case
-                self._motor_cmd = u
-            else:
-                self._motor_cmd = tuple(x if math.isfinite(x) else 0.0 for x in u)
-        else:
-            self._motor_cmd = _MOTORS_OFF
-        if cmd.gripper_release and self.vehicle.payload_kg > 0.0:
+    def _apply(self) -> np.ndarray:
+        """The motor commands to integrate from the lockstep's answer (checked finite and in [0, 1] at the edge):
+        its motors when armed, else stopped; a gripper release drops the payload."""
+        answer = self.lockstep.answer
+        if answer[A_GRIPPER_RELEASE] == 1.0 and self.vehicle.payload_kg > 0.0:
             self.vehicle.release_payload()
             log.info("payload released at t=%.3f s", self.vehicle.t_s)
+        return self._answer_motors if answer[A_ARMED] == 1.0 else self._motors_off
 
     def run(self) -> SimSummary:
         """Wait for the autopilot, then step in lockstep until an end condition; always returns a summary."""
@@ -245,6 +261,8 @@ class SimServer:
         wait_s = sleep_s = 0.0  # wall time waiting for answers, pacing sleeps
         wall0 = time.perf_counter()
         cpu0 = time.process_time()
+        if self.relay is not None:
+            self.relay.start()
         try:
             connected = self._wait_for_autopilot()
             wall0 = time.perf_counter()
@@ -265,7 +283,7 @@ class SimServer:
                         record()
                         unrecorded = False
                     wait_start_s = time.perf_counter()
-                    cmd = lockstep.wait_answer()
+                    lockstep.wait_answer_into()
                     wait_s += time.perf_counter() - wait_start_s
                 except AutopilotLost as exc:
                     log.warning("autopilot lost: %s", exc)
@@ -274,8 +292,7 @@ class SimServer:
                 except LockstepInterrupted:
                     v.end(EndReason.STOPPED)
                     break
-                self._apply(cmd)
-                v.step(self._motor_cmd)
+                v.step(self._apply())
                 unrecorded = True
                 if cfg.speed is not None:
                     ahead_s = wall0 + v.t_s / cfg.speed - time.perf_counter()
@@ -288,6 +305,8 @@ class SimServer:
             wall_s = time.perf_counter() - wall0
             cpu_s = time.process_time() - cpu0
             lockstep.close()
+            if self.relay is not None:
+                self.relay.stop()
         if cfg.truth_log is not None:
             self._write_truth_log(cfg.truth_log, truth_rows)
         steps = max(self.lockstep.stats.frames, 1)
@@ -343,6 +362,11 @@ class SimServer:
             resends=stats.resends,
             stale_answers=stats.stale_answers,
             malformed=stats.malformed,
+            foreign_datagrams=stats.foreign + (self.relay.stats.foreign if self.relay is not None else 0),
+            invalid_answers=stats.invalid_answers,
+            resend_timeout_us=stats.resend_timeout_us,
+            exchange_us=stats.exchange_us,
+            relay_dropped=self.relay.stats.dropped if self.relay is not None else 0,
             final_pos_ned_m=(float(v.pos_ned[0]), float(v.pos_ned[1]), float(v.pos_ned[2])),
             truth_sha256=truth_sha256,
             sim_step_us=timing_us[0],

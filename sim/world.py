@@ -9,6 +9,7 @@ the same numba kernels serve :meth:`World.clearance_m` and the physics step.
 from __future__ import annotations
 
 import math
+import re
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,6 +20,7 @@ import yaml
 from numba import njit
 
 from mavlink_bridge.contract.frames import GeoPoint
+from mavlink_bridge.contract.source_lines import YamlSyntaxError, did_you_mean, read_yaml
 
 #: Default home when a world has none (SPEC §8 example, Hangzhou).
 DEFAULT_HOME = GeoPoint(30.2635, 120.1233, 12.0)
@@ -200,9 +202,13 @@ _SIZE_RANGE = (0.01, 1e4)
 
 def _num(where: str, key: str, value: Any, lo: float, hi: float) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise WorldConfigError(f"{where}.{key}: expected a finite number in [{lo:g}, {hi:g}], got {value!r}")
+        raise WorldConfigError(
+            f"{where}.{key}: expected a finite number in [{lo:g}, {hi:g}], got {value!r}; fix: write a plain number"
+        )
     if not lo <= value <= hi:
-        raise WorldConfigError(f"{where}.{key}: {value!r} is outside the allowed range [{lo:g}, {hi:g}]")
+        raise WorldConfigError(
+            f"{where}.{key}: {value!r} is outside the allowed range [{lo:g}, {hi:g}]; fix: use a value in that range"
+        )
     return float(value)
 
 
@@ -212,9 +218,15 @@ def _fields(where: str, spec: Any, required: set[str], optional: set[str] = froz
     missing = sorted(required - set(spec))
     unknown = sorted(set(spec) - required - optional)
     if missing:
-        raise WorldConfigError(f"{where}: missing field(s) {missing}")
+        raise WorldConfigError(
+            f"{where}: missing field(s) {missing}; fix: add {', '.join(f'{m}: ...' for m in missing)}"
+        )
     if unknown:
-        raise WorldConfigError(f"{where}: unknown field(s) {unknown}; allowed {sorted(required | optional)}")
+        allowed = sorted(required | optional)
+        raise WorldConfigError(
+            f"{where}.{unknown[0]}: unknown field(s) {unknown}; allowed {allowed}; "
+            f"fix: {did_you_mean(unknown[0], allowed)}"
+        )
     return spec
 
 
@@ -252,7 +264,11 @@ def _obstacle(index: int, entry: Any) -> Obstacle:
             tuple(_num(where, f"size_m[{i}]", v, slo, shi) for i, v in enumerate(size)),  # type: ignore[arg-type]
             _num(where, "yaw_deg", s.get("yaw_deg", 0.0), -360.0, 360.0),
         )
-    raise WorldConfigError(f"world.obstacles[{index}]: unknown shape {shape!r}; allowed cylinder, box, sphere")
+    shapes = ("cylinder", "box", "sphere")
+    raise WorldConfigError(
+        f"world.obstacles[{index}].{shape}: unknown shape {shape!r}; allowed {', '.join(shapes)}; "
+        f"fix: {did_you_mean(shape, shapes)}"
+    )
 
 
 def _wind(spec: Any) -> WindConfig:
@@ -291,12 +307,35 @@ def load_world(source: str | Path | dict) -> World:
     else:
         looks_like_yaml = isinstance(source, str) and ("\n" in source or source.lstrip().startswith("{"))
         if not looks_like_yaml and not Path(source).is_file():
-            raise WorldConfigError(f"world: no such file {str(source)!r}")
-        text = str(source) if looks_like_yaml else Path(source).read_text()
-        try:
-            doc = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            raise WorldConfigError(f"not valid YAML ({exc})") from exc
+            raise WorldConfigError(f"world: no such file {str(source)!r}; fix: check the path given to --world")
+        if looks_like_yaml:
+            try:
+                doc = yaml.safe_load(str(source))
+            except yaml.YAMLError as exc:
+                raise WorldConfigError(f"not valid YAML ({exc})") from exc
+        else:
+            try:
+                parsed = read_yaml(source)
+            except YamlSyntaxError as exc:
+                raise WorldConfigError(str(exc)) from None
+            try:
+                return _world_of(parsed.data)
+            except WorldConfigError as exc:  # name the file and line: FILE:LINE: world.obstacles[2]...: ...
+                node = _node_path(str(exc))
+                if node[:1] == ("world",) and not (isinstance(parsed.data, dict) and "world" in parsed.data):
+                    node = node[1:]  # a bare world mapping
+                raise WorldConfigError(f"{parsed.where(*node)}: {exc}") from None
+    return _world_of(doc)
+
+
+def _node_path(message: str) -> tuple[str | int, ...]:
+    """The YAML path of the ``world.obstacles[2].box.size_m[1]: ...`` a message starts with."""
+    head = message.split(": ", 1)[0].split()[0]
+    return tuple(int(p[1:-1]) if p.startswith("[") else p for p in re.findall(r"\[\d+\]|[A-Za-z_]+", head))
+
+
+def _world_of(doc: Any) -> World:
+    """The world of a parsed mission or bare world mapping (WorldConfigError naming the field)."""
     if not isinstance(doc, dict):
         raise WorldConfigError(f"expected a mapping (mission or world), got {type(doc).__name__}")
     home = _home(doc["home"]) if "home" in doc else DEFAULT_HOME

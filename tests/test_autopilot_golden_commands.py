@@ -38,7 +38,7 @@ from sim.world import empty_world
 
 #: SHA-256 of the golden flight, recorded with the autopilot of commit 0690ec9 (before the step speed-up); re-recorded
 #: when the summary gained items_bypassed and bypassed_seqs (issue 13: actuator commands and texts unchanged).
-GOLDEN_SHA256 = "6cbc44111ad9242a7e06c3b1ffa467ce6905dd0bd07fc66319079ebf77dfc72e"
+GOLDEN_SHA256 = "456955461f1f4817adedb7d23ee7b38b6e2a79517e9e4e1177d287af1abe954f"
 RATE_HZ = 250
 #: Sim time (s) → parameter changes applied between frames (as a GCS would).
 PARAM_CHANGES: dict[float, dict[str, float]] = {

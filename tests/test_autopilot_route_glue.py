@@ -99,7 +99,7 @@ def test_rejoin_index_skips_bypassed_waypoints_reports_them_and_still_fires_the_
     planner = ScriptedPlanner(rejoin_at=(0.0, 8.0), rejoin=3)  # from item 1: items 1..4 (DO_GRIPPER 3) bypassed
     loop, _, track = _fly(planner, points, gripper_after=1)
     # flown around, never reached: bypassed items are reported as such (the DO_GRIPPER between them ran)
-    assert loop.ap.reached_seqs == [0, 3, 5, 6] and loop.ap.navigator.bypassed_seqs == [1, 2, 4]
+    assert loop.ap.progress.reached_seqs == [0, 3, 5, 6] and loop.ap.navigator.bypassed_seqs == [1, 2, 4]
     assert any(t.startswith("Bypassed item 1: a detour rejoined the route past it") for t in loop.texts), loop.texts
     assert loop.ap.summary(0.0)["items_bypassed"] == 3
     assert loop.ap.commander.gripper_release  # the DO_GRIPPER between skipped waypoints fired
@@ -117,7 +117,7 @@ def test_waypoint_inside_an_obstacle_safety_volume_is_never_targeted() -> None:
     column = TrackedObstacle(7, ObstacleKind.COLUMN, (8.0, 14.5, 0.0), 1.0, 0, 0, 5)  # covers item 2
     planner = ScriptedPlanner(obstacles=(column,))
     loop, _, track = _fly(planner, points)
-    assert loop.ap.reached_seqs == [0, 1, 3, 4] and loop.ap.navigator.bypassed_seqs == [2]
+    assert loop.ap.progress.reached_seqs == [0, 1, 3, 4] and loop.ap.navigator.bypassed_seqs == [2]
     assert any("Skipped to item 3" in t for t in loop.texts), loop.texts
     assert "Bypassed item 2: it lies inside an obstacle's safety volume" in loop.texts
     assert all(math.dist(r[0][:2], (8.0, 14.0)) > 1e-3 for r in planner.routes)  # never handed as target

@@ -97,7 +97,7 @@ def test_leg_across_a_no_fly_corridor_with_buildings_past_it_flies_clean() -> No
     assert not [t for t in loop.texts if t.startswith("Failsafe")], loop.texts
     assert any(t.startswith("Route: ") for t in loop.texts), loop.texts  # planned around the zones
     nav = loop.ap.navigator
-    assert sorted(set(loop.ap.reached_seqs) | set(nav.bypassed_seqs)) == list(range(len(plan.items)))
+    assert sorted(set(loop.ap.progress.reached_seqs) | set(nav.bypassed_seqs)) == list(range(len(plan.items)))
     assert loop.sim.payload_kg == 0.0  # the parcel was delivered
 
 

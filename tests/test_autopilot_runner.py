@@ -130,7 +130,7 @@ def test_mission_with_payload_release_reaches_every_item_in_order() -> None:
     assert vehicle.handle_command(command(300, 0, 0)) is CommandResult.ACCEPTED
     assert ap.commander.mode is FlightMode.AUTO_MISSION
     assert loop.run_until(lambda: not ap.commander.armed, 90.0)
-    assert ap.reached_seqs == [0, 1, 2, 3, 4]
+    assert ap.progress.reached_seqs == [0, 1, 2, 3, 4]
     assert loop.released_at_s is not None
     summary = ap.summary(1.0)
     assert summary["items_reached"] == summary["items_total"] == 5
@@ -154,4 +154,4 @@ def test_params_refused_out_of_range_and_live_in_flight() -> None:
     climb = -loop.sim.vel_ned[2]
     assert climb == pytest.approx(3.0, abs=0.3)  # MPC_TKO_SPEED in force
     assert vehicle.param_set("MPC_ACC_HOR", 1.0)[0]
-    assert loop.ap.setpoints.limits.acc_xy_m_s2 == 1.0
+    assert loop.ap.control.setpoints.limits.acc_xy_m_s2 == 1.0

@@ -47,7 +47,7 @@ def test_avoidance_flight_recording_has_route_fence_detour_obstacles_battery_and
     assert home is not None
     assert loop.vehicle.handle_command(command(400, 1.0)) is CommandResult.ACCEPTED
     assert loop.vehicle.handle_command(command(300, 0, 0)) is CommandResult.ACCEPTED
-    assert loop.run_until(lambda: 1 in loop.ap.reached_seqs, 60.0), loop.texts
+    assert loop.run_until(lambda: 1 in loop.ap.progress.reached_seqs, 60.0), loop.texts
     loop.ap.listener.close()  # type: ignore[union-attr]
 
     r = read_recording(rrd)

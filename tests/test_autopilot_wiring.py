@@ -35,26 +35,28 @@ def test_params_file_sets_gains_and_limits(tmp_path: Path) -> None:
     path = tmp_path / "params.yaml"
     path.write_text("NV_Z_P_K1: 6.5\nNV_ROLL_DLT2: 1.5\nMPC_TILTMAX_DEG: 25\n")
     ap = Autopilot(AutopilotConfig(vehicle="x500", params_file=str(path), avoidance=False))
-    assert ap.gains.z.k1[0] == 6.5 and ap.gains.roll.delta2 == 1.5
-    assert ap.controller is not None and ap.controller.limits.tilt_max_rad == pytest.approx(math.radians(25.0))
+    assert ap.control.gains.z.k1[0] == 6.5 and ap.control.gains.roll.delta2 == 1.5
+    assert ap.control.controller is not None and ap.control.controller.limits.tilt_max_rad == pytest.approx(
+        math.radians(25.0)
+    )
 
 
 def test_gain_change_in_flight_shows_in_the_diagnostics_next_step() -> None:
     loop = SimLoop("x500")
     loop.take_off(10.0, settle_s=2.0)
-    vehicle, diag = loop.vehicle, loop.ap.controller.diagnostics  # type: ignore[union-attr]
+    vehicle, diag = loop.vehicle, loop.ap.control.controller.diagnostics  # type: ignore[union-attr]
     assert diag.kp[0, Z] == 5.0 and diag.kp[0, ROLL] == 8.0
     for name, value in (("NV_Z_P_K1", 7.0), ("NV_Z_P_K2", 7.0), ("NV_ROLL_P_K1", 11.0), ("NV_ROLL_P_K2", 11.0)):
         assert vehicle.param_set(name, value) == (True, value, "")
-    controller = loop.ap.controller
+    controller = loop.ap.control.controller
     loop.step()
-    assert loop.ap.controller is controller  # gains change live: same cascade, integrators kept
+    assert loop.ap.control.controller is controller  # gains change live: same cascade, integrators kept
     diag = controller.diagnostics  # type: ignore[union-attr]
     assert diag.kp[0, Z] == 7.0 and diag.kp[0, ROLL] == 11.0
     ok, value, reason = vehicle.param_set("NV_Z_P_K1", 1000.0)
     assert not ok and value == 7.0 and "outside" in reason
     ok, _, _ = vehicle.param_set("NV_ROLL_DLT2", -1.0)
-    assert not ok and loop.ap.gains.roll.delta2 > 0.0
+    assert not ok and loop.ap.control.gains.roll.delta2 > 0.0
     loop.step()
     assert diag.kp[0, Z] == 7.0
     loop.run_s(2.0)
@@ -68,10 +70,12 @@ def test_limit_change_in_flight_keeps_the_integrators_no_jump() -> None:
     loop.take_off(10.0, settle_s=6.0)
     before = loop.step().motor_cmd
     alt0 = loop.alt_m
-    integrator_sum = float(np.abs(loop.ap.controller._work[0, :]).sum())  # type: ignore[union-attr]
+    integrator_sum = float(np.abs(loop.ap.control.controller._work[0, :]).sum())  # type: ignore[union-attr]
     assert integrator_sum > 0.0
     assert loop.vehicle.param_set("MPC_TILTMAX_DEG", 30.0)[0]
-    assert loop.ap.controller is not None and loop.ap.controller.limits.tilt_max_rad == pytest.approx(math.radians(30))
+    assert loop.ap.control.controller is not None and loop.ap.control.controller.limits.tilt_max_rad == pytest.approx(
+        math.radians(30)
+    )
     after = loop.step().motor_cmd
     assert max(abs(a - b) for a, b in zip(after, before, strict=True)) < 0.01
     alts: list[float] = []
@@ -83,13 +87,13 @@ def _release_excursion_m(payload_param_kg: float) -> float:
     loop = SimLoop("delivery650", payload_kg=1.0)
     assert loop.vehicle.param_set("PLD_MASS_KG", payload_param_kg)[0]
     loop.take_off(10.0, settle_s=6.0)
-    mass = loop.ap.controller.mass_kg[0]  # type: ignore[union-attr]
+    mass = loop.ap.control.controller.mass_kg[0]  # type: ignore[union-attr]
     assert mass == pytest.approx(3.5)
     assert loop.vehicle.handle_command(command(211, 1.0, 0.0)) is CommandResult.ACCEPTED  # DO_GRIPPER release
     alts: list[float] = []
     loop.run_s(6.0, lambda: alts.append(loop.alt_m))
     assert loop.sim.payload_kg == 0.0
-    assert loop.ap.controller.mass_kg[0] == pytest.approx(3.5 - payload_param_kg)  # type: ignore[union-attr]
+    assert loop.ap.control.controller.mass_kg[0] == pytest.approx(3.5 - payload_param_kg)  # type: ignore[union-attr]
     return max(abs(a - 10.0) for a in alts)
 
 
@@ -107,7 +111,7 @@ def _fenced_decision(fence_items) -> str:  # type: ignore[no-untyped-def]
     assert frame is not None
     items = fence_items(frame)
     assert loop.vehicle.replace_mission(MissionType.FENCE, items) == (MissionResult.ACCEPTED, "")
-    planner = loop.ap.planner
+    planner = loop.ap.navigator.planner
     assert planner is not None
     det = ObstacleDetection(0, 7, (22.0, 1.0, 0.0), 3.0, ObstacleShape.CYLINDER)  # column ahead, slightly right
     texts: list[str] = []

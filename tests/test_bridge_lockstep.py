@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import socket
 import threading
 
 import numpy as np
 import pytest
 
+from mavlink_bridge.codec import SIM_COMPONENT_ID, SIM_SYSTEM_ID, Encoder
 from mavlink_bridge.contract.wire import (
     ActuatorCommand,
     GpsSample,
@@ -16,7 +19,15 @@ from mavlink_bridge.contract.wire import (
     ObstacleShape,
     SensorSample,
 )
-from mavlink_bridge.lockstep import AutopilotLost, LockstepClient, LockstepFrame, LockstepServer
+from mavlink_bridge.link import UdpLink
+from mavlink_bridge.lockstep import (
+    AutopilotLost,
+    LockstepClient,
+    LockstepFrame,
+    LockstepServer,
+    ResendTimer,
+    encode_frame,
+)
 from mavlink_bridge.lossy import LossProfile, LossyUdpProxy
 
 FRAME_PERIOD_US = 4000
@@ -122,7 +133,8 @@ def test_both_ends_survive_garbage_datagrams() -> None:
                 junk.sendto(b"\xfd" + rng.integers(0, 256, 40).astype(np.uint8).tobytes(), ("127.0.0.1", client_port))
             answers.append(server.exchange(make_frame(k)))
         assert [a.time_us for a in answers] == [k * FRAME_PERIOD_US for k in range(60)]
-        assert server.stats.malformed > 0 and client.stats.malformed > 0
+        assert server.stats.malformed > 0  # garbage before the heartbeat: read (no peer yet), counted
+        assert server.stats.foreign > 0 and client.stats.foreign > 0  # after it: a stranger's, dropped unread
     finally:
         stop.set()
         thread.join(5.0)
@@ -188,3 +200,99 @@ def test_client_reports_sim_lost_and_accepts_a_restarted_sim() -> None:
         stop.set()
         client.close()
         server.close()
+
+
+def _frame_datagram(encoder: Encoder, k: int, *, t_us: int | None = None, q: tuple = (1.0, 0.0, 0.0, 0.0)) -> bytes:
+    frame = make_frame(k)
+    t = frame.time_us if t_us is None else t_us
+    sensor = dataclasses.replace(frame.sensor, time_us=t)
+    truth = dataclasses.replace(frame.truth, time_us=t, q_ned_frd=q)
+    return encode_frame(encoder, LockstepFrame(sensor, None, truth, frame.detections))
+
+
+def test_client_drops_frames_out_of_time_order_or_with_absurd_values_from_its_sim() -> None:
+    with UdpLink.from_url("udpin:127.0.0.1:0") as sim, socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as stranger:
+        host, port = sim.local_address
+        client = LockstepClient(f"udpout:{host}:{port}", heartbeat_period_s=0.02)
+        enc = Encoder(SIM_SYSTEM_ID, SIM_COMPONENT_ID)
+        try:
+            assert client.next_frame(0.05) is None and sim.recv(1.0) is not None  # the HEARTBEAT: sim knows its peer
+            sim.send(_frame_datagram(enc, 0))
+            first = client.next_frame(1.0)
+            assert first is not None and first.time_us == 0
+            client.answer(autopilot_law(first))
+            bad = [
+                _frame_datagram(enc, 1, t_us=3_600_000_000),  # an hour ahead
+                _frame_datagram(enc, 1, t_us=2**63),  # beyond any sim time (would overflow downstream)
+                _frame_datagram(enc, 1, q=(math.nan, 0.0, 0.0, 0.0)),  # NaN attitude
+                _frame_datagram(enc, 1, q=(5.0, 0.0, 0.0, 0.0)),  # not a rotation
+            ]
+            for datagram in bad:
+                sim.send(datagram)
+                assert client.next_frame(0.05) is None
+            stranger.sendto(_frame_datagram(enc, 1), client.local_address)  # right frame, wrong sender
+            assert client.next_frame(0.05) is None
+            sim.send(_frame_datagram(enc, 1))
+            good = client.next_frame(1.0)
+            assert good is not None and good.time_us == FRAME_PERIOD_US
+            stats = client.stats
+            assert (stats.future_frames, stats.invalid_frames, stats.foreign, stats.frames) == (2, 2, 1, 2)
+            assert stats.as_dict()["foreign"] == 1
+        finally:
+            client.close()
+
+
+def test_server_hears_only_the_autopilot_that_started_the_lockstep() -> None:
+    server = LockstepServer("udpin:127.0.0.1:0", resend_timeout_s=0.01, peer_lost_timeout_s=5.0)
+    host, port = server.local_address
+    client = LockstepClient(f"udpout:{host}:{port}", heartbeat_period_s=0.02)
+    squatter = LockstepClient(f"udpout:{host}:{port}", heartbeat_period_s=0.02)
+    stranger = LockstepClient(f"udpout:{host}:{port}", heartbeat_period_s=0.02)
+    enc = Encoder()
+    try:
+        # a stranger's HEARTBEAT first: it gets the first frame but answers it with NaN; the autopilot's valid
+        # answer starts the lockstep
+        assert squatter.next_frame(0.05) is None and server.wait_for_autopilot(2.0)
+        server.send(make_frame(0))
+        squatted = squatter.next_frame(1.0)
+        assert squatted is not None
+        squatter.answer(ActuatorCommand(0, (math.nan,) * 4, True))
+        first: list[ActuatorCommand] = []
+        waiting = threading.Thread(target=lambda: first.append(server.wait_answer()), daemon=True)
+        waiting.start()
+        frame = client.next_frame(1.0)  # its HEARTBEAT makes it a candidate: it is sent frame 0 as well
+        assert frame is not None and frame.time_us == 0
+        client.answer(ActuatorCommand(0, (0.25, 0.25, 0.25, 0.25), True))
+        waiting.join(5.0)
+        assert first and first[0].motor_cmd == (0.25, 0.25, 0.25, 0.25)
+        assert server.peer == client.local_address
+        # once started, nobody else is heard: HEARTBEATs and spoofed answers with the right frame time
+        server.send(make_frame(1))
+        assert stranger.next_frame(0.05) is None
+        for motors in ((math.nan, 0.5, 0.5, 0.5), (1.0, 1.0, 1.0, 1.0)):
+            stranger._link.send(enc.actuators(ActuatorCommand(FRAME_PERIOD_US, motors, True)))
+        client._link.send(enc.actuators(ActuatorCommand(FRAME_PERIOD_US * 9, (0.5,) * 4, True)))  # ahead: invalid
+        client._link.send(enc.actuators(ActuatorCommand(FRAME_PERIOD_US, (math.nan,) * 4, True)))  # NaN: invalid
+        frame = client.next_frame(1.0)
+        assert frame is not None
+        client.answer(ActuatorCommand(FRAME_PERIOD_US, (0.5,) * 4, True))
+        assert server.wait_answer().motor_cmd == (0.5,) * 4
+        stats = server.stats
+        assert stats.foreign >= 3 and stats.invalid_answers == 3 and stats.frames == 2
+    finally:
+        for end in (stranger, squatter, client):
+            end.close()
+        server.close()
+
+
+def test_resend_timer_follows_the_exchange_time_within_its_bounds() -> None:
+    timer = ResendTimer(0.00025, 0.02)
+    for _ in range(50):
+        timer.sample(0.0001)
+    assert 0.00025 <= timer.timeout_s < 0.0005  # sub-millisecond on a fast link
+    for _ in range(50):
+        timer.sample(0.004)
+    assert 0.004 < timer.timeout_s < 0.01
+    assert timer.backoff(0.015) == 0.02  # doubling is capped
+    with pytest.raises(ValueError):
+        ResendTimer(0.0, 0.02)

@@ -47,12 +47,14 @@ def test_run_delivery_flies_the_default_mission_and_writes_everything(tmp_path: 
 
 
 def test_run_delivery_stops_and_says_why_when_the_sitl_dies(tmp_path: Path) -> None:
-    """``quadsitl up`` exits at once (unknown vehicle): the ground station is stopped, exit 3, one clear error."""
+    """``quadsitl up`` exits at once (the autopilot refuses its --rerun): the ground station is stopped, exit 3,
+    one clear error. (A bad input file never gets this far: tests/test_input_errors.py.)"""
     out_dir = tmp_path / "run"
-    proc = _run_delivery("--out-dir", str(out_dir), "--vehicle", "no_such_vehicle", timeout_s=300.0)
+    proc = _run_delivery("--out-dir", str(out_dir), "--rerun", "no_such_sink", timeout_s=300.0)
     assert proc.returncode == 3, proc.stdout + proc.stderr
     assert "run_delivery: error: quadsitl up exited with status 2 before the mission was done" in proc.stderr
-    assert "no_such_vehicle" in proc.stderr  # the tail of up.log says what went wrong
+    assert "no_such_sink" in proc.stderr  # the tail of up.log says what went wrong
+    assert "?/?" not in proc.stdout and "collisions" not in proc.stderr  # no table of unknowns, no spurious lines
     summary = json.loads((out_dir / "summary.json").read_text())
     assert summary["ok"] is False and summary["exit_codes"]["up"] == 2
     assert summary["exit_codes"]["gcs"] is None  # stopped by run_delivery, not left waiting for a heartbeat
@@ -91,4 +93,8 @@ def test_run_delivery_ends_when_the_sim_ends_the_run_mid_flight(tmp_path: Path) 
 def test_run_delivery_refuses_a_missing_mission(tmp_path: Path) -> None:
     proc = _run_delivery("--mission", str(tmp_path / "none.yaml"), "--out-dir", str(tmp_path), timeout_s=60.0)
     assert proc.returncode == 2
-    assert proc.stderr.strip() == f"run_delivery: error: mission file {tmp_path / 'none.yaml'} not found"
+    missing = tmp_path / "none.yaml"
+    assert (
+        proc.stderr.strip()
+        == f"run_delivery: error: {missing}: no such file; fix: check the path (missions/ holds the examples)"
+    )

@@ -76,10 +76,14 @@ def test_armed_full_throttle_climbs_and_disarmed_stays_on_the_ground(tmp_path: P
     assert frames[0].truth.q_ned_frd == (1.0, 0.0, 0.0, 0.0)
 
 
-def test_non_finite_commands_stop_the_motors_instead_of_crashing(tmp_path: Path) -> None:
-    law: Law = lambda f: ActuatorCommand(f.time_us, (np.nan, np.inf, -np.inf, np.nan), True)  # noqa: E731
-    summary, _ = fly(config(tmp_path), law)
-    assert summary.end_reason == "COMPLETED" and summary.final_pos_ned_m == (0.0, 0.0, 0.0)
+def test_non_finite_or_out_of_range_commands_are_never_applied(tmp_path: Path) -> None:
+    for motors in ((np.nan, np.inf, -np.inf, np.nan), (1.5, 1.0, 1.0, 1.0), (1.0, 1.0, 1.0, -0.1)):
+        law: Law = lambda f, u=motors: ActuatorCommand(f.time_us, u, True)  # type: ignore[misc]  # noqa: E731
+        summary, frames = fly(config(tmp_path, autopilot_timeout_s=0.3), law)
+        # the answer is dropped at the edge and the frame re-sent until the autopilot counts as lost: no crash,
+        # no step integrated with the bad command
+        assert summary.end_reason == "AUTOPILOT_LOST" and summary.final_pos_ned_m == (0.0, 0.0, 0.0)
+        assert summary.frames == 0 and summary.invalid_answers > 0 and len(frames) == 1
 
 
 def test_gripper_release_drops_the_payload_once(tmp_path: Path) -> None:

@@ -74,7 +74,7 @@ def test_gcs_arm_takeoff_hold_reposition_land_disarm(tmp_path: Path) -> None:
 
 def test_killed_autopilot_is_reported_and_the_sim_exits(tmp_path: Path) -> None:
     script = tmp_path / "climb.yaml"
-    script.write_text("- {at_s: 0.2, cmd: arm}\n- {at_s: 0.3, cmd: takeoff, alt_m: 20}\n")
+    script.write_text("- {at_s: 2.0, cmd: arm}\n- {at_s: 2.1, cmd: takeoff, alt_m: 20}\n")  # EKF healthy at 1.5 s
     ports = Ports.free()
     sim = start_sim(tmp_path, ports.sim, "--autopilot-timeout-s", "1.0")
     ap = start_autopilot(tmp_path, ports.sim, ports, "--script", str(script))

@@ -40,6 +40,8 @@ def test_signed_gcs_and_api_links_of_the_real_process(tmp_path: Path) -> None:
             unsigned.wait_until(lambda s: s.gps_fix_type >= 3, 120.0)
             with pytest.raises(GcsTimeoutError):
                 unsigned.command(MAV_CMD_COMPONENT_ARM_DISARM, 1.0)
+        while clients:  # a UDP port has one owner (no address reuse): free them for the signed clients
+            clients.pop().close()
         gcs_client = GcsClient(f"udpin:127.0.0.1:{gcs_target}", signing_key=key, timeout_s=5.0, retry_s=0.2)
         api_client = GcsClient(f"udpin:127.0.0.1:{api_target}", signing_key=key, timeout_s=5.0, retry_s=0.2)
         clients += [gcs_client, api_client]

@@ -20,7 +20,7 @@ pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 def _up(tmp_path: Path, ports: Ports, *extra: str) -> subprocess.Popen[bytes]:
     args = [sys.executable, "-m", "quadsitl_cli", "up", "--listen", f"udp:127.0.0.1:{ports.sim}", "--api", "off"]
     args += ["--gcs", f"udpin:127.0.0.1:{ports.gcs}", "--gcs-target", f"udpout:127.0.0.1:{ports.gcs_target}"]
-    args += ["--log-dir", str(tmp_path), *extra]
+    args += ["--log-dir", str(tmp_path), "--speed", "max", *extra]
     with open(tmp_path / "up.log", "wb") as log:  # the child keeps its own copy of the descriptor
         return subprocess.Popen(args, cwd=REPO_ROOT, env=dict(os.environ, PYTHONUNBUFFERED="1"), stdout=log, stderr=log)
 
@@ -31,6 +31,15 @@ def test_up_runs_both_and_stops_both_on_sigterm(tmp_path: Path) -> None:
     try:
         with GcsClient(f"udpin:127.0.0.1:{ports.gcs_target}", timeout_s=20.0) as gcs:
             gcs.wait_until(lambda s: (s.sim_time_s or 0.0) > 1.0, 120.0)  # the lockstep runs
+            second_dir = tmp_path / "second"
+            second_dir.mkdir()
+            second = _up(second_dir, ports)  # the same ports again: refused at once, the first pair undisturbed
+            assert second.wait(timeout=60) == 2
+            second_log = (second_dir / "up.log").read_text(errors="replace").strip()
+            assert f"UDP port {ports.sim} " in second_log and "--instance N" in second_log, second_log
+            assert second_log.count("\n") == 0 and not (second_dir / "sim_summary.json").exists()
+            before = gcs.telemetry().sim_time_s or 0.0
+            gcs.wait_until(lambda s: (s.sim_time_s or 0.0) > before + 1.0, 60.0)  # still flying
         up.send_signal(signal.SIGTERM)
         rc = up.wait(timeout=60)
     finally:

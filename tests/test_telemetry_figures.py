@@ -42,7 +42,9 @@ def test_figures_and_csv(recording: tuple[Path, np.ndarray], tmp_path: Path) -> 
     assert header[:4] == ["t_s", "position/pos_ned_m/north", "position/pos_ned_m/east", "position/pos_ned_m/down"]
     np.testing.assert_array_equal(body[:, 1:4], pos)
     assert np.all(np.diff(body[:, 0]) > 0)
-    assert "gains/attitude/kp/yaw" in header and "motors/motor_cmd/m0 front-right" in header
+    assert "gains/attitude/kp/k_p yaw" in header and "motors/motor_cmd/m0 front-right" in header
+    kp_yaw = body[:, header.index("gains/attitude/kp/k_p yaw")]
+    assert np.isfinite(kp_yaw[-1]) and np.count_nonzero(np.diff(kp_yaw[-50:])) <= 10  # 50 Hz, held between samples
 
 
 def test_unreadable_recording_exits_2(tmp_path: Path) -> None:

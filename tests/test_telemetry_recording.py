@@ -16,7 +16,7 @@ from autopilot.setpoints import NavTarget, TargetKind
 from autopilot.telemetry import RerunTelemetry, make_listener
 from autopilot.telemetry import entities as ent
 from autopilot.telemetry.recording_reader import RecordingReadError, read_recording
-from autopilot.telemetry.rerun_logger import SERIES
+from autopilot.telemetry.rerun_logger import DECIMATION, SERIES
 from autopilot.telemetry.sinks import RerunSink, SinkKind, open_recording
 from tools.benchmarks.telemetry import CONTROL_HZ, synthetic_records
 
@@ -69,29 +69,35 @@ def test_entities_present(flight) -> None:
 
 
 def test_every_step_is_a_row_with_monotonic_sim_time(flight) -> None:
+    """Every step of the full-rate series; every N-th step (from the first) of the decimated ones."""
     recording, fed = flight
     for path, _, width, _ in SERIES:
         s = recording.scalars(path)
-        assert s.values.shape == (N_STEPS, width), path
-        np.testing.assert_array_equal(s.t_us, fed["t_us"])
+        every = DECIMATION.get(path, 1)
+        want = fed["t_us"][::every]
+        assert s.values.shape == (len(want), width), path
+        np.testing.assert_array_equal(s.t_us, want)
         assert np.all(np.diff(s.t_us) > 0)
+    assert DECIMATION.get(ent.POS_NED, 1) == DECIMATION.get(ent.ATT_ERR, 1) == DECIMATION.get(ent.MOTORS, 1) == 1
 
 
 def test_logged_positions_equal_the_input(flight) -> None:
     recording, fed = flight
     np.testing.assert_array_equal(recording.scalars(ent.POS_NED).values, fed["pos"])
-    np.testing.assert_array_equal(recording.scalars(ent.POS_SP_NED).values, fed["sp"])
+    np.testing.assert_array_equal(recording.scalars(ent.POS_SP_NED).values, fed["sp"][:: DECIMATION[ent.POS_SP_NED]])
     np.testing.assert_allclose(recording.scalars(ent.POS_ERR_NED).values, fed["sp"] - fed["pos"], atol=1e-12)
     np.testing.assert_array_equal(recording.scalars(ent.MOTORS).values, fed["motor"])
 
 
 def test_controller_series_are_nan_while_idle_and_equal_diagnostics_after(flight) -> None:
     recording, fed = flight
+    every = DECIMATION[ent.gain_path("attitude", "kp")]
     kp_att = recording.scalars(ent.gain_path("attitude", "kp")).values
     kp_pos = recording.scalars(ent.gain_path("position", "kp")).values
-    assert np.all(np.isnan(kp_att[:IDLE_STEPS]))
-    np.testing.assert_array_equal(kp_pos[IDLE_STEPS:], fed["kp"][IDLE_STEPS:, :3])
-    np.testing.assert_array_equal(kp_att[IDLE_STEPS:], fed["kp"][IDLE_STEPS:, 3:])
+    idle = -(-IDLE_STEPS // every)  # decimated rows still idle
+    assert np.all(np.isnan(kp_att[:idle]))
+    np.testing.assert_array_equal(kp_pos[idle:], fed["kp"][::every][idle:, :3])
+    np.testing.assert_array_equal(kp_att[idle:], fed["kp"][::every][idle:, 3:])
     att_err = recording.scalars(ent.ATT_ERR).values[IDLE_STEPS:]
     np.testing.assert_allclose(att_err, np.degrees(fed["att_err"][IDLE_STEPS:]), rtol=1e-12)
 
@@ -181,11 +187,14 @@ def test_real_cascade_diagnostics_are_gathered_exactly(tmp_path: Path) -> None:
     kp = np.hstack(
         [r.scalars(ent.gain_path("position", "kp")).values, r.scalars(ent.gain_path("attitude", "kp")).values]
     )
+    every = DECIMATION[ent.gain_path("position", "kp")]
+    assert DECIMATION[ent.THRUST] == every
+    idle = -(-IDLE_STEPS // every)
     fed_kp_a = np.asarray(fed_kp)
-    np.testing.assert_array_equal(kp[IDLE_STEPS:], fed_kp_a[IDLE_STEPS:])
+    np.testing.assert_array_equal(kp[idle:], fed_kp_a[::every][idle:])
     assert np.ptp(fed_kp_a[IDLE_STEPS:, 0]) > 0.0  # the gains really vary with the error (k1 != k2)
     np.testing.assert_allclose(r.scalars(ent.ATT_ERR).values[IDLE_STEPS:], np.degrees(fed_err[IDLE_STEPS:]))
-    np.testing.assert_array_equal(r.scalars(ent.THRUST).values[IDLE_STEPS:, 0], fed_thrust[IDLE_STEPS:])
+    np.testing.assert_array_equal(r.scalars(ent.THRUST).values[idle:, 0], fed_thrust[::every][idle:])
 
 
 def test_make_listener_saves_blueprint_route_fence_and_true_obstacles(tmp_path: Path) -> None:

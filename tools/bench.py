@@ -1,7 +1,9 @@
 """``make bench``: run every benchmark suite, print one table, write ``bench/results.json``.
 
-Usage: ``python -m tools.bench [--quick] [--only SUITE ...] [--out bench/results.json]``.
+Usage: ``python -m tools.bench [--quick] [--only SUITE ...] [--out PATH]``.
 Numbers are measured in one run on one machine; compare ratios, not absolutes.
+``--quick`` is a smoke check with noisier numbers: it only prints the table (``--out PATH`` writes them
+elsewhere), so the committed ``bench/results.json`` always holds a full run.
 """
 
 from __future__ import annotations
@@ -17,6 +19,9 @@ from pathlib import Path
 
 from tools import benchmarks
 from tools.benchmarks import BenchResult
+
+#: The committed results of a full run; a ``--quick`` run never writes here.
+FULL_RESULTS = Path("bench/results.json")
 
 
 def _suites() -> list[str]:
@@ -34,10 +39,18 @@ def _print_table(rows: list[tuple[str, BenchResult]]) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tools.bench", description=__doc__)
+    parser = argparse.ArgumentParser(
+        prog="python -m tools.bench",
+        description="Run the benchmark suites, print one table and write bench/results.json (make bench).",
+        epilog="Numbers are measured in one run on one machine: compare ratios, not absolutes.",
+    )
     parser.add_argument("--quick", action="store_true", help="shorter runs (smoke check, noisier numbers)")
     parser.add_argument("--only", nargs="*", default=None, help=f"suites to run (default all: {_suites()})")
-    parser.add_argument("--out", default="bench/results.json", help="where to write the flat JSON results")
+    parser.add_argument(
+        "--out",
+        default=None,
+        help=f"where to write the flat JSON results (default {FULL_RESULTS}; with --quick, nowhere unless given)",
+    )
     parser.add_argument(
         "--merge", action="store_true", help="keep the keys of suites not run now from an existing --out file"
     )
@@ -51,7 +64,14 @@ def main(argv: list[str] | None = None) -> int:
         rows += [(name, r) for r in module.run(quick=args.quick)]
         print(f"[bench] {name} done in {time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
     _print_table(rows)
-    out = Path(args.out)
+    if args.out is None and args.quick:
+        print(f"\n--quick: results not written (add --out PATH to keep them; {FULL_RESULTS} holds a full run)")
+        return 0
+    out = Path(args.out) if args.out is not None else FULL_RESULTS
+    if args.quick and out.resolve() == FULL_RESULTS.resolve():
+        note = f"tools.bench: --quick numbers are not written to {FULL_RESULTS} (a full run's); use another --out"
+        print(note, file=sys.stderr)
+        return 2
     out.parent.mkdir(parents=True, exist_ok=True)
     results: dict[str, object] = {}
     if args.merge and out.is_file():

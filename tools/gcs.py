@@ -1,24 +1,28 @@
-"""The ground-station script (SPEC §8, §12): ``python -m tools.gcs [options] COMMAND ...``.
+"""The ground-station script: ``python -m tools.gcs [options] COMMAND ...``.
 
-Commands: ``upload FILE [--fence-only]``, ``download OUT``, ``clear``, ``arm``, ``disarm``,
-``start``, ``mode NAME``, ``takeoff ALT_M``, ``land``, ``rtl``,
+Commands: ``status``, ``upload FILE [--fence-only]``, ``download OUT [--vehicle NAME]``, ``clear``, ``arm``,
+``disarm``, ``start``, ``mode NAME``, ``takeoff ALT_M``, ``land``, ``rtl``,
 ``fly FILE --summary PATH [--timeout-s S]``, ``param get NAME``, ``param set NAME VALUE``,
 ``param list``. Mission files: YAML v1, QGC WPL 110 (``.waypoints``/``.txt``), ``.plan``.
-Exit code 0 only when the request succeeded; errors are one line on stderr.
+Exit code 0 only when the request succeeded; errors are one line on stderr, with the vehicle's own reason
+for a refusal (its STATUSTEXT, else what the COMMAND_ACK result means). What it is waiting for (a vehicle,
+a GPS fix, arming) goes to stderr as it happens.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 from autopilot.mission.files import MissionFileError, load_mission_file, save_mission_file
 from autopilot.mission.plan import MissionPlan
+from mavlink_bridge.contract.about import version_text
 from mavlink_bridge.contract.frames import GeoPoint
 from mavlink_bridge.contract.vehicle_api import (
     CommandResult,
@@ -26,10 +30,11 @@ from mavlink_bridge.contract.vehicle_api import (
     LandedState,
     MissionResult,
     MissionType,
+    Severity,
     StatusText,
 )
 from mavlink_bridge.gcs_client import CommandFailedError, GcsClient, GcsError, MissionUploadError, VehicleStatus
-from mavlink_bridge.link import LinkUrl, LinkUrlError
+from mavlink_bridge.link import LinkUrlError, resolve_url
 from mavlink_bridge.signing import SigningKeyError, signing_key_from_text
 
 DEFAULT_CONNECT = "udpin:127.0.0.1:14550"
@@ -52,6 +57,11 @@ class GcsScriptError(Exception):
     """A request that did not succeed; the message is the one line printed on stderr."""
 
 
+def say(text: str) -> None:
+    """Progress for the person at the terminal (stderr: stdout holds only the result)."""
+    print(f"gcs: {text}", file=sys.stderr, flush=True)
+
+
 @dataclass(frozen=True, slots=True)
 class FlySummary:
     """What ``fly --summary`` writes (SPEC §12)."""
@@ -70,9 +80,10 @@ class FlySummary:
         return json.dumps(asdict(self), indent=2) + "\n"
 
 
-def connect_url(url: str, instance: int) -> str:
-    """``url`` with its port offset by ``instance`` (SPEC §3 ``--instance N``)."""
-    return str(LinkUrl.parse(url).with_port_offset(instance))
+def connect_url(url: str | None, instance: int) -> str:
+    """The link to use: ``url`` exactly as typed, else the default GCS port shifted by ``instance`` (like
+    ``quadsitl --instance N``, which shifts default ports only)."""
+    return resolve_url(url, DEFAULT_CONNECT, instance)
 
 
 # ---- commands ----------------------------------------------------------------------------------------------
@@ -88,13 +99,51 @@ def cmd_upload(client: GcsClient, args: argparse.Namespace) -> str:
 def cmd_download(client: GcsClient, args: argparse.Namespace) -> str:
     items = client.download_mission(MissionType.MISSION)
     fence = client.download_mission(MissionType.FENCE)
-    status = client.wait_until(lambda s: s.home is not None, client.timeout_s)
+    status = _wait_for_home(client, client.timeout_s)
     home = status.home or GeoPoint(0.0, 0.0, 0.0)
     out = Path(args.out)
     wpl = out.suffix.lower() in (".waypoints", ".txt")
-    save_mission_file(MissionPlan(name=out.stem, home=home, items=items, fence=fence), out, allow_drop_fence=wpl)
+    plan = MissionPlan(name=out.stem, home=home, items=items, fence=fence, vehicle=args.vehicle or "")
+    save_mission_file(plan, out, allow_drop_fence=wpl)
     note = f" (QGC WPL has no fence: {len(fence)} fence items not saved)" if wpl and fence else ""
+    if not args.vehicle and not wpl:
+        note += "; vehicle not written (MAVLink does not carry it): add --vehicle NAME to record it"
     return f"downloaded {len(items)} items + {0 if wpl else len(fence)} fence to {out}{note}"
+
+
+def _wait_for_home(client: GcsClient, timeout_s: float) -> VehicleStatus:
+    """The status once the vehicle has sent its home position (it sets home at its first GPS fix)."""
+    try:
+        return client.wait_until(lambda s: s.home is not None, timeout_s)
+    except GcsError as exc:
+        raise GcsScriptError(f"no home position from the vehicle within {timeout_s:g} s (no GPS fix yet?)") from exc
+
+
+def cmd_status(client: GcsClient, args: argparse.Namespace) -> str:
+    """One screen of what the vehicle reports: mode, arming, position, GPS, battery, mission, recent messages."""
+    del args
+    client.pump(1.5)  # a round of the 1-4 Hz streams
+    s = client.telemetry()
+    pos = "unknown" if s.pos_ned_m is None else "N {:.1f} m, E {:.1f} m, D {:.1f} m".format(*s.pos_ned_m)
+    home = "not set (no GPS fix yet)" if s.home is None else f"{s.home.lat_deg:.6f}, {s.home.lon_deg:.6f}"
+    if s.home is not None:
+        home += f", {s.home.alt_amsl_m:.1f} m AMSL"
+    battery = "unknown" if s.battery_remaining_pct is None else f"{s.battery_remaining_pct:.0f} %"
+    sim = "unknown" if s.sim_time_s is None else f"{s.sim_time_s:.1f} s"
+    mission_states = {0: "unknown", 1: "none", 2: "not started", 3: "active", 4: "paused", 5: "complete"}
+    mission = f"{s.mission_count} items, current {s.mission_seq_current}, "
+    mission += mission_states.get(s.mission_state, str(s.mission_state))
+    lines = [
+        f"mode        {s.mode_name} ({'ARMED' if s.armed else 'disarmed'}, {s.landed_state.name.lower()})",
+        f"position    {pos} from home",
+        f"home        {home}",
+        f"gps         fix type {s.gps_fix_type}{' (3D)' if s.gps_fix_type >= 3 else ''}",
+        f"battery     {battery}",
+        f"mission     {mission}",
+        f"sim time    {sim}",
+    ]
+    lines += [f"message     [{t.severity.name.lower()}] {t.text}" for t in s.statustexts[-5:]]
+    return "\n".join(lines)
 
 
 def cmd_clear(client: GcsClient, args: argparse.Namespace) -> str:
@@ -132,6 +181,7 @@ def cmd_mode(client: GcsClient, args: argparse.Namespace) -> str:
 
 
 def cmd_takeoff(client: GcsClient, args: argparse.Namespace) -> str:
+    _wait_for_home(client, client.timeout_s)  # the takeoff altitude is sent above home
     client.takeoff(args.alt_m)
     return f"taking off to {args.alt_m:g} m"
 
@@ -147,25 +197,33 @@ def cmd_param(client: GcsClient, args: argparse.Namespace) -> str:
 def _arm_when_ready(client: GcsClient, timeout_s: float) -> None:
     """Arm, retrying while the vehicle refuses (estimator or GPS not ready yet) until ``timeout_s``."""
     deadline = time.monotonic() + timeout_s
+    said = False
     while True:
         try:
             client.arm()
+            say("armed")
             return
         except CommandFailedError as exc:
             if exc.result not in (CommandResult.DENIED, CommandResult.TEMPORARILY_REJECTED, CommandResult.FAILED):
                 raise
             if time.monotonic() >= deadline:
                 raise GcsScriptError(f"arming refused for {timeout_s:g} s: {exc}") from exc
+            if not said:
+                say(f"waiting until the vehicle accepts arming (it says: {exc.text})")
+                said = True
             client.pump(0.5)
 
 
 def _upload_when_ready(client: GcsClient, plan: MissionPlan, timeout_s: float) -> None:
     """Wait for a 3D GPS fix, then upload mission + fence, retrying while the vehicle is not ready yet."""
     deadline = time.monotonic() + timeout_s
+    if client.telemetry().gps_fix_type < 3:
+        say("waiting for the vehicle's 3D GPS fix")
     try:
         client.wait_until(lambda s: s.gps_fix_type >= 3, timeout_s)
     except GcsError as exc:
         raise GcsScriptError(f"no 3D GPS fix reported within {timeout_s:g} s") from exc
+    say(f"uploading {len(plan.items)} mission items and {len(plan.fence)} fence items")
     while True:
         try:
             client.upload_mission(plan.fence, MissionType.FENCE)  # first: the mission is checked against it
@@ -288,12 +346,28 @@ class _Progress:
         self._bar.update(self._task, completed=reached, state=state)
 
 
+def failsafes_since(client: GcsClient, serial: int) -> list[str]:
+    """The failsafes the vehicle announced since STATUSTEXT ``serial`` that took the flight over (critical)."""
+    return [
+        t.text
+        for t in client.statustexts_since(serial)
+        if t.text.startswith("Failsafe:") and t.severity <= Severity.CRITICAL
+    ]
+
+
 def cmd_fly(client: GcsClient, args: argparse.Namespace) -> str:
     t0 = time.monotonic()
     plan: MissionPlan | None = None
+    serial = client.statustext_serial
+    with contextlib.suppress(GcsError):  # the flight's own sim time counts from here (SYSTEM_TIME comes at 1 Hz)
+        client.wait_until(lambda s: s.sim_time_s is not None, min(3.0, args.timeout_s))
+    start_sim_s = client.telemetry().sim_time_s
     try:
         plan = load_mission_file(args.file)
         summary = fly(client, plan, args.timeout_s, progress=not args.no_progress)
+        taken_over = failsafes_since(client, serial)
+        if summary.ok and taken_over:  # a failsafe flew it home or down: not the mission that was asked for
+            summary = replace(summary, ok=False, reason=f"a failsafe took over: {taken_over[0]}")
     except (GcsScriptError, GcsError, MissionFileError) as exc:
         status = client.telemetry()
         summary = FlySummary(
@@ -311,59 +385,77 @@ def cmd_fly(client: GcsClient, args: argparse.Namespace) -> str:
         Path(args.summary).write_text(summary.to_json())
     if not summary.ok:
         raise GcsScriptError(f"mission failed: {summary.reason or 'not complete'}")
+    flown = ""
+    if summary.sim_time_s is not None and start_sim_s is not None:  # from this flight's start, not the sim's
+        flown = f", {summary.sim_time_s - start_sim_s:.1f} s sim time in {summary.wall_time_s:.1f} s wall"
     bypassed = f", {summary.items_bypassed} bypassed" if summary.items_bypassed else ""
-    return (
-        f"mission complete: {summary.items_reached}/{summary.items_total} items{bypassed}, "
-        f"sim {summary.sim_time_s:.1f} s in {summary.wall_time_s:.1f} s wall"
-    )
+    return f"mission complete: {summary.items_reached}/{summary.items_total} items{bypassed}{flown}"
 
 
 # ---- entry point -------------------------------------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="python -m tools.gcs", description=__doc__.split("\n")[0])
-    parser.add_argument("--connect", default=DEFAULT_CONNECT, help=f"link URL (default {DEFAULT_CONNECT})")
-    parser.add_argument("--instance", type=int, default=0, help="offset the link port by N (quadsitl --instance)")
+    parser = argparse.ArgumentParser(
+        prog="python -m tools.gcs",
+        description="The ground-station script: upload, fly and inspect missions over MAVLink.",
+        epilog="Example: python -m tools.gcs fly missions/delivery.yaml --summary fly.json",
+    )
+    parser.add_argument("--version", action="version", version=version_text("tools.gcs"))
+    parser.add_argument(
+        "--connect", default=None, help=f"link URL, used as typed (default {DEFAULT_CONNECT}, shifted by --instance)"
+    )
+    parser.add_argument("--instance", type=int, default=0, help="the quadsitl --instance N to talk to (port + N)")
     parser.add_argument("--signing-key", default=None, help="MAVLink 2 signing key: 64 hex digits or a passphrase")
     parser.add_argument("--wait-s", type=float, default=60.0, help="how long to wait for the vehicle's heartbeat")
     parser.add_argument("--timeout-step-s", type=float, default=5.0, help="timeout of one protocol exchange")
     parser.add_argument("--system", type=int, default=1, help="target system id")
     sub = parser.add_subparsers(dest="command", required=True)
+    sub.add_parser("status", help="what the vehicle reports: mode, position, GPS, battery, mission").set_defaults(
+        run=cmd_status
+    )
     p = sub.add_parser("upload", help="upload a mission file (mission + fence)")
-    p.add_argument("file")
-    p.add_argument("--fence-only", action="store_true")
+    p.add_argument("file", help="mission file: .yaml, .plan or .waypoints")
+    p.add_argument("--fence-only", action="store_true", help="upload only the fence")
     p.set_defaults(run=cmd_upload)
     p = sub.add_parser("download", help="download mission + fence to a file (format by extension)")
-    p.add_argument("out")
+    p.add_argument("out", help="file to write: .yaml, .plan or .waypoints")
+    p.add_argument(
+        "--vehicle",
+        default=None,
+        metavar="NAME",
+        help="vehicle to write in the file, e.g. delivery650 (MAVLink does not carry it: none written by default)",
+    )
     p.set_defaults(run=cmd_download)
     sub.add_parser("clear", help="clear mission and fence").set_defaults(run=cmd_clear)
     for name, run in (("arm", cmd_arm), ("disarm", cmd_disarm)):
-        p = sub.add_parser(name)
+        p = sub.add_parser(name, help=f"{name} the motors")
         p.add_argument("--force", action="store_true", help="bypass the vehicle's checks (21196)")
         p.set_defaults(run=run)
     sub.add_parser("start", help="start the mission").set_defaults(
         run=cmd_simple(lambda c: c.start_mission(), "mission started")
     )
     p = sub.add_parser("mode", help=f"set the flight mode ({', '.join(sorted(MODE_NAMES))})")
-    p.add_argument("name")
+    p.add_argument("name", help="mode name")
     p.set_defaults(run=cmd_mode)
     p = sub.add_parser("takeoff", help="take off to ALT_M above home")
-    p.add_argument("alt_m", type=float)
+    p.add_argument("alt_m", type=float, help="metres above home")
     p.set_defaults(run=cmd_takeoff)
-    sub.add_parser("land").set_defaults(run=cmd_simple(lambda c: c.land(), "landing"))
-    sub.add_parser("rtl").set_defaults(run=cmd_simple(lambda c: c.rtl(), "returning to launch"))
+    sub.add_parser("land", help="land where it is").set_defaults(run=cmd_simple(lambda c: c.land(), "landing"))
+    sub.add_parser("rtl", help="return to launch").set_defaults(
+        run=cmd_simple(lambda c: c.rtl(), "returning to launch")
+    )
     p = sub.add_parser("fly", help="upload, arm, start and wait until landed and disarmed")
-    p.add_argument("file")
+    p.add_argument("file", help="mission file: .yaml, .plan or .waypoints")
     p.add_argument("--summary", default=None, help="write the JSON summary here")
     p.add_argument("--timeout-s", type=float, default=600.0, help="wall-clock limit")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(run=cmd_fly)
     p = sub.add_parser("param", help="get, set or list parameters")
     psub = p.add_subparsers(dest="param_cmd", required=True)
-    psub.add_parser("get").add_argument("name")
-    ps = psub.add_parser("set")
-    ps.add_argument("name")
-    ps.add_argument("value", type=float)
-    psub.add_parser("list")
+    psub.add_parser("get", help="read one parameter").add_argument("name", help="parameter name, e.g. CA_RSAFE_M")
+    ps = psub.add_parser("set", help="set one parameter (the vehicle checks its range)")
+    ps.add_argument("name", help="parameter name, e.g. CA_RSAFE_M")
+    ps.add_argument("value", type=float, help="new value")
+    psub.add_parser("list", help="every parameter and its value")
     p.set_defaults(run=cmd_param)
     return parser
 
@@ -375,9 +467,16 @@ def main(argv: list[str] | None = None) -> int:
         url = connect_url(args.connect, args.instance)
         with GcsClient(url, target_system=args.system, signing_key=key, timeout_s=args.timeout_step_s) as client:
             try:
-                client.wait_heartbeat(args.wait_s)
-            except GcsError as exc:
-                raise GcsScriptError(f"no vehicle heartbeat on {url} within {args.wait_s:g} s") from exc
+                client.wait_heartbeat(min(args.wait_s, 1.0))
+            except GcsError:
+                say(f"waiting for a vehicle on {url} (up to {args.wait_s:g} s; is quadsitl up running?)")
+                try:
+                    client.wait_heartbeat(max(args.wait_s - 1.0, 0.0))
+                except GcsError as exc:
+                    raise GcsScriptError(
+                        f"no vehicle heard on {url} within {args.wait_s:g} s; fix: start one (quadsitl up), "
+                        "or pass the --instance N or --connect URL it runs with"
+                    ) from exc
             message = args.run(client, args)
     except (GcsScriptError, GcsError, MissionFileError, LinkUrlError, SigningKeyError, OSError) as exc:
         print(f"gcs: error: {exc}", file=sys.stderr)

@@ -1,4 +1,4 @@
-"""Log ANY MAVLink vehicle's standard telemetry to Rerun (issue 7): nothing here is quadsitl-specific.
+"""Log ANY MAVLink vehicle's standard telemetry to Rerun: nothing here is quadsitl-specific.
 
 Usage: ``python -m tools.monitor [--connect udpin:127.0.0.1:14550] [--rerun save:PATH|connect:URL]
 [--duration-s S]``. HEARTBEAT (mode, armed), ATTITUDE, LOCAL_POSITION_NED, GLOBAL_POSITION_INT,
@@ -155,7 +155,10 @@ def run_monitor(
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tools.monitor", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m tools.monitor",
+        description="Record any MAVLink vehicle's standard telemetry to Rerun (nothing here is quadsitl-specific).",
+    )
     parser.add_argument("--connect", default=DEFAULT_CONNECT, metavar="URL", help=f"default {DEFAULT_CONNECT}")
     parser.add_argument(
         "--rerun", default=None, metavar="save:PATH|connect:URL", help="default save:runs/monitor-*.rrd"

@@ -29,7 +29,12 @@ from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
+from autopilot.estimation import DEFAULT_ESTIMATOR, ESTIMATORS
 from autopilot.launcher import stop_process
+from autopilot.mission.files import MissionFileError, load_mission_file
+from autopilot.preflight import InputFileError, check_autopilot_inputs
+from sim.vehicle_config import VehicleConfigError, load_vehicle
+from sim.world import WorldConfigError, load_world
 
 EXIT_OK = 0
 EXIT_FLIGHT_FAILED = 1
@@ -60,6 +65,18 @@ def free_instance(start: int = 0, limit: int = 200) -> int:
         if _ports_free(instance):
             return instance
     raise RuntimeError(f"no free quadsitl instance in {start}..{start + limit - 1}")
+
+
+def check_inputs(mission: Path, vehicle: str | None) -> str | None:
+    """Every input of the flight checked as the simulator and the autopilot will (None: all fine)."""
+    try:
+        check_autopilot_inputs(mission=mission, vehicle=vehicle)
+        if mission.suffix.lower() in (".yaml", ".yml"):
+            load_world(mission)
+        load_vehicle(vehicle or load_mission_file(mission).vehicle)
+    except (InputFileError, WorldConfigError, VehicleConfigError, MissionFileError) as exc:
+        return str(exc)
+    return None
 
 
 def _read_json(path: Path) -> dict[str, object]:
@@ -140,8 +157,10 @@ def _problems(outcome: FlightOutcome, gcs: dict[str, object], sim: dict[str, obj
         reason = gcs.get("reason") or "no summary written (see its output above)"
         lines.append(f"ground station: mission failed: {reason}")
     collisions = sim.get("collisions")
-    if not isinstance(collisions, int) or collisions != 0:
-        lines.append(f"simulator: collisions = {collisions if collisions is not None else 'unknown (no summary)'}")
+    if isinstance(collisions, int) and collisions != 0:
+        lines.append(f"simulator: collisions = {collisions}")
+    elif not sim and not lines:  # nothing else explains it: the flight cannot be called good without the sim's word
+        lines.append(f"the simulator wrote no summary (see {out_dir / 'up.log'})")
     return lines
 
 
@@ -149,19 +168,25 @@ def _print_summary(summary: dict[str, object], problems: list[str], recording: P
     gcs, sim, ap = summary["gcs"], summary["sim"], summary["autopilot"]
     assert isinstance(gcs, dict) and isinstance(sim, dict) and isinstance(ap, dict)
     progress = gcs or ap  # the autopilot's own count when the ground station was stopped before its summary
-    rows = [
-        ("result", "OK" if summary["ok"] else "FAILED"),
-        ("items reached", f"{progress.get('items_reached', '?')}/{progress.get('items_total', '?')}"),
-        ("landed / disarmed", f"{progress.get('landed', '?')} / {progress.get('disarmed', '?')}"),
-        ("sim time", _num(sim.get("sim_time_s"), 1, " s")),
-        ("wall time (flight / total)", f"{_num(sim.get('wall_time_s'), 1, ' s')} / {summary['wall_time_s']} s"),
-        ("real-time factor", _num(sim.get("real_time_factor"), 2, "x")),
-        ("payload released at", _num(sim.get("payload_released_at_s"), 3, " s sim time")),
-        ("collisions", str(sim.get("collisions", "?"))),
-        ("min clearance to obstacles", _num(sim.get("min_clearance_m"), 2, " m", "no obstacles" if sim else "n/a")),
-        ("max tilt", _num(sim.get("max_tilt_deg"), 1, " deg")),
-        ("sim end reason", str(sim.get("end_reason", "?"))),
-    ]
+    rows: list[tuple[str, str | None]] = [("result", "OK" if summary["ok"] else "FAILED")]
+    if "items_reached" in progress and "items_total" in progress:
+        rows.append(("items reached", f"{progress['items_reached']}/{progress['items_total']}"))
+    if "landed" in progress and "disarmed" in progress:
+        rows.append(("landed / disarmed", f"{progress['landed']} / {progress['disarmed']}"))
+    if sim:  # the simulator's numbers, only when it wrote them (no row of "?" after a failed start)
+        clearance = _num(sim.get("min_clearance_m"), 2, " m", "no obstacles")
+        rows += [
+            ("sim time", _num(sim.get("sim_time_s"), 1, " s")),
+            ("wall time (flight / total)", f"{_num(sim.get('wall_time_s'), 1, ' s')} / {summary['wall_time_s']} s"),
+            ("real-time factor", _num(sim.get("real_time_factor"), 2, "x")),
+            ("payload released at", _num(sim.get("payload_released_at_s"), 3, " s sim time", "not released")),
+            ("collisions", str(sim.get("collisions"))),
+            ("min clearance to obstacles", clearance),
+            ("max tilt", _num(sim.get("max_tilt_deg"), 1, " deg")),
+            ("sim end reason", str(sim.get("end_reason"))),
+        ]
+    else:
+        rows.append(("wall time", f"{summary['wall_time_s']} s"))
     print()
     for name, value in rows:
         print(f"{name:<28} {value}")
@@ -180,22 +205,28 @@ def _num(value: object, digits: int, unit: str, missing: str = "n/a") -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tools.run_delivery", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m tools.run_delivery",
+        description="Fly a mission end to end (make run): simulator, autopilot, ground station; summary + recording.",
+    )
     parser.add_argument("--mission", default="missions/delivery.yaml", help="mission file (YAML, .waypoints, .plan)")
     parser.add_argument("--speed", default="max", help="'max' or a real-time factor such as 1 or 10")
     parser.add_argument("--vehicle", default=None, help="vehicle config name (default: the mission's)")
-    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--seed", type=int, default=1, help="seed of sensor noise and gusts (default 1)")
+    parser.add_argument(
+        "--estimator", default=DEFAULT_ESTIMATOR, choices=sorted(ESTIMATORS), help="state estimator (default: ekf)"
+    )
     parser.add_argument("--out-dir", default=None, help="default runs/<timestamp>")
     parser.add_argument("--timeout-s", type=float, default=600.0, help="wall-clock limit for the flight")
     parser.add_argument("--rerun", default=None, help="override --rerun (default save:<out-dir>/flight.rrd)")
     args = parser.parse_args(argv)
 
     mission = Path(args.mission)
-    if not mission.is_file():
-        print(f"run_delivery: error: mission file {mission} not found", file=sys.stderr)
+    problem = check_inputs(mission, args.vehicle)
+    if problem is not None:  # before any folder or process: one line naming the file, the line and the fix
+        print(f"run_delivery: error: {problem}", file=sys.stderr)
         return EXIT_USAGE
     out_dir = Path(args.out_dir or Path("runs") / datetime.now().strftime("%Y%m%d-%H%M%S"))
-    out_dir.mkdir(parents=True, exist_ok=True)
     rerun = args.rerun or f"save:{out_dir / 'flight.rrd'}"
     recording = Path(rerun[len("save:") :]) if rerun.startswith("save:") else None
     try:
@@ -203,11 +234,12 @@ def main(argv: list[str] | None = None) -> int:
     except RuntimeError as exc:
         print(f"run_delivery: error: {exc}", file=sys.stderr)
         return EXIT_SITL_DIED
+    out_dir.mkdir(parents=True, exist_ok=True)  # only now: a refused start leaves no empty run folder
 
     up_cmd = [
         sys.executable, "-m", "quadsitl_cli", "up",
         "--world", str(mission), "--seed", str(args.seed), "--speed", args.speed,
-        "--instance", str(instance), "--log-dir", str(out_dir), "--rerun", rerun,
+        "--instance", str(instance), "--log-dir", str(out_dir), "--rerun", rerun, "--estimator", args.estimator,
     ]  # fmt: skip
     if args.vehicle:
         up_cmd += ["--vehicle", args.vehicle]

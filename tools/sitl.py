@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from autopilot.estimation import DEFAULT_ESTIMATOR
 from autopilot.launcher import stop_process
 from autopilot.mission.files import load_mission_file
 from mavlink_bridge.gcs_client import GcsClient
@@ -150,16 +151,18 @@ def sitl_run(
     api: bool = False,
     sim_args: Sequence[str] = (),
     autopilot_args: Sequence[str] = (),
+    estimator: str = DEFAULT_ESTIMATOR,
     autopilot_timeout_s: float = 30.0,
     stop_timeout_s: float = 20.0,
 ) -> Iterator[SitlRun]:
-    """Start the pair (``world``'s vehicle unless ``vehicle`` is given; ``gcs``/``api``: open those links);
+    """Start the pair (``world``'s vehicle unless ``vehicle`` is given; ``gcs``/``api``: open those links; the
+    autopilot runs ``estimator``, the EKF by default);
     stop both on the way out, read their summaries, and raise :class:`SitlError` if either exited non-zero (see
     the module docstring)."""
     if vehicle is None and world is not None:
         vehicle = load_mission_file(world).vehicle
     ports = Ports.free()
-    extra = list(autopilot_args)
+    extra = ["--estimator", estimator, *autopilot_args]  # a later --estimator in autopilot_args wins
     api_port = None
     if api:
         api_in, api_port = free_udp_port(), free_udp_port()

@@ -21,8 +21,9 @@ def warm() -> dict[str, float]:
     timings: dict[str, float] = {}
 
     t0 = time.perf_counter()
+    from mavlink_bridge.frame_writer import FrameWriter
     from sim.batch import BatchSim
-    from sim.frame_kernel import FusedFrame
+    from sim.frame_kernel import SensorValues
     from sim.obstacle_sensor import ObstacleSensor
     from sim.sensors import SensorModel
     from sim.vehicle import VehicleSim
@@ -47,7 +48,8 @@ def warm() -> dict[str, float]:
     single.step(np.full(4, 0.6))
     sensors.imu_baro_mag(single)
     single.ground_truth()
-    FusedFrame(single, SensorModel(vehicle, world.home, 1)).datagram()  # sim.frame_kernel + frame_writer
+    values = SensorValues(single, SensorModel(vehicle, world.home, 1))  # sim.frame_kernel
+    FrameWriter().write(values.values, single.t_us, values.fill())  # mavlink_bridge.frame_writer
     ObstacleSensor(world, seed=1).detect(single.pos_ned, single.q_ned_frd, 0)
     BatchSim(vehicle, 3, world=world, seed=1).step(np.full((3, 4), 0.6))
     timings["sim_s"] = time.perf_counter() - t0
@@ -69,11 +71,20 @@ def warm() -> dict[str, float]:
     from mavlink_bridge.frame_reader import new_out, read_values
 
     read_values(b"", new_out())  # the lockstep reader both processes use (codec.Decoder)
+    from mavlink_bridge.answer_kernel import N_ANSWER, AnswerWriter, read_answer
+
+    AnswerWriter(1, 1).write(0, (0.5, 0.5, 0.5, 0.5), True, False, True)  # the autopilot's answer
+    read_answer(np.zeros(128, dtype=np.uint8), 0, 0, np.zeros(N_ANSWER), np.zeros(96, dtype=np.uint8))  # the sim's
     timings["bridge_s"] = time.perf_counter() - t0
     return timings
 
 
 def main() -> int:
+    print(
+        "[setup] compiling the numba kernels (physics, controller, codec): about 1 min the first time, "
+        "a few seconds once cached...",
+        flush=True,
+    )
     t0 = time.perf_counter()
     timings = warm()
     parts = ", ".join(f"{k} {v:.1f}" for k, v in timings.items())

@@ -6,10 +6,14 @@ Nothing else in the autopilot knows which estimator runs: it sees :class:`Vehicl
 
 from __future__ import annotations
 
+from autopilot.estimation.ekf import EkfEstimator, EkfParams
 from autopilot.estimation.state import Estimator, EstimatorStatus, FrameLike, VehicleState
 from autopilot.estimation.truth import TruthEstimator
 
-ESTIMATORS = {"truth": TruthEstimator}
+#: ``--estimator`` choices; the first is the default of ``quadsitl autopilot`` / ``up``.
+ESTIMATORS = {"ekf": EkfEstimator, "truth": TruthEstimator}
+#: The default estimator of the CLI, ``make run`` and the SITL tests.
+DEFAULT_ESTIMATOR = "ekf"
 
 
 def make_estimator(name: str) -> Estimator:
@@ -21,7 +25,10 @@ def make_estimator(name: str) -> Estimator:
 
 
 __all__ = [
+    "DEFAULT_ESTIMATOR",
     "ESTIMATORS",
+    "EkfEstimator",
+    "EkfParams",
     "Estimator",
     "EstimatorStatus",
     "FrameLike",

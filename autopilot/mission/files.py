@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -45,6 +46,7 @@ from autopilot.mission.plan import DEFAULT_VEHICLE, MissionPlan, items_match
 from autopilot.mission.validation import MissionLimits, check_mission
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
 from mavlink_bridge.contract.mav_enums import GripperAction, MavCmd, MavFrame
+from mavlink_bridge.contract.source_lines import YamlSource, YamlSyntaxError, did_you_mean, parse_yaml
 from mavlink_bridge.contract.vehicle_api import MissionItem
 
 #: ``(type, spacing_m, params) -> [(north_m, east_m, alt_m), ...]``: expands a YAML ``pattern:`` entry.
@@ -55,23 +57,40 @@ _MISSION_FRAME = int(MavFrame.MISSION)
 _NAN = float("nan")
 _WPL_HEADER = "QGC WPL 110"
 _TOP_KEYS = ("version", "name", "home", "vehicle", "speed_m_s", "mission", "fence", "world")
+_ENTRY_KINDS = (
+    "takeoff", "waypoint", "pattern", "payload_release", "payload_grab", "loiter", "speed", "delay", "jump",
+    "return_to_launch", "land", "mav_item",
+)  # fmt: skip
 
 
 class MissionFileError(ValueError):
-    """A mission file that cannot be read or written; the message names the file, item and field."""
+    """A mission file that cannot be read or written; one line naming the file, line, item, field and fix.
+
+    ``FILE:LINE: mission item 3 (waypoint): field 'alt_m': expected a number, got 'ten'; fix: ...``
+    """
 
     def __init__(
-        self, path: str | Path, message: str, *, section: str = "", item_index: int | None = None, field: str = ""
+        self,
+        path: str | Path,
+        message: str,
+        *,
+        section: str = "",
+        item_index: int | None = None,
+        field: str = "",
+        line: int | None = None,
+        fix: str = "",
     ) -> None:
-        where = [str(path)]
+        where = [str(path) if line is None else f"{path}:{line}"]
         if section:
             where.append(section if item_index is None else f"{section} item {item_index}")
         if field:
             where.append(f"field '{field}'")
-        super().__init__(": ".join([*where, message]))
+        text = ": ".join([*where, " ".join(message.split())])
+        super().__init__(f"{text}; fix: {fix}" if fix else text)
         self.path = str(path)
         self.item_index = item_index
         self.field = field
+        self.line = line
 
 
 def expand_pattern(pattern_type: str, spacing_m: float, params: dict[str, Any]) -> list[tuple[float, float, float]]:
@@ -87,40 +106,52 @@ def expand_pattern(pattern_type: str, spacing_m: float, params: dict[str, Any]) 
 class _YamlReader:
     """Parses one YAML v1 document into a :class:`MissionPlan`."""
 
-    def __init__(self, path: str | Path, expander: PatternExpander) -> None:
+    def __init__(self, path: str | Path, expander: PatternExpander, source: YamlSource | None = None) -> None:
         self.path = path
         self.expander = expander
+        self.source = source
         self.section = ""
         self.index: int | None = None
         self.kind = ""
+        #: The ``mission:`` entry index of each mission item (patterns expand to many, speed_m_s adds one).
+        self.entry_of_seq: list[int | None] = []
 
-    def fail(self, message: str, field: str = "") -> MissionFileError:
+    def line(self, *path: str | int) -> int | None:
+        """The line of the deepest node along ``path`` (None without a source)."""
+        return self.source.line(*path) if self.source is not None else None
+
+    def fail(self, message: str, field: str = "", fix: str = "") -> MissionFileError:
         section = f"{self.section} ({self.kind})" if self.kind and self.index is None else self.section
         if self.kind and self.index is not None:
             message = f"({self.kind}) {message}"
-        return MissionFileError(self.path, message, section=section, item_index=self.index, field=field)
+        node = [p for p in (self.section, self.index, self.kind, field) if p not in ("", None)]
+        return MissionFileError(
+            self.path, message, section=section, item_index=self.index, field=field, line=self.line(*node), fix=fix
+        )
 
     def number(self, d: Mapping[str, Any], key: str, lo: float = -math.inf, hi: float = math.inf) -> float:
         if key not in d:
-            raise self.fail("missing required field", key)
+            raise self.fail("missing required field", key, fix=f"add '{key}: <number>'")
         value = d[key]
         if isinstance(value, bool) or not isinstance(value, int | float):
-            raise self.fail(f"expected a number, got {value!r}", key)
+            raise self.fail(f"expected a number, got {value!r}", key, fix=f"write a plain number, e.g. '{key}: 10'")
         v = float(value)
         if not math.isfinite(v):
-            raise self.fail(f"{v} is not a finite number", key)
+            raise self.fail(f"{v} is not a finite number", key, fix="write a finite number")
         if not lo <= v <= hi:
-            raise self.fail(f"{v:g} outside [{lo:g}, {hi:g}]", key)
+            raise self.fail(f"{v:g} outside [{lo:g}, {hi:g}]", key, fix=f"use a value from {lo:g} to {hi:g}")
         return v
 
     def mapping(self, value: Any, allowed: Sequence[str], field: str = "") -> dict[str, Any]:
         if value is None:
             value = {}
         if not isinstance(value, dict):
-            raise self.fail(f"expected a mapping, got {type(value).__name__}", field)
+            example = f"{{{allowed[0]}: ...}}" if allowed else "{}"
+            raise self.fail(f"expected a mapping, got {type(value).__name__}", field, fix=f"write e.g. {example}")
         for key in value:
             if key not in allowed:
-                raise self.fail(f"unknown key (allowed: {', '.join(allowed)})", str(key))
+                fix = did_you_mean(key, allowed) if allowed else "remove it (this entry takes no fields: write {})"
+                raise self.fail(f"unknown key (allowed: {', '.join(allowed) or 'none'})", str(key), fix=fix)
         return value
 
     def latlon(self, d: Mapping[str, Any], frame: LocalNedFrame, required: bool) -> tuple[float, float] | None:
@@ -143,13 +174,28 @@ class _YamlReader:
 
     def read(self, doc: Any) -> MissionPlan:
         if not isinstance(doc, dict):
-            raise MissionFileError(self.path, f"expected a YAML mapping at top level, got {type(doc).__name__}")
+            raise MissionFileError(
+                self.path,
+                f"expected a YAML mapping at top level, got {type(doc).__name__}",
+                line=1,
+                fix="start with 'name: ...', 'home: {...}' and 'mission: [...]' (see missions/delivery.yaml)",
+            )
         for key in doc:
             if key not in _TOP_KEYS:
-                raise MissionFileError(self.path, f"unknown top-level key (allowed: {', '.join(_TOP_KEYS)})", field=key)
+                raise MissionFileError(
+                    self.path,
+                    f"unknown top-level key (allowed: {', '.join(_TOP_KEYS)})",
+                    field=key,
+                    line=self.line(key),
+                    fix=did_you_mean(key, _TOP_KEYS),
+                )
         if doc.get("version", 1) != 1:
             raise MissionFileError(
-                self.path, f"schema version {doc['version']!r} unsupported (expected 1)", field="version"
+                self.path,
+                f"schema version {doc['version']!r} unsupported (expected 1)",
+                field="version",
+                line=self.line("version"),
+                fix="write 'version: 1' or remove the line",
             )
         self.section = "home"
         home_d = self.mapping(doc.get("home"), ("lat_deg", "lon_deg", "alt_m"), "home")
@@ -164,10 +210,22 @@ class _YamlReader:
         vehicle = doc.get("vehicle", DEFAULT_VEHICLE)
         for key, value in (("name", name), ("vehicle", vehicle)):
             if not isinstance(value, str) or not value:
-                raise MissionFileError(self.path, f"expected a non-empty string, got {value!r}", field=key)
+                raise MissionFileError(
+                    self.path,
+                    f"expected a non-empty string, got {value!r}",
+                    field=key,
+                    line=self.line(key),
+                    fix=f"write e.g. '{key}: {'x500' if key == 'vehicle' else 'my_delivery'}'",
+                )
         world = doc.get("world")
         if world is not None and not isinstance(world, dict):
-            raise MissionFileError(self.path, "expected a mapping", field="world")
+            raise MissionFileError(
+                self.path,
+                "expected a mapping",
+                field="world",
+                line=self.line("world"),
+                fix="write 'world: {obstacles: [...]}'",
+            )
         frame = LocalNedFrame(home)
         items = self.mission(doc.get("mission"), frame, speed)
         fence = self.fence(doc.get("fence"), frame)
@@ -180,16 +238,25 @@ class _YamlReader:
         if entries is None:
             entries = []
         if not isinstance(entries, list):
-            raise MissionFileError(self.path, "expected a list of entries", field="mission")
+            raise MissionFileError(
+                self.path,
+                "expected a list of entries",
+                field="mission",
+                line=self.line("mission"),
+                fix="write one '- kind: {...}' entry per line under 'mission:'",
+            )
         raw: list[MissionItem] = []
         if speed is not None:
             raw.append(_speed_item(speed))
+        self.entry_of_seq = [None] * len(raw)
         first_seq: list[int] = []
         jumps: list[tuple[int, int, int]] = []  # (seq, to_entry, entry index)
         for idx, entry in enumerate(entries):
             self.index, self.kind = idx, ""
             if not isinstance(entry, dict) or len(entry) != 1:
-                raise self.fail("each entry is a mapping with exactly one key, e.g. '- waypoint: {...}'")
+                raise self.fail(
+                    "each entry is a mapping with exactly one key", fix="write e.g. '- waypoint: {north_m: 40, ...}'"
+                )
             ((kind, body),) = entry.items()
             self.kind = str(kind)
             first_seq.append(len(raw))
@@ -203,11 +270,12 @@ class _YamlReader:
                 raw.append(MissionItem(0, int(MavCmd.DO_JUMP), _MISSION_FRAME, param2=repeat))
             else:
                 raw.extend(self.entry(str(kind), body, frame))
+            self.entry_of_seq += [idx] * (len(raw) - len(self.entry_of_seq))
         for seq, to_entry, idx in jumps:
             target = first_seq[to_entry]
             if to_entry == idx:
                 self.index, self.kind = idx, "jump"
-                raise self.fail(f"jump to itself (entry {idx})", "to_entry")
+                raise self.fail(f"jump to itself (entry {idx})", "to_entry", fix="jump to an earlier entry's index")
             raw[seq] = replace(raw[seq], param1=float(target))
         self.index, self.kind = None, ""
         return [replace(item, seq=k) for k, item in enumerate(raw)]
@@ -261,8 +329,9 @@ class _YamlReader:
             return [_nav(MavCmd.NAV_LAND, ll, 0.0, p4=self.yaw(d))]
         if kind == "mav_item":
             return [self.mav_item(body)]
-        kinds = "takeoff, waypoint, pattern, payload_release, payload_grab, loiter, speed, delay, jump, "
-        raise self.fail(f"unknown mission entry (allowed: {kinds}return_to_launch, land, mav_item)", kind)
+        raise self.fail(
+            f"unknown mission entry (allowed: {', '.join(_ENTRY_KINDS)})", kind, fix=did_you_mean(kind, _ENTRY_KINDS)
+        )
 
     def pattern(self, body: Any, frame: LocalNedFrame) -> list[MissionItem]:
         if not isinstance(body, dict):
@@ -324,12 +393,20 @@ class _YamlReader:
         if entries is None:
             entries = []
         if not isinstance(entries, list):
-            raise MissionFileError(self.path, "expected a list of zones", field="fence")
+            raise MissionFileError(
+                self.path,
+                "expected a list of zones",
+                field="fence",
+                line=self.line("fence"),
+                fix="write one '- exclusion_circle: {...}' zone per line under 'fence:'",
+            )
         items: list[MissionItem] = []
         for idx, entry in enumerate(entries):
             self.index, self.kind = idx, ""
             if not isinstance(entry, dict) or len(entry) != 1:
-                raise self.fail("each zone is a mapping with exactly one key, e.g. '- exclusion_circle: {...}'")
+                raise self.fail(
+                    "each zone is a mapping with exactly one key", fix="write e.g. '- exclusion_circle: {...}'"
+                )
             ((kind, body),) = entry.items()
             self.kind = str(kind)
             inclusion = str(kind).startswith("inclusion_")
@@ -344,8 +421,10 @@ class _YamlReader:
             elif kind in ("exclusion_polygon", "inclusion_polygon"):
                 items += self.polygon(body, frame, len(items), inclusion)
             else:
-                allowed = "exclusion_circle, exclusion_polygon, inclusion_circle, inclusion_polygon"
-                raise self.fail(f"unknown fence zone (allowed: {allowed})", str(kind))
+                zones = ("exclusion_circle", "exclusion_polygon", "inclusion_circle", "inclusion_polygon")
+                raise self.fail(
+                    f"unknown fence zone (allowed: {', '.join(zones)})", str(kind), fix=did_you_mean(kind, zones)
+                )
         self.index, self.kind = None, ""
         return items
 
@@ -502,8 +581,9 @@ def _write_yaml(plan: MissionPlan, path: Path) -> None:
     doc: dict[str, Any] = {
         "name": plan.name,
         "home": {"lat_deg": plan.home.lat_deg, "lon_deg": plan.home.lon_deg, "alt_m": plan.home.alt_amsl_m},
-        "vehicle": plan.vehicle,
     }
+    if plan.vehicle:  # empty: not known (a downloaded mission): no line rather than a wrong name
+        doc["vehicle"] = plan.vehicle
     if plan.speed_m_s is not None:
         doc["speed_m_s"] = plan.speed_m_s
     doc["mission"] = _yaml_mission_entries(plan, path)
@@ -543,25 +623,46 @@ def _write_wpl(plan: MissionPlan, path: Path, allow_drop_fence: bool) -> None:
 
 
 def _read_wpl(path: Path) -> MissionPlan:
-    lines = [ln for ln in path.read_text().splitlines() if ln.strip()]
-    if not lines or lines[0].strip() != _WPL_HEADER:
-        raise MissionFileError(path, f"first line must be '{_WPL_HEADER}'")
-    rows: list[list[str]] = [ln.split() for ln in lines[1:]]
+    numbered = [(n, ln) for n, ln in enumerate(path.read_text().splitlines(), start=1) if ln.strip()]
+    if not numbered or numbered[0][1].strip() != _WPL_HEADER:
+        line = numbered[0][0] if numbered else 1
+        raise MissionFileError(
+            path, f"first line must be '{_WPL_HEADER}'", line=line, fix=f"write '{_WPL_HEADER}' there"
+        )
+    rows: list[tuple[int, list[str]]] = [(n, ln.split()) for n, ln in numbered[1:]]
     if not rows:
-        raise MissionFileError(path, "no home line (line 0) after the header")
+        raise MissionFileError(
+            path, "no home line (line 0) after the header", line=numbered[0][0], fix="add the home position line"
+        )
     values: list[tuple[int, int, int, list[float], bool]] = []
-    for idx, cols in enumerate(rows):
+    columns = "INDEX CURRENT FRAME COMMAND P1 P2 P3 P4 LAT LON ALT AUTOCONTINUE"
+    for idx, (line, cols) in enumerate(rows):
         if len(cols) != 12:
-            raise MissionFileError(path, f"expected 12 columns, got {len(cols)}", section="line", item_index=idx)
+            raise MissionFileError(
+                path,
+                f"expected 12 columns, got {len(cols)}",
+                section="line",
+                item_index=idx,
+                line=line,
+                fix=f"write the tab-separated columns {columns}",
+            )
         try:
             index, frame, command = int(cols[0]), int(cols[2]), int(cols[3])
             nums = [float(c) for c in cols[4:11]]
             auto = int(cols[11]) != 0
         except ValueError as exc:
-            raise MissionFileError(path, f"not a number: {exc}", section="line", item_index=idx) from None
+            raise MissionFileError(
+                path, f"not a number: {exc}", section="line", item_index=idx, line=line, fix=f"columns: {columns}"
+            ) from None
         if index != idx:
             raise MissionFileError(
-                path, f"index column is {index}, expected {idx}", section="line", item_index=idx, field="seq"
+                path,
+                f"index column is {index}, expected {idx}",
+                section="line",
+                item_index=idx,
+                field="seq",
+                line=line,
+                fix=f"number the lines 0, 1, 2, ... (this one {idx})",
             )
         values.append((index, frame, command, nums, auto))
     _, home_frame, _, home_nums, _ = values[0]
@@ -652,7 +753,9 @@ def _read_plan(path: Path) -> MissionPlan:
     try:
         doc = json.loads(path.read_text())
     except json.JSONDecodeError as exc:
-        raise MissionFileError(path, f"not valid JSON: {exc}") from None
+        raise MissionFileError(
+            path, f"not valid JSON: {exc.msg} (column {exc.colno})", line=exc.lineno, fix="save the plan again from QGC"
+        ) from None
     if not isinstance(doc, dict) or doc.get("fileType") != "Plan":
         raise MissionFileError(path, "not a QGroundControl plan (fileType must be 'Plan')", field="fileType")
     mission = doc.get("mission")
@@ -736,26 +839,51 @@ def load_mission_file(
     """
     p = Path(path)
     fmt = _format(p)
+    reader: _YamlReader | None = None
+    text = ""
     try:
+        text = p.read_text()
         if fmt == "yaml":
             try:
-                doc = yaml.safe_load(p.read_text())
-            except yaml.YAMLError as exc:
-                raise MissionFileError(p, f"not valid YAML: {exc}") from None
-            plan = _YamlReader(p, expander).read(doc)
+                source = parse_yaml(text, p)
+            except YamlSyntaxError as exc:
+                raise MissionFileError(p, f"not valid YAML: {exc.detail}", line=exc.line, fix=exc.fix) from None
+            reader = _YamlReader(p, expander, source)
+            plan = reader.read(source.data)
         elif fmt == "wpl":
             plan = _read_wpl(p)
         else:
             plan = _read_plan(p)
     except OSError as exc:
-        raise MissionFileError(p, f"cannot read: {exc.strerror}") from None
+        fix = "check the path (missions/ holds the examples)" if not p.exists() else "check its permissions"
+        raise MissionFileError(p, f"cannot read: {exc.strerror}", fix=fix) from None
     for section, items in (("mission", plan.items), ("fence", plan.fence)):
         issue = check_mission(items, plan.home, limits)
         if issue is not None:
             index = issue.item_index if issue.item_index >= 0 else None
             message = issue.reason.split(": ", 1)[1] if index is not None else issue.reason
-            raise MissionFileError(p, message, section=section, item_index=index, field=issue.field)
+            line = _item_line(fmt, text, reader, section, index)
+            raise MissionFileError(p, message, section=section, item_index=index, field=issue.field, line=line)
     return plan
+
+
+def _item_line(fmt: str, text: str, reader: _YamlReader | None, section: str, index: int | None) -> int | None:
+    """The line of mission/fence item ``index`` in the file's text (None when it cannot be told)."""
+    if index is None:
+        return None
+    if reader is not None:
+        if section == "mission":
+            entry = reader.entry_of_seq[index] if index < len(reader.entry_of_seq) else None
+            return reader.line("mission", entry) if entry is not None else reader.line("speed_m_s")
+        return reader.line("fence")
+    if fmt == "wpl":  # item k is on the (k + 2)-th non-blank line: header, home, items
+        rows = [n for n, ln in enumerate(text.splitlines(), start=1) if ln.strip()]
+        return rows[index + 2] if index + 2 < len(rows) else None
+    if fmt == "plan" and section == "mission":  # QGC writes doJumpId = seq + 1 on every SimpleItem
+        for n, ln in enumerate(text.splitlines(), start=1):
+            if re.search(rf'"doJumpId"\s*:\s*{index + 1}\b', ln):
+                return n
+    return None
 
 
 def save_mission_file(plan: MissionPlan, path: str | Path, *, allow_drop_fence: bool = False) -> None:

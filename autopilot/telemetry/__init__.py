@@ -1,4 +1,4 @@
-"""Telemetry to Rerun (SPEC §9): ``--rerun off|save:PATH|connect:URL`` and the passive step listener.
+"""Telemetry to Rerun: ``--rerun off|save:PATH|connect:URL`` and the passive step listener.
 
 ``make_listener(spec, vehicle=...)`` is what ``autopilot.cli`` calls; it returns a
 :class:`RerunTelemetry` (``on_step(record)``, ``on_event``, ``on_mission``, ``on_fence``,
@@ -9,8 +9,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from autopilot.telemetry.blueprint import flight_blueprint
-from autopilot.telemetry.rerun_logger import RerunTelemetry
+from autopilot.telemetry.blueprint import Framing, flight_blueprint
+from autopilot.telemetry.rerun_logger import (
+    LIVE_BATCH_ROWS,
+    LIVE_TRAIL_POINTS,
+    SAVE_BATCH_ROWS,
+    SAVE_TRAIL_POINTS,
+    RerunTelemetry,
+)
+from autopilot.telemetry.scene import route_points_ned
 from autopilot.telemetry.sinks import RerunSink, RerunSpecError, SinkKind, open_recording, parse_rerun_spec
 
 __all__ = [
@@ -32,6 +39,7 @@ def make_listener(
     safety_radius_m: float = 2.0,
     recording_id: str | None = None,
     rate_3d_hz: float = 25.0,
+    rtl_alt_m: float | None = None,
 ) -> RerunTelemetry | None:
     """The Rerun listener for a ``--rerun`` value (None for ``off``). Raises :class:`RerunSpecError`.
 
@@ -40,9 +48,21 @@ def make_listener(
     (which the autopilot itself never uses). Raises ``MissionFileError`` for a bad mission file.
     """
     sink = parse_rerun_spec(spec)
-    rec = open_recording(sink, flight_blueprint(), recording_id=recording_id)
-    if rec is None:
+    if sink.kind is SinkKind.OFF:
         return None
+    plan = None
+    framing = None
+    if mission_file is not None:
+        from autopilot.mission.files import load_mission_file
+
+        plan = load_mission_file(mission_file)
+        obstacles = bool((plan.world or {}).get("obstacles"))  # the simulator reads the same world
+        route = route_points_ned(plan.items, plan.home, rtl_alt_m=rtl_alt_m)
+        framing = Framing.of_route(route, obstacles)
+    # one blueprint: framed on the route now when it is known, else on the first uploaded mission
+    rec = open_recording(sink, flight_blueprint(framing) if framing is not None else None, recording_id=recording_id)
+    assert rec is not None
+    live = sink.kind is SinkKind.CONNECT
     rotors = None
     if vehicle:
         from autopilot.control.airframe import AirframeError, load_airframe
@@ -51,12 +71,20 @@ def make_listener(
             rotors = load_airframe(vehicle).rotor_pos_frd_m
         except AirframeError:
             rotors = None
-    telemetry = RerunTelemetry(rec, safety_radius_m=safety_radius_m, rotor_pos_frd_m=rotors, rate_3d_hz=rate_3d_hz)
-    if mission_file is not None:
+    telemetry = RerunTelemetry(
+        rec,
+        safety_radius_m=safety_radius_m,
+        rotor_pos_frd_m=rotors,
+        rate_3d_hz=rate_3d_hz,
+        batch_rows=LIVE_BATCH_ROWS if live else SAVE_BATCH_ROWS,
+        trail_segment_points=LIVE_TRAIL_POINTS if live else SAVE_TRAIL_POINTS,
+        blueprint_sent=framing is not None,
+        rtl_alt_m=rtl_alt_m,
+        obstacles_known=framing.obstacles if framing is not None else None,
+    )
+    if plan is not None:
         from autopilot.mission.fence import geofence_from_items
-        from autopilot.mission.files import load_mission_file
 
-        plan = load_mission_file(mission_file)
         telemetry.on_world(plan.world)
         if plan.items:
             telemetry.on_mission(plan.items, plan.home)

@@ -24,6 +24,7 @@ OBSTACLES_SENSED = "world/home/obstacles/sensed"
 OBSTACLES_SAFETY = "world/home/obstacles/safety"
 OBSTACLES_TRUE = "world/home/obstacles/true"
 FENCE = "world/home/fence"
+TICKS = "world/home/ticks"  # the labelled north/east grid of the top view (hidden in the 3D view)
 
 POS_NED = "position/pos_ned_m"
 POS_SP_NED = "position/pos_sp_ned_m"

@@ -1,11 +1,15 @@
-"""The Rerun telemetry: a passive listener of the autopilot loop (SPEC §9, issue 7).
+"""The Rerun telemetry: a passive listener of the autopilot loop.
 
 ``RerunTelemetry.on_step(record)`` is called by ``autopilot.runner.run_loop`` after each
-control step has been answered; it never changes what it is given. Cost is kept low:
+control step has been answered; it never changes what it is given. Cost and size are kept low:
 
 - every step writes one preallocated row of scalar series (positions, errors, live gains
   k(s), motors, thrust, battery, clearance); rows are flushed with ``send_columns`` every
-  ``batch_rows`` steps (one chunk per entity per batch);
+  ``batch_rows`` steps (one chunk per entity per batch: a saved recording uses 120 s batches, a live
+  viewer 4 s ones). What is flushed keeps every step of the series a controller is judged by
+  (position, attitude, their errors, motors) and every :data:`DECIMATION`-th step of the rest
+  (setpoints, gains, thrust: 50 Hz; clearance 25 Hz; battery and mission item 5 Hz), which halves
+  the file;
 - the 3D pose, setpoint and trail are sampled at ``rate_3d_hz`` (default 25 Hz) into another
   preallocated buffer flushed with the same batch;
 - rare things (events, home, route, detours, obstacles, fence) are logged when they change.
@@ -24,12 +28,15 @@ import numpy as np
 import rerun as rr
 
 from autopilot.control.cascade import ControlSample
+from autopilot.estimation.state import EstimatorStatus, VehicleState
 from autopilot.setpoints import TargetKind
 from autopilot.telemetry import entities as ent
-from autopilot.telemetry.blueprint import flight_blueprint
+from autopilot.telemetry.blueprint import Framing, flight_blueprint, tick_spacing_m
+from autopilot.telemetry.estimator_errors import EstimatorErrorLog
 from autopilot.telemetry.scene import TrueObstacle, fence_outlines, route_points_ned, true_obstacles
 from mavlink_bridge.contract.frames import GeoPoint
 from mavlink_bridge.contract.vehicle_api import FlightMode, MissionItem, Severity
+from mavlink_bridge.contract.wire import GroundTruth
 
 if TYPE_CHECKING:
     from autopilot.reporting import StepRecord
@@ -55,20 +62,38 @@ SERIES: tuple[tuple[str, int, int, tuple[str, ...]], ...] = (
     (ent.ATT_ERR, C_ATT_ERR, 3, ent.RPY),
     (ent.ATT, C_ATT, 3, ent.RPY),
     (ent.ATT_SP, C_ATT_SP, 3, tuple(f"{n} sp" for n in ent.RPY)),
-    (ent.gain_path("position", "kp"), C_KP, 3, ("x", "y", "z")),
-    (ent.gain_path("attitude", "kp"), C_KP + 3, 3, ent.RPY),
-    (ent.gain_path("position", "ki"), C_KI, 3, ("x", "y", "z")),
-    (ent.gain_path("attitude", "ki"), C_KI + 3, 3, ent.RPY),
-    (ent.gain_path("position", "kd"), C_KD, 3, ("x", "y", "z")),
-    (ent.gain_path("attitude", "kd"), C_KD + 3, 3, ent.RPY),
+    (ent.gain_path("position", "kp"), C_KP, 3, ("k_p x", "k_p y", "k_p z")),
+    (ent.gain_path("attitude", "kp"), C_KP + 3, 3, ("k_p roll", "k_p pitch", "k_p yaw")),
+    (ent.gain_path("position", "ki"), C_KI, 3, ("k_i x", "k_i y", "k_i z")),
+    (ent.gain_path("attitude", "ki"), C_KI + 3, 3, ("k_i roll", "k_i pitch", "k_i yaw")),
+    (ent.gain_path("position", "kd"), C_KD, 3, ("k_d x", "k_d y", "k_d z")),
+    (ent.gain_path("attitude", "kd"), C_KD + 3, 3, ("k_d roll", "k_d pitch", "k_d yaw")),
     (ent.MOTORS, C_MOTOR, 4, ent.MOTOR_NAMES),
-    (ent.THRUST, C_THRUST, 1, ("thrust",)),
-    (ent.TORQUE, C_TORQUE, 3, ("roll", "pitch", "yaw")),
-    (ent.BATTERY_REMAINING, C_BAT_PCT, 1, ("remaining %",)),
-    (ent.BATTERY_VOLTAGE, C_BAT_V, 1, ("voltage",)),
-    (ent.CLEARANCE, C_CLEARANCE, 1, ("clearance",)),
+    (ent.THRUST, C_THRUST, 1, ("thrust (N)",)),
+    (ent.TORQUE, C_TORQUE, 3, ("roll torque (N·m)", "pitch torque (N·m)", "yaw torque (N·m)")),
+    (ent.BATTERY_REMAINING, C_BAT_PCT, 1, ("charge (%)",)),
+    (ent.BATTERY_VOLTAGE, C_BAT_V, 1, ("voltage (V)",)),
+    (ent.CLEARANCE, C_CLEARANCE, 1, ("clearance (m)",)),
     (ent.MISSION_SEQ, C_SEQ, 1, ("current item",)),
 )
+
+#: Series flushed at every N-th control step only (250 Hz / N); the rest at every step.
+DECIMATION: dict[str, int] = {
+    ent.POS_SP_NED: 5,
+    ent.ATT_SP: 5,
+    **{ent.gain_path(loop, term): 5 for loop in ("position", "attitude") for term in ("kp", "ki", "kd")},
+    ent.THRUST: 5,
+    ent.TORQUE: 5,
+    ent.CLEARANCE: 10,
+    ent.BATTERY_REMAINING: 50,
+    ent.BATTERY_VOLTAGE: 50,
+    ent.MISSION_SEQ: 50,
+}
+
+#: Batch sizes (control steps) and trail segment lengths (3D samples): a file wants few large chunks,
+#: a live viewer wants to see the data within seconds.
+SAVE_BATCH_ROWS, SAVE_TRAIL_POINTS = 30_000, 3000
+LIVE_BATCH_ROWS, LIVE_TRAIL_POINTS = 1000, 125
 
 # ---- 3D row layout ----
 D_POS, D_QUAT, D_SP = 0, 3, 7  # quaternion stored x, y, z, w (Rerun order)
@@ -95,6 +120,7 @@ _COLOR_TRUE = (150, 150, 160, 160)
 _COLOR_FENCE_EXCL = (255, 40, 40)
 _COLOR_FENCE_INCL = (40, 200, 255)
 _COLOR_TARGETS = (255, 150, 0)
+_COLOR_TICKS = (140, 140, 140, 160)
 _MAX_TARGETS = 2000
 
 
@@ -123,7 +149,15 @@ class RerunTelemetry:
         safety_radius_m: float = 2.0,
         rotor_pos_frd_m: Sequence[Sequence[float]] | None = None,
         obstacle_period_s: float = 0.5,
+        blueprint_sent: bool = False,
+        rtl_alt_m: float | None = None,
+        obstacles_known: bool | None = None,
     ) -> None:
+        """``blueprint_sent``: the recording already holds its (framed) blueprint; otherwise one is sent with
+        the first route (framed on it) or at :meth:`close`. ``rtl_alt_m``: the RTL altitude above home
+        (``MIS_RTL_ALT``) an RTL item climbs to when lower. ``obstacles_known``: whether the world is
+        known to have obstacles (None: not known), for the clearance panel's title."""
+        self._estimator_errors: EstimatorErrorLog | None = None
         if not (rate_3d_hz > 0.0 and batch_rows >= 1 and trail_segment_points >= 2):
             raise ValueError("need rate_3d_hz > 0, batch_rows >= 1 and trail_segment_points >= 2")
         self.rec = rec
@@ -154,6 +188,10 @@ class RerunTelemetry:
         self._last_detour: object | None = None
         self._last_planned_route: object | None = None
         self._last_obstacle_key: tuple[Any, ...] | None = None
+        self._steps: list[int] = []  # the step number of each buffered row (decimation keeps its phase)
+        self._blueprint_sent = blueprint_sent
+        self.rtl_alt_m = rtl_alt_m
+        self._obstacles_known = obstacles_known
         self.steps_logged = 0
         self.closed = False
         self._log_static(rotor_pos_frd_m)
@@ -211,6 +249,7 @@ class RerunTelemetry:
         else:
             self._ctrl[i] = math.nan
         self._times.append(t_us)
+        self._steps.append(self.steps_logged)
         self.steps_logged += 1
 
         if t_us >= self._next_3d_us:
@@ -321,6 +360,12 @@ class RerunTelemetry:
                 self.on_obstacles(obstacles, t_us)
 
     # ------------------------------------------------------------------ events and scene
+    def on_truth(self, state: VehicleState, truth: GroundTruth, status: EstimatorStatus | None = None) -> None:
+        """The estimate against the sim's truth (``estimator/`` error series, 25 Hz of sim time)."""
+        if self._estimator_errors is None:
+            self._estimator_errors = EstimatorErrorLog(self.rec, ent.TIMELINE)
+        self._estimator_errors.log(state, truth, status)
+
     def _set_time(self, t_us: int) -> None:
         self.rec.set_time(ent.TIMELINE, duration=np.timedelta64(int(t_us), "us"))
 
@@ -338,16 +383,37 @@ class RerunTelemetry:
             rr.Points3D(pts, colors=[_COLOR_ROUTE], radii=0.3),
             static=True,
         )
-        if len(pts):
-            lo, hi = pts[:, :2].min(axis=0), pts[:, :2].max(axis=0)
-            home = self._last_home or (0.0, 0.0, 0.0)
-            center = (float(lo[0] + hi[0]) / 2 + home[0], float(lo[1] + hi[1]) / 2 + home[1])
-            span = max(30.0, 1.6 * float(np.max(hi - lo)))
-            self.rec.send_blueprint(flight_blueprint(center, span), make_active=True, make_default=True)
+        if not len(pts):
+            return
+        framing = Framing.of_route(pts + np.asarray(self._last_home or (0.0, 0.0, 0.0)), self._obstacles_known)
+        self.on_ticks(framing)
+        if not self._blueprint_sent:  # one blueprint per recording, framed on the first route
+            self._blueprint_sent = True
+            self.rec.send_blueprint(flight_blueprint(framing), make_active=True, make_default=True)
+
+    def on_ticks(self, framing: Framing) -> None:
+        """The top view's labelled grid about home (static; shown in the top view only)."""
+        step = tick_spacing_m(framing.span_m)
+        (cn, ce), half = framing.center_ne_m, 0.6 * framing.span_m
+        home = self._last_home or (0.0, 0.0, 0.0)
+        n_lines = np.arange(math.floor((cn - half - home[0]) / step), math.ceil((cn + half - home[0]) / step) + 1)
+        e_lines = np.arange(math.floor((ce - half - home[1]) / step), math.ceil((ce + half - home[1]) / step) + 1)
+        n_vals, e_vals = n_lines * step, e_lines * step
+        n_lo, n_hi, e_lo, e_hi = float(n_vals[0]), float(n_vals[-1]), float(e_vals[0]), float(e_vals[-1])
+        strips = [[(n, e_lo, 0.0), (n, e_hi, 0.0)] for n in n_vals]
+        strips += [[(n_lo, e, 0.0), (n_hi, e, 0.0)] for e in e_vals]
+        labels = [f"N {n:g}" for n in n_vals] + [f"E {e:g}" for e in e_vals]
+        points = [(n, e_lo, 0.0) for n in n_vals] + [(n_lo, e, 0.0) for e in e_vals]
+        self.rec.log(
+            ent.TICKS,
+            rr.LineStrips3D(strips, colors=[_COLOR_TICKS], radii=0.03),
+            rr.Points3D(points, labels=labels, colors=[_COLOR_TICKS], radii=0.01, show_labels=True),
+            static=True,
+        )
 
     def on_mission(self, items: Sequence[MissionItem], home: GeoPoint) -> None:
         """The uploaded mission as the reference route (see :func:`scene.route_points_ned`)."""
-        self.on_route(route_points_ned(items, home))
+        self.on_route(route_points_ned(items, home, rtl_alt_m=self.rtl_alt_m))
 
     def on_fence(self, zones: Sequence[object], ceiling_alt_m: float = 0.0) -> None:
         """Fence zones (circles/polygons) as outlines on the ground (and at ``ceiling_alt_m`` if > 0); static."""
@@ -460,11 +526,20 @@ class RerunTelemetry:
             rows[:, C_ATT_ERR:] = self._ctrl[:n]
             for cols in _ANGLE_COLS:
                 rows[:, cols] *= 180.0 / math.pi
-            times = [_time_column(np.array(self._times, dtype=np.int64))]
+            t_us = np.array(self._times, dtype=np.int64)
+            steps = np.array(self._steps, dtype=np.int64)
             for path, c0, width, _ in SERIES:
-                rec.send_columns(path, indexes=times, columns=rr.Scalars.columns(scalars=rows[:, c0 : c0 + width]))
+                keep = steps % DECIMATION.get(path, 1) == 0
+                if not keep.any():
+                    continue
+                rec.send_columns(
+                    path,
+                    indexes=[_time_column(t_us[keep])],
+                    columns=rr.Scalars.columns(scalars=rows[keep, c0 : c0 + width]),
+                )
             self._vals.clear()
             self._times.clear()
+            self._steps.clear()
         if self._times3:
             r3 = np.array(self._vals3, dtype=np.float64).reshape(len(self._times3), N_3D)
             times3 = [_time_column(np.array(self._times3, dtype=np.int64))]
@@ -484,6 +559,9 @@ class RerunTelemetry:
         if self.closed:
             return
         self.flush()
+        if not self._blueprint_sent:  # no route came: the unframed layout
+            self._blueprint_sent = True
+            self.rec.send_blueprint(flight_blueprint(Framing(obstacles=self._obstacles_known)), make_default=True)
         self.closed = True
         self.rec.flush()
         self.rec.disconnect()

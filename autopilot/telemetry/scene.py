@@ -94,12 +94,13 @@ def true_obstacles(world: Mapping[str, Any] | None) -> tuple[TrueObstacle, ...]:
     return tuple(out)
 
 
-def route_points_ned(items: Sequence[MissionItem], home: GeoPoint) -> np.ndarray:
+def route_points_ned(items: Sequence[MissionItem], home: GeoPoint, *, rtl_alt_m: float | None = None) -> np.ndarray:
     """The reference route (k, 3) in NED about home: home, then every positional item in order.
 
     Items at "the current position" (lat = lon = 0) keep the previous horizontal position (and,
-    except takeoff, the previous altitude when their altitude is 0); RTL returns to home at the
-    previous altitude; DO_* and other items draw nothing.
+    except takeoff, the previous altitude when their altitude is 0); RTL climbs to ``rtl_alt_m`` above
+    home first when it is lower (``MIS_RTL_ALT``, as the commander flies it; None: no climb), returns
+    home at that height and descends; DO_* and other items draw nothing.
     """
     frame = LocalNedFrame(home)
     pts: list[tuple[float, float, float]] = [(0.0, 0.0, 0.0)]
@@ -107,7 +108,10 @@ def route_points_ned(items: Sequence[MissionItem], home: GeoPoint) -> np.ndarray
         cmd = item.command
         prev = pts[-1]
         if cmd == MavCmd.NAV_RETURN_TO_LAUNCH:
-            pts.append((0.0, 0.0, prev[2]))
+            down = min(prev[2], -rtl_alt_m) if rtl_alt_m is not None else prev[2]
+            if down != prev[2]:
+                pts.append((prev[0], prev[1], down))
+            pts.append((0.0, 0.0, down))
             pts.append((0.0, 0.0, 0.0))
         elif cmd in _ROUTE_COMMANDS:
             n, e, d = item_position_ned(item, frame)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import uuid
 from dataclasses import dataclass
+from datetime import timedelta
 from enum import Enum
 from pathlib import Path
 
@@ -43,6 +44,10 @@ class RerunSink:
 
     def __str__(self) -> str:
         return self.kind.value if self.kind is SinkKind.OFF else f"{self.kind.value}:{self.target}"
+
+
+#: Chunk batching of a saved recording: flush every 60 s of wall time or 8 MiB (default: 200 ms, 2 MiB).
+SAVE_BATCHER = rr.ChunkBatcherConfig(flush_tick=timedelta(seconds=60), flush_num_bytes=8 * 1024 * 1024)
 
 
 def parse_rerun_spec(text: str) -> RerunSink:
@@ -82,7 +87,9 @@ def open_recording(
     """
     if sink.kind is SinkKind.OFF:
         return None
-    rec = rr.RecordingStream(application_id, recording_id=recording_id or str(uuid.uuid4()))
+    # A file gathers the rare logs (events, obstacles, detours) into few large chunks; a viewer wants them now.
+    batcher = SAVE_BATCHER if sink.kind is SinkKind.SAVE else None
+    rec = rr.RecordingStream(application_id, recording_id=recording_id or str(uuid.uuid4()), batcher_config=batcher)
     rec.set_log_time_enabled(False)
     rec.set_log_tick_enabled(False)
     if sink.kind is SinkKind.SAVE:

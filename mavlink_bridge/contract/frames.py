@@ -190,8 +190,8 @@ class LocalNedFrame:
     def geodetic_from_ned(self, north_m: float, east_m: float, down_m: float) -> GeoPoint:
         """WGS-84 point of a local NED position (m).
 
-        ``sim/frame_kernel.py`` repeats this operation for operation in numba (the simulator's per-step
-        ground truth); change both together (``tests/test_sim_frame_writer.py`` checks they agree bit for bit).
+        ``sim/frame_kernel.py`` computes the simulator's per-step ground truth with the same method in numba
+        (``tests/test_sim_frame_writer.py`` checks it against pymap3d).
         """
         rn, re, rd = self._r
         hx, hy, hz = self._home_ecef

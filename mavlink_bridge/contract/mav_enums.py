@@ -28,6 +28,7 @@ class MavCmd(IntEnum):
     DO_GRIPPER = 211  # p1 gripper instance, p2 action (GripperAction)
     MISSION_START = 300
     COMPONENT_ARM_DISARM = 400
+    INJECT_FAILURE = 420  # p1 FailureUnit, p2 FailureType, p3 instance (motors 1-based; 0 = all)
     SET_MESSAGE_INTERVAL = 511
     REQUEST_MESSAGE = 512
     NAV_FENCE_RETURN_POINT = 5000
@@ -58,6 +59,39 @@ class GripperAction(IntEnum):
 
     RELEASE = 0
     GRAB = 1
+
+
+class FailureUnit(IntEnum):
+    """FAILURE_UNIT (MAV_CMD_INJECT_FAILURE param1)."""
+
+    SENSOR_GYRO = 0
+    SENSOR_ACCEL = 1
+    SENSOR_MAG = 2
+    SENSOR_BARO = 3
+    SENSOR_GPS = 4
+    SENSOR_OPTICAL_FLOW = 5
+    SENSOR_VIO = 6
+    SENSOR_DISTANCE_SENSOR = 7
+    SENSOR_AIRSPEED = 8
+    SYSTEM_BATTERY = 100
+    SYSTEM_MOTOR = 101
+    SYSTEM_SERVO = 102
+    SYSTEM_AVOIDANCE = 103
+    SYSTEM_RC_SIGNAL = 104
+    SYSTEM_MAVLINK_SIGNAL = 105
+
+
+class FailureType(IntEnum):
+    """FAILURE_TYPE (MAV_CMD_INJECT_FAILURE param2)."""
+
+    OK = 0  # no failure: clears an injected one
+    OFF = 1  # no data
+    STUCK = 2  # the same value every time
+    GARBAGE = 3  # random data
+    WRONG = 4  # plausible but wrong data
+    SLOW = 5  # data slower than nominal
+    DELAYED = 6  # data delayed
+    INTERMITTENT = 7  # data sometimes missing
 
 
 class MissionState(IntEnum):

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from enum import IntEnum
+from enum import IntEnum, IntFlag
 from typing import Protocol
 
 from mavlink_bridge.contract.wire import Quat, Vec3
@@ -215,6 +215,40 @@ class StatusText:
     text: str
 
 
+class EstimatorFlags(IntFlag):
+    """MAVLink ESTIMATOR_STATUS_FLAGS: which parts of the estimate are good."""
+
+    ATTITUDE = 1
+    VELOCITY_HORIZ = 2
+    VELOCITY_VERT = 4
+    POS_HORIZ_REL = 8
+    POS_HORIZ_ABS = 16
+    POS_VERT_ABS = 32
+    POS_VERT_AGL = 64
+    CONST_POS_MODE = 128
+    PRED_POS_HORIZ_REL = 256
+    PRED_POS_HORIZ_ABS = 512
+    GPS_GLITCH = 1024
+    ACCEL_ERROR = 2048
+
+
+@dataclass(frozen=True, slots=True)
+class EstimatorReport:
+    """What ESTIMATOR_STATUS (MAVLink 230) carries: flags, innovation test ratios (> 1: rejected), accuracies.
+
+    Ratios are 0 for a source that is not fused (the wire has no NaN convention for them); accuracies are
+    1-sigma in metres.
+    """
+
+    flags: EstimatorFlags
+    vel_ratio: float
+    pos_horiz_ratio: float
+    pos_vert_ratio: float
+    mag_ratio: float
+    pos_horiz_accuracy_m: float
+    pos_vert_accuracy_m: float
+
+
 @dataclass(slots=True)
 class TelemetrySnapshot:
     """What the autopilot publishes each control step; the GCS server rate-limits it per stream."""
@@ -250,6 +284,7 @@ class TelemetrySnapshot:
     mission_count: int
     mission_reached: list[int] = field(default_factory=list)  # items reached since the last snapshot
     mission_state: int = 0  # MISSION_STATE (MISSION_CURRENT): 0 unknown, 1 none, 2 idle, 3 active, 4 paused, 5 done
+    estimator: EstimatorReport | None = None  # ESTIMATOR_STATUS (None: not streamed)
 
 
 class VehicleInterface(Protocol):

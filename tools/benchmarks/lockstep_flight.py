@@ -6,7 +6,11 @@ land) so the flight does not depend on a GCS. ``lockstep_rtf`` is the sim's own
 ``real_time_factor`` (sim seconds per wall second from the first HEARTBEAT to the end);
 flights alternate with floor runs (``lockstep_floor.measure_floor_run``: null sim + null autopilot),
 each fraction uses its own floor, and medians carry the targets with min/max beside them.
-Targets: ``lockstep_rtf >= 30`` and ``lockstep_rtf_fraction_of_floor >= 0.5``. The autopilot's own
+Targets: ``lockstep_rtf >= 30`` and ``lockstep_rtf_fraction_of_floor >= 0.5``. Each round also flies the
+same flight through the simulator's lossy relay (``--sim-loss 0.1``: 10 % of datagrams dropped each way;
+``lockstep_loss10_rtf_ratio`` = lossy / lossless of that round, target >= 0.5) and measures the transport
+limit (``lockstep_transport.measure_transport_run``: a bare UDP ping-pong, same datagram sizes) for the
+ratios of issue 16: floor / transport >= 0.5 and flight / transport >= 0.25. The autopilot's own
 per-step cost is reported too (``autopilot_step_us``: ``Autopilot.step`` on recorded frames, in-process).
 """
 
@@ -19,10 +23,15 @@ from pathlib import Path
 
 from tools.benchmarks import BenchResult
 from tools.benchmarks.lockstep_floor import measure_floor_run
+from tools.benchmarks.lockstep_transport import measure_transport_run
 from tools.sitl import logs, sitl_run
 
 RTF_TARGET = 30.0
 FLOOR_FRACTION_TARGET = 0.5
+LOSS_FRACTION = 0.1
+LOSS_RATIO_TARGET = 0.5
+FLOOR_OF_TRANSPORT_TARGET = 0.5
+FLIGHT_OF_TRANSPORT_TARGET = 0.25
 FLIGHT_SCRIPT = """\
 - {at_s: 0.5, cmd: arm}
 - {at_s: 1.0, cmd: takeoff, alt_m: 10}
@@ -31,18 +40,28 @@ FLIGHT_SCRIPT = """\
 """
 
 
-def fly(duration_s: float, work_dir: Path, seed: int = 0, autopilot_args: tuple[str, ...] = ()) -> dict[str, object]:
+def fly(
+    duration_s: float,
+    work_dir: Path,
+    seed: int = 0,
+    autopilot_args: tuple[str, ...] = (),
+    sim_args: tuple[str, ...] = (),
+) -> dict[str, object]:
     """One scripted flight as two processes (``tools.sitl.sitl_run``, no GCS link); the sim summary (raises if
     either process failed or the flight did not run its ``duration_s``).
 
-    ``autopilot_args`` are extra ``quadsitl autopilot`` options (e.g. ``("--rerun", "save:PATH")``).
+    ``autopilot_args`` / ``sim_args`` are extra ``quadsitl autopilot`` / ``quadsitl sim`` options (e.g.
+    ``("--rerun", "save:PATH")``, ``("--sim-loss", "0.1")``).
     """
     work_dir.mkdir(parents=True, exist_ok=True)
     script = work_dir / "flight.yaml"
     script.write_text(FLIGHT_SCRIPT)
-    sim_args = ("--duration-s", str(duration_s))
     with sitl_run(
-        work_dir, seed=seed, gcs=False, sim_args=sim_args, autopilot_args=("--script", str(script), *autopilot_args)
+        work_dir,
+        seed=seed,
+        gcs=False,
+        sim_args=("--duration-s", str(duration_s), *sim_args),
+        autopilot_args=("--script", str(script), *autopilot_args),
     ) as run:
         run.sim.wait(timeout=600)  # the sim ends the flight at duration_s; leaving the block stops the autopilot
     summary = run.sim_summary
@@ -72,14 +91,26 @@ def run(quick: bool) -> list[BenchResult]:
     rounds = 2 if quick else 3
     floor_frames = 1500 if quick else 7500
     flights: list[dict[str, object]] = []
+    lossy: list[dict[str, object]] = []
     floors = []
+    transports = []
     for k in range(rounds):
         with tempfile.TemporaryDirectory(prefix="lockstep_flight_") as tmp:
             flights.append(fly(duration_s, Path(tmp), seed=k))
+        with tempfile.TemporaryDirectory(prefix="lockstep_flight_loss_") as tmp:
+            lossy.append(fly(duration_s, Path(tmp), seed=k, sim_args=("--sim-loss", str(LOSS_FRACTION))))
+        if lossy[-1]["truth_sha256"] != flights[-1]["truth_sha256"]:
+            raise RuntimeError("the flight under lockstep loss is not bit-identical to the lossless one")
         floors.append(measure_floor_run(floor_frames))
+        transports.append(measure_transport_run(floor_frames * 2))
     rtf = [float(f["real_time_factor"]) for f in flights]  # type: ignore[arg-type]
+    loss_rtf = [float(f["real_time_factor"]) for f in lossy]  # type: ignore[arg-type]
     floor_rtf = [f.rtf for f in floors]
+    transport_rtf = [t.rtf for t in transports]
     fraction = [r / f for r, f in zip(rtf, floor_rtf, strict=True)]
+    loss_ratio = [lo / r for lo, r in zip(loss_rtf, rtf, strict=True)]
+    floor_of_transport = [f / t for f, t in zip(floor_rtf, transport_rtf, strict=True)]
+    flight_of_transport = [r / t for r, t in zip(rtf, transport_rtf, strict=True)]
 
     def field(name: str) -> list[float]:
         return [float(f.get(name, math.nan)) for f in flights]  # type: ignore[arg-type]
@@ -98,7 +129,35 @@ def run(quick: bool) -> list[BenchResult]:
     results += _ranged("lockstep_flight_sim_step_us", field("sim_step_us"), "sim wall per step, answer wait excluded")
     results += _ranged("lockstep_flight_answer_wait_us", field("answer_wait_us"), "autopilot step + transport, wall")
     results += _ranged("lockstep_flight_sim_cpu_us_per_step", field("sim_cpu_us_per_step"), "sim process CPU")
+    results += _ranged("lockstep_transport_limit_rtf", transport_rtf, "bare UDP ping-pong, frame/answer sizes")
+    results += _ranged(
+        "lockstep_floor_fraction_of_transport",
+        floor_of_transport,
+        "messaging floor / transport limit, same round",
+        f">= {FLOOR_OF_TRANSPORT_TARGET:g}",
+        _median(floor_of_transport) >= FLOOR_OF_TRANSPORT_TARGET,
+    )
+    results += _ranged(
+        "lockstep_rtf_fraction_of_transport",
+        flight_of_transport,
+        "whole flight / transport limit, same round",
+        f">= {FLIGHT_OF_TRANSPORT_TARGET:g}",
+        _median(flight_of_transport) >= FLIGHT_OF_TRANSPORT_TARGET,
+    )
+    results += _ranged("lockstep_loss10_rtf", loss_rtf, "the same flight, --sim-loss 0.1 (bit-identical)")
+    results += _ranged(
+        "lockstep_loss10_rtf_ratio",
+        loss_ratio,
+        "flight at 10 % datagram loss each way / lossless, same round",
+        f">= {LOSS_RATIO_TARGET:g}",
+        _median(loss_ratio) >= LOSS_RATIO_TARGET,
+    )
     results += [
+        BenchResult(
+            "lockstep_loss10_resend_timeout_us",
+            _median([float(f["resend_timeout_us"]) for f in lossy]),  # type: ignore[arg-type]
+            note="adaptive resend timeout at the end of the lossy flights (median)",
+        ),
         BenchResult("lockstep_floor_sim_cpu_us", _median([f.sim_cpu_us for f in floors]), note="null sim CPU/frame"),
         BenchResult(
             "lockstep_floor_autopilot_cpu_us",

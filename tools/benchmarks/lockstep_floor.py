@@ -6,7 +6,8 @@ each with a constant HIL_ACTUATOR_CONTROLS through ``LockstepClient``. No physic
 the real-time factor measured here bounds any whole-flight ``lockstep_rtf``.
 
 Both sides run the real processes' messaging code path per frame and nothing else: the null sim
-writes frame k with the simulator's own frame writer (``sim.frame_kernel.FusedFrame``, on a vehicle
+writes frame k with the simulator's own sensor kernel and frame writer (``sim.frame_kernel.SensorValues``,
+``mavlink_bridge.frame_writer.FrameWriter``, on a vehicle
 at rest whose clock is moved on instead of integrated), sends it and waits for the answer, which it
 decodes; the null autopilot receives, decodes, builds its ``ActuatorCommand``, encodes and sends,
 with the same busy-poll (``spin_s``) as the real processes. On a shared machine the floor varies run
@@ -23,8 +24,9 @@ from multiprocessing.connection import Connection
 
 from mavlink_bridge.codec import Decoder, Encoder
 from mavlink_bridge.contract.wire import ActuatorCommand, GpsSample, GroundTruth, SensorSample
+from mavlink_bridge.frame_writer import FrameWriter
 from mavlink_bridge.lockstep import DEFAULT_SPIN_S, LockstepClient, LockstepFrame, LockstepServer, encode_frame
-from sim.frame_kernel import FusedFrame
+from sim.frame_kernel import SensorValues
 from sim.sensors import SensorModel
 from sim.server import DEFAULT_VEHICLE
 from sim.vehicle import VehicleSim
@@ -44,13 +46,14 @@ class NullSimFrames:
         vehicle = load_vehicle(DEFAULT_VEHICLE)
         world = empty_world()
         self._vehicle = VehicleSim(vehicle, control_hz=CONTROL_HZ, world=world, seed=0)
-        self._frames = FusedFrame(self._vehicle, SensorModel(vehicle, world.home, 0))
+        self._values = SensorValues(self._vehicle, SensorModel(vehicle, world.home, 0))
+        self._writer = FrameWriter()
 
     def datagram(self, k: int) -> tuple[int, bytes]:
         """(frame time µs, datagram) of control step ``k``: the clock moves, the state stays."""
         batch = self._vehicle.batch
         batch._steps = k  # the null sim only advances time (BatchSim keeps time as a step count)
-        return batch.t_us, self._frames.datagram()
+        return batch.t_us, self._writer.write(self._values.values, batch.t_us, self._values.fill())
 
 
 def null_frame(k: int) -> LockstepFrame:

@@ -2,7 +2,8 @@
 
 In-process, no sockets: a hovering x500 in gusty wind, the sim side of one control step as
 ``sim.server`` does it — the frame's datagram (IMU/baro/mag, GPS at 10 Hz, ground truth and the
-MAVLink bytes in one numba call, ``sim.frame_kernel.FusedFrame``), the answer's decoding, physics
+MAVLink bytes: ``sim.frame_kernel.SensorValues`` then ``mavlink_bridge.frame_writer.FrameWriter``, one
+numba call each), the answer's decoding, physics
 (4 RK4 substeps). The reference path it replaced (``SensorModel``/``ground_truth`` dataclasses +
 ``encode_frame``, byte-identical) is measured too, part by part and as a whole step, in the same run.
 Times are CPU time of this thread (``time.thread_time``),
@@ -17,8 +18,9 @@ from collections.abc import Callable
 
 from mavlink_bridge.codec import SIM_COMPONENT_ID, SIM_SYSTEM_ID, Decoder, Encoder
 from mavlink_bridge.contract.wire import ActuatorCommand
+from mavlink_bridge.frame_writer import FrameWriter
 from mavlink_bridge.lockstep import LockstepFrame, encode_frame
-from sim.frame_kernel import FusedFrame
+from sim.frame_kernel import SensorValues
 from sim.sensors import SensorModel
 from sim.vehicle import VehicleSim
 from sim.vehicle_config import load_vehicle
@@ -56,10 +58,13 @@ def measure(rounds: int) -> dict[str, float]:
     answers = [answer_enc.actuators(ActuatorCommand(k, (hover,) * 4, True)) for k in range(STEPS_PER_ROUND)]
     frame = LockstepFrame(sensors.imu_baro_mag(sim), None, sim.ground_truth())
     cmd = (hover, hover, hover, hover)
-    fused = FusedFrame(sim, SensorModel(sim.vehicle, sim.world.home, 0))
+    values, writer = SensorValues(sim, SensorModel(sim.vehicle, sim.world.home, 0)), FrameWriter()
+
+    def datagram() -> bytes:
+        return writer.write(values.values, sim.t_us, values.fill())
 
     def whole_step(k: int) -> None:
-        fused.datagram()
+        datagram()
         (answer,) = dec.decode(answers[k])
         sim.step(answer.motor_cmd)  # type: ignore[union-attr]
 
@@ -70,7 +75,8 @@ def measure(rounds: int) -> dict[str, float]:
         sim.step(answer.motor_cmd)  # type: ignore[union-attr]
 
     parts: dict[str, Callable[[int], object]] = {
-        "sim_frame_fused_us": lambda k: fused.datagram(),
+        "sim_frame_fused_us": lambda k: datagram(),
+        "sim_sensor_values_us": lambda k: values.fill(),
         "sim_sensors_us": lambda k: sensors.imu_baro_mag(sim),
         "sim_ground_truth_us": lambda k: sim.ground_truth(),
         "lockstep_frame_encode_us": lambda k: encode_frame(enc, frame),
@@ -87,7 +93,8 @@ def measure(rounds: int) -> dict[str, float]:
 def run(quick: bool) -> list[BenchResult]:
     us = measure(rounds=5 if quick else 20)
     notes = {
-        "sim_frame_fused_us": "sensors + GPS (10 Hz) + truth + datagram in one numba call (FusedFrame), as sent",
+        "sim_frame_fused_us": "sensors + GPS (10 Hz) + truth (SensorValues) + datagram (FrameWriter), as sent",
+        "sim_sensor_values_us": "sensors + GPS (10 Hz) + truth into the contract's values array, one numba call",
         "sim_sensors_us": "reference path: IMU + baro + mag sample (SensorModel.imu_baro_mag)",
         "sim_ground_truth_us": "reference path: VehicleSim.ground_truth (geodetic)",
         "lockstep_frame_encode_us": "reference path: HIL_STATE_QUATERNION + HIL_SENSOR datagram (encode_frame)",

@@ -23,6 +23,7 @@ from autopilot.estimation import VehicleState
 from autopilot.reporting import StepRecord
 from autopilot.setpoints import NavTarget, Reference, TargetKind
 from autopilot.telemetry import RerunTelemetry
+from autopilot.telemetry.rerun_logger import SAVE_BATCH_ROWS, SAVE_TRAIL_POINTS
 from autopilot.telemetry.sinks import RerunSink, SinkKind, open_recording
 from mavlink_bridge.contract.frames import quat_from_euler
 from mavlink_bridge.contract.vehicle_api import FlightMode, LandedState, Severity, StatusText
@@ -120,7 +121,7 @@ def measure_logger(n_steps: int, path: Path) -> tuple[float, float, int]:
     """
     rec = open_recording(RerunSink(SinkKind.SAVE, str(path)))
     assert rec is not None
-    telemetry = RerunTelemetry(rec)
+    telemetry = RerunTelemetry(rec, batch_rows=SAVE_BATCH_ROWS, trail_segment_points=SAVE_TRAIL_POINTS)  # as saved
     wall_s = cpu_s = 0.0
     for record in synthetic_records(n_steps):
         w0, c0 = time.perf_counter(), time.thread_time()
