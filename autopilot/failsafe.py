@@ -54,6 +54,7 @@ class FailsafeKind(Enum):
     POSITION_LOSS = "position lost"
     BARO_LOSS = "baro lost"
     MAG_LOSS = "mag lost"
+    NO_ROUTE = "no route"  # the navigator found no route to the mission target for CA_NOROUTE_T (CA_NOROUTE_ACT)
 
 
 @dataclass(frozen=True, slots=True)

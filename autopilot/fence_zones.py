@@ -37,9 +37,7 @@ class GeofenceZone:
 
     def path_clear(self, points_ned: np.ndarray, margin_m: float) -> bool:
         """Every consecutive segment of a sampled path ``(n, 3)`` is clear."""
-        p = np.asarray(points_ned, dtype=float)
-        segment_clear = self.fence.segment_clear
-        return all(segment_clear(p[i], p[i + 1], margin_m) for i in range(len(p) - 1))
+        return self.fence.path_clear(points_ned, margin_m)
 
 
 def planner_fence_zones(fence: Geofence) -> tuple[GeofenceZone, ...]:

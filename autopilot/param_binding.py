@@ -71,5 +71,6 @@ def autopilot_bindings(
     bindings.bind(mission_names, lambda _n, _v: nav.apply_mission_params())
     bindings.bind([s.name for s in planner_param_specs()], lambda _n, _v: nav.apply_planner_params())
     bindings.bind(("GF_MAX_VER_DIST",), lambda _n, _v: nav.apply_altitude_limits())
+    bindings.bind(("GF_MAX_HOR_DIST",), lambda _n, _v: nav.apply_upload_limits())  # the mission is re-checked
     bindings.bind(("CA_RSAFE_M",), on_safety_radius)  # drawn safety spheres follow R_safe
     return bindings

@@ -21,6 +21,8 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Protocol
 
+import numpy as np
+
 from autopilot.commander import Commander
 from autopilot.control.cascade import ControlSample
 from autopilot.estimation import EstimatorStatus, VehicleState
@@ -88,6 +90,7 @@ class StepRecord:
     battery_voltage_v: float = math.nan
     truth: GroundTruth | None = None  # the sim's truth of this step: for estimate-vs-truth logging only
     estimator_status: EstimatorStatus | None = None
+    planned_route_home_ned_m: np.ndarray | None = None  # the routed leg (about home); the same array until replanned
 
     @property
     def pos_sp_ned_m(self) -> Vec3:
@@ -263,6 +266,8 @@ def summary(
         "items_total": len(nav.mission),
         "items_reached": len(set(reached)),
         "reached_seqs": list(reached),
+        "items_bypassed": len(set(nav.bypassed_seqs)),  # flown around (a detour rejoined past them), not reached
+        "bypassed_seqs": list(nav.bypassed_seqs),
         "mission_state": nav.mission_state.name,
         "mode": commander.mode.name,
         "mode_history": [{"t_s": t / 1e6, "mode": m.name} for t, m in commander.mode_history],

@@ -52,7 +52,6 @@ from mavlink_bridge.contract.wire import ActuatorCommand, ObstacleDetection
 FAILSAFE_PERIOD_US = 100_000
 #: Navigator and commander period (µs, 50 Hz as PX4's navigator and land detector; at once after a command).
 NAV_PERIOD_US = 20_000
-__all__ = ["Autopilot", "AutopilotConfig", "AutopilotEndReason", "StepRecord"]
 
 
 @dataclass(frozen=True)
@@ -173,10 +172,8 @@ class Autopilot:
 
     def handle_command(self, request: CommandRequest) -> CommandResult:
         self.wake_navigation()
-        context = self.update_context(
-            offboard_streaming=self.links.offboard_streaming(self.params.get("COM_OF_LOSS_T"))
-        )
-        result = self.commander.handle_command(request, context)
+        streaming = self.links.offboard_streaming(self.params.get("COM_OF_LOSS_T"))
+        result = self.commander.handle_command(request, self.update_context(offboard_streaming=streaming))
         if request.command == MavCmd.MISSION_START and result is CommandResult.ACCEPTED:
             first = request.params[0]
             seq = int(first) if math.isfinite(first) and first >= 1.0 else None
@@ -233,6 +230,8 @@ class Autopilot:
             self.progress.add(nav.reached)
         if nav.gripper_release is not None:
             commander.set_gripper(release=nav.gripper_release)
+        if nav.failsafe is not None:  # no route to the mission target for CA_NOROUTE_T
+            commander.apply_failsafe(nav.failsafe)
         fc = self.control
         inputs = CommanderInputs(state, fc.thrust_ratio, self.estimator.local_frame, self._context, nav.mission_target)
         self._target = commander.update(inputs)
@@ -271,13 +270,13 @@ class Autopilot:
             frame = HomeFrame(self.estimator.origin)  # before arming: home will be about here
         else:
             return
-        self.navigator.set_home(frame)
         nav = self.navigator
+        nav.set_home(frame)
+        self.update_context(mission_ready=nav.mission_ready)  # the stored mission was checked against home
         if self.listener is not None and home is not None:
-            if nav.mission:
-                self.listener.on_mission(nav.mission, home.geo)
-            if nav.fence:
-                self.listener.on_fence(nav.geofence.zones)
+            for mission_type, items in ((MissionType.MISSION, nav.mission), (MissionType.FENCE, nav.fence)):
+                if items:
+                    self.mission_accepted(mission_type, items)
 
     def _run_failsafes(self, state: VehicleState) -> None:
         """Failsafe checks at FAILSAFE_PERIOD_US of sim time; link freshness refreshed for the commander too."""
@@ -382,6 +381,7 @@ class Autopilot:
             battery_voltage_v=self.battery.voltage_v,
             truth=self._truth,  # type: ignore[arg-type]
             estimator_status=self.estimator.status,
+            planned_route_home_ned_m=self.navigator.route_path_home_ned_m,
         )
 
     def snapshot(self) -> TelemetrySnapshot | None:

@@ -38,8 +38,9 @@ from sim.world import empty_world
 
 #: SHA-256 of the golden flight. Re-recorded when the default gains became the ES-tuned NLVG-PID of
 #: autopilot/control/default_gains.yaml (issue 14: same end state, position RMS 0.101 -> 0.116 m), and when the
-#: navigator and commander moved to 50 Hz (same flight within the 50 Hz tick); see the commits.
-GOLDEN_SHA256 = "e16d92044e5f62d5eb5a7704dac024954065f04858969132b0bbf50d9e641cac"
+#: navigator and commander moved to 50 Hz (same flight within the 50 Hz tick), and when the summary gained
+#: items_bypassed (issue 13; the same motor commands and texts); see the commits.
+GOLDEN_SHA256 = "876cbc18238b71e3ad793eb21df0b6542e7a689d26469dbe6aacfa51b69540b9"
 RATE_HZ = 250
 #: Sim time (s) → parameter changes applied between frames (as a GCS would).
 PARAM_CHANGES: dict[float, dict[str, float]] = {

@@ -97,8 +97,11 @@ def _pose(loop: SimLoop) -> tuple[float, float, float]:
 def test_rejoin_index_skips_bypassed_waypoints_reports_them_and_still_fires_the_gripper() -> None:
     points = [(0.0, 8.0), (0.0, 12.0), (0.0, 16.0), (0.0, 24.0)]
     planner = ScriptedPlanner(rejoin_at=(0.0, 8.0), rejoin=3)  # from item 1: items 1..4 (DO_GRIPPER 3) bypassed
-    loop, items, track = _fly(planner, points, gripper_after=1)
-    assert loop.ap.progress.reached_seqs == list(range(len(items)))  # skipped items reported reached, in order
+    loop, _, track = _fly(planner, points, gripper_after=1)
+    # flown around, never reached: bypassed items are reported as such (the DO_GRIPPER between them ran)
+    assert loop.ap.progress.reached_seqs == [0, 3, 5, 6] and loop.ap.navigator.bypassed_seqs == [1, 2, 4]
+    assert any(t.startswith("Bypassed item 1: a detour rejoined the route past it") for t in loop.texts), loop.texts
+    assert loop.ap.summary(0.0)["items_bypassed"] == 3
     assert loop.ap.commander.gripper_release  # the DO_GRIPPER between skipped waypoints fired
     first_next = next(r[1] for r in planner.routes if math.dist(r[0][:2], (0.0, 8.0)) < 1e-3)
     assert first_next is not None  # the route after the target: every later waypoint, at the mission altitude
@@ -113,8 +116,9 @@ def test_waypoint_inside_an_obstacle_safety_volume_is_never_targeted() -> None:
     points = [(0.0, 8.0), (8.0, 14.0), (0.0, 20.0)]
     column = TrackedObstacle(7, ObstacleKind.COLUMN, (8.0, 14.5, 0.0), 1.0, 0, 0, 5)  # covers item 2
     planner = ScriptedPlanner(obstacles=(column,))
-    loop, items, track = _fly(planner, points)
-    assert loop.ap.progress.reached_seqs == list(range(len(items)))
+    loop, _, track = _fly(planner, points)
+    assert loop.ap.progress.reached_seqs == [0, 1, 3, 4] and loop.ap.navigator.bypassed_seqs == [2]
     assert any("Skipped to item 3" in t for t in loop.texts), loop.texts
+    assert "Bypassed item 2: it lies inside an obstacle's safety volume" in loop.texts
     assert all(math.dist(r[0][:2], (8.0, 14.0)) > 1e-3 for r in planner.routes)  # never handed as target
     assert float(np.min(np.hypot(track[:, 0] - 8.0, track[:, 1] - 14.0))) > 4.0

@@ -106,8 +106,11 @@ def test_mission_with_payload_release_reaches_every_item_in_order() -> None:
     loop = Loop()
     ap, vehicle = loop.ap, loop.vehicle
     items_early = [MissionItem(0, 22, 6, z_alt_m=5.0)]
-    assert vehicle.replace_mission(MissionType.MISSION, items_early)[0] is MissionResult.ERROR  # no fix yet
+    # before the first fix: stored, checked against home once it is known (issue 13/15), not flyable yet
+    assert vehicle.replace_mission(MissionType.MISSION, items_early) == (MissionResult.ACCEPTED, "")
+    assert not ap.navigator.mission_ready
     loop.run_until(lambda: False, 0.5)
+    assert ap.navigator.mission_ready
     f = loop.frame
     mission = [
         _item(0, 22, f, alt=6.0),

@@ -58,10 +58,11 @@ def test_skip_reports_skipped_items_in_order_and_fires_the_gripper_between() -> 
     assert ex.current_seq == 1 and not v.actions
     assert ex.skip_to(5, v.t_us + 1)  # the detour rejoins toward item 5: items 1, 2, 3 (DO), 4 are bypassed
     assert ex.current_seq == 5
+    out = ex.step(v.sample())
+    assert out.bypassed == (1, 2, 4) and out.reached == (3,)  # flown around, never "reached"; the DO item ran
+    v.actions += list(out.actions)
     v.fly(ex, 200.0, until_state=MissionState.COMPLETE)
-    assert [s for s, _ in v.reached] == [0, 1, 2, 3, 4, 5, 6]
-    skipped_at = {s: t for s, t in v.reached if s in (1, 2, 3, 4)}
-    assert len(set(skipped_at.values())) == 1  # all in the first step after the skip
+    assert [s for s, _ in v.reached] == [0, 5, 6]
     assert len(v.actions) == 1
     action = v.actions[0]
     assert action.kind is ActionKind.GRIPPER_RELEASE and action.seq == 3
@@ -80,7 +81,7 @@ def test_skip_applies_speed_changes_and_counts_jumps() -> None:
     assert ex.skip_to(5, v.t_us)  # through the jump once
     assert ex.speed_m_s == 2.0
     out = ex.step(v.sample())
-    assert out.reached[:5] == (1, 2, 3, 4, 1) and out.reached[5:10] == (2, 3, 4)
+    assert out.bypassed == (1, 3, 1, 3) and out.reached == (2, 4, 2, 4)
     assert ex.current_seq == 5 and ex.route_ahead(1000.0, 64).seqs == (5,)
     assert out.target is not None and out.target.kind is NavKind.WAYPOINT and out.target.seq == 5
 
@@ -100,7 +101,7 @@ def test_skip_refuses_what_it_must_not_skip(seq: int, why: str) -> None:
     assert ex.current_seq == 1
     assert not ex.skip_to(seq, v.t_us), why
     out = ex.step(v.sample())
-    assert out.reached == () and ex.current_seq == 1
+    assert out.reached == () and out.bypassed == () and ex.current_seq == 1
 
 
 def test_skip_refuses_a_takeoff_and_when_paused() -> None:
@@ -123,4 +124,4 @@ def test_skip_past_a_position_less_loiter_is_refused() -> None:
     assert ex.route_ahead(1000.0, 64).seqs == (1,) and ex.route_ahead(1000.0, 64).next_seq == 2
     assert not ex.skip_to(3, v.t_us)
     assert ex.skip_to(2, v.t_us)  # the waypoint before it may be skipped
-    assert ex.step(v.sample()).reached == (1,)
+    assert ex.step(v.sample()).bypassed == (1,)

@@ -16,7 +16,7 @@ import contextlib
 import json
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
@@ -31,6 +31,7 @@ from mavlink_bridge.contract.vehicle_api import (
     MissionResult,
     MissionType,
     Severity,
+    StatusText,
 )
 from mavlink_bridge.gcs_client import CommandFailedError, GcsClient, GcsError, MissionUploadError, VehicleStatus
 from mavlink_bridge.link import LinkUrlError, resolve_url
@@ -73,6 +74,7 @@ class FlySummary:
     landed: bool
     disarmed: bool
     reason: str
+    items_bypassed: int = 0  # waypoints the vehicle flew around instead of reaching ("Bypassed item N: ...")
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), indent=2) + "\n"
@@ -224,8 +226,8 @@ def _upload_when_ready(client: GcsClient, plan: MissionPlan, timeout_s: float) -
     say(f"uploading {len(plan.items)} mission items and {len(plan.fence)} fence items")
     while True:
         try:
+            client.upload_mission(plan.fence, MissionType.FENCE)  # first: the mission is checked against it
             client.upload_mission(plan.items, MissionType.MISSION)
-            client.upload_mission(plan.fence, MissionType.FENCE)
             return
         except MissionUploadError as exc:
             transient = exc.result in (MissionResult.ERROR, MissionResult.DENIED)
@@ -242,6 +244,7 @@ def fly(client: GcsClient, plan: MissionPlan, timeout_s: float, progress: bool =
     """Upload mission + fence, arm, start, and wait until the mission is done, landed and disarmed."""
     t0 = time.monotonic()
     total = len(plan.items)
+    text_serial = client.statustext_serial
     _upload_when_ready(client, plan, min(60.0, timeout_s))
     client.forget_reached_items()
     _arm_when_ready(client, min(60.0, timeout_s))
@@ -274,6 +277,8 @@ def fly(client: GcsClient, plan: MissionPlan, timeout_s: float, progress: bool =
     texts = [t.text for t in status.statustexts if t.severity <= 3]
     if reason and texts:
         reason += f" (last error: {texts[-1]})"
+    reason = reason or _failsafe_reason(client.statustexts_since(text_serial))
+    bypassed = sum(t.text.startswith(BYPASSED_PREFIX) for t in client.statustexts_since(text_serial))
     landed = status.landed_state is LandedState.ON_GROUND
     ok = not reason and landed and not status.armed and _mission_done(status, total)
     return FlySummary(
@@ -285,7 +290,22 @@ def fly(client: GcsClient, plan: MissionPlan, timeout_s: float, progress: bool =
         landed=landed,
         disarmed=not status.armed,
         reason=reason,
+        items_bypassed=bypassed,
     )
+
+
+#: STATUSTEXT prefixes of the autopilot's failsafes (fence breach included) and of a waypoint flown around.
+FAILSAFE_PREFIX = "Failsafe:"
+BYPASSED_PREFIX = "Bypassed item"
+
+
+def _failsafe_reason(texts: Sequence[StatusText]) -> str:
+    """A mission during which a failsafe fired (a geofence breach too, even when GF_ACTION only warns) failed:
+    the first such STATUSTEXT is the reason; empty when none fired."""
+    for text in texts:
+        if text.text.startswith(FAILSAFE_PREFIX):
+            return f"failsafe during the mission: {text.text}"
+    return ""
 
 
 class _Progress:
@@ -368,7 +388,8 @@ def cmd_fly(client: GcsClient, args: argparse.Namespace) -> str:
     flown = ""
     if summary.sim_time_s is not None and start_sim_s is not None:  # from this flight's start, not the sim's
         flown = f", {summary.sim_time_s - start_sim_s:.1f} s sim time in {summary.wall_time_s:.1f} s wall"
-    return f"mission complete: {summary.items_reached}/{summary.items_total} items{flown}"
+    bypassed = f", {summary.items_bypassed} bypassed" if summary.items_bypassed else ""
+    return f"mission complete: {summary.items_reached}/{summary.items_total} items{bypassed}{flown}"
 
 
 # ---- entry point -------------------------------------------------------------------------------------------

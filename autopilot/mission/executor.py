@@ -34,12 +34,12 @@ Route and skipping (issue 6, obstacle avoidance; SPEC §7-§8):
   position) from the current one on, in execution order (DO items passed over, pending DO_JUMPs followed
   with their counters as they stand), up to a path length: the route the avoidance planner checks.
 - :meth:`MissionExecutor.skip_to` moves on to a later item of that order when a detour bypassed the
-  items in between (or they lie inside an obstacle). Every skipped item is reported as reached, in order
-  (MISSION_ITEM_REACHED semantics: the ground station sees the same sequence as a flight that reached
-  them), in the next step's output. Only positional route items are skipped: DO items on the way are
-  *executed*, never dropped (a DO_GRIPPER between skipped waypoints still fires, DO_CHANGE_SPEED applies,
-  DO_JUMP counts and is followed), and takeoff, land, RTL, delay and position-less loiters are never
-  skipped over (``skip_to`` refuses).
+  items in between (or they lie inside an obstacle). Skipped positional items are reported as *bypassed*
+  (``ExecutorOutput.bypassed``, in order, in the next step's output), never as reached: the vehicle flew
+  around them (issue 13, honest progress). Only positional route items are skipped: DO items on the way are
+  *executed* (and reported reached), never dropped (a DO_GRIPPER between skipped waypoints still fires,
+  DO_CHANGE_SPEED applies, DO_JUMP counts and is followed), and takeoff, land, RTL, delay and position-less
+  loiters are never skipped over (``skip_to`` refuses).
 """
 
 from __future__ import annotations
@@ -145,6 +145,7 @@ class ExecutorOutput:
     reached: tuple[int, ...]
     actions: tuple[MissionAction, ...]
     speed_m_s: float
+    bypassed: tuple[int, ...] = ()  # positional items ``skip_to`` passed over (flown around, not reached)
 
 
 @dataclass(frozen=True, slots=True)
@@ -411,8 +412,11 @@ class MissionExecutor:
         """Advance with the vehicle state at ``sample.time_us``; returns the target and this step's events."""
         reached: list[int] = []
         actions: list[MissionAction] = []
+        bypassed: tuple[int, ...] = ()
         if self._skipped or self._skip_actions:
-            reached += self._skipped
+            items = self._items
+            reached += [k for k in self._skipped if items[k].command in _DO_ITEMS]  # they ran
+            bypassed = tuple(k for k in self._skipped if items[k].command not in _DO_ITEMS)
             actions += self._skip_actions
             self._skipped, self._skip_actions = [], []
         if self._state == MissionState.ACTIVE:
@@ -439,6 +443,7 @@ class MissionExecutor:
             tuple(reached) if reached else (),
             tuple(actions) if actions else (),
             self.speed_m_s,
+            bypassed,
         )
 
     def _begin(self, s: VehicleSample) -> None:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -62,6 +62,39 @@ def segment_to_segments_distance(a: np.ndarray, b: np.ndarray, starts: np.ndarra
     return np.where(crossing, 0.0, d)
 
 
+def _polyline_gap(points: np.ndarray, starts: np.ndarray, ends: np.ndarray, distance: bool = True) -> float:
+    """Smallest 2D distance between the segments of a polyline ``points`` (n, 2) and the edges ``starts``-``ends``
+    (k, 2); 0 when any two cross. ``distance`` False: only whether they cross (0, else inf)."""
+    a, b = points[:-1, None, :], points[1:, None, :]  # (m, 1, 2)
+    c, d = starts[None, :, :], ends[None, :, :]  # (1, k, 2)
+    r, q = b - a, d - c
+    rxs = r[..., 0] * q[..., 1] - r[..., 1] * q[..., 0]
+    safe = np.where(rxs != 0.0, rxs, 1.0)
+    w = c - a
+    t = (w[..., 0] * q[..., 1] - w[..., 1] * q[..., 0]) / safe
+    u = (w[..., 0] * r[..., 1] - w[..., 1] * r[..., 0]) / safe
+    crossing = (rxs != 0.0) & (t >= 0.0) & (t <= 1.0) & (u >= 0.0) & (u <= 1.0)
+    if bool(crossing.any()):
+        return 0.0
+    if not distance:
+        return math.inf
+    gap = np.minimum(
+        np.minimum(_point_segment_distance(a, c, d), _point_segment_distance(b, c, d)),
+        np.minimum(_point_segment_distance(c, a, b), _point_segment_distance(d, a, b)),
+    )
+    return float(gap.min())
+
+
+def _points_inside(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    """Even-odd test of points (n, 2) against a polygon's vertices (k, 2)."""
+    x, y = points[:, 0][:, None], points[:, 1][:, None]
+    xi, yi = vertices[:, 0][None, :], vertices[:, 1][None, :]
+    xj, yj = np.roll(vertices[:, 0], 1)[None, :], np.roll(vertices[:, 1], 1)[None, :]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        hit = ((yi > y) != (yj > y)) & (x < (xj - xi) * (y - yi) / (yj - yi) + xi)
+    return (np.count_nonzero(hit, axis=1) % 2) == 1
+
+
 @dataclass(frozen=True, slots=True)
 class CircleZone:
     """A circular zone centred at ``center_ne_m`` (north, east, m) of ``radius_m``."""
@@ -89,6 +122,19 @@ class CircleZone:
             return bool(np.linalg.norm(a - c) <= limit and np.linalg.norm(b - c) <= limit)
         return bool(_point_segment_distance(c, a, b) > self.radius_m + margin_m)
 
+    def path_clear(self, points_ne: np.ndarray, margin_m: float = 0.0) -> bool:
+        """:meth:`segment_clear` for every segment of a polyline (n, 2), vectorised."""
+        c = np.asarray(self.center_ne_m)
+        if self.inclusion:
+            return bool(np.all(np.linalg.norm(points_ne - c, axis=1) <= self.radius_m - margin_m))
+        if len(points_ne) < 2:
+            return bool(np.all(np.linalg.norm(points_ne - c, axis=1) > self.radius_m + margin_m))
+        reach = self.radius_m + margin_m  # the path's bounding box out of reach: clear at once
+        lo, hi = points_ne.min(axis=0), points_ne.max(axis=0)
+        if np.any(lo > c + reach) or np.any(hi < c - reach):
+            return True
+        return bool(np.all(_point_segment_distance(c, points_ne[:-1], points_ne[1:]) > self.radius_m + margin_m))
+
 
 @dataclass(frozen=True, slots=True)
 class PolygonZone:
@@ -97,6 +143,12 @@ class PolygonZone:
     vertices_ne_m: tuple[Vec2, ...]
     inclusion: bool
     group: int = 0
+    _box: tuple[float, float, float, float] = field(init=False, repr=False, compare=False)  # n/e min, max
+
+    def __post_init__(self) -> None:
+        ns = [v[0] for v in self.vertices_ne_m]
+        es = [v[1] for v in self.vertices_ne_m]
+        object.__setattr__(self, "_box", (min(ns), min(es), max(ns), max(es)) if ns else (0.0, 0.0, 0.0, 0.0))
 
     def _edges(self) -> tuple[np.ndarray, np.ndarray]:
         v = np.asarray(self.vertices_ne_m, dtype=float)
@@ -130,6 +182,22 @@ class PolygonZone:
             return False
         inside_a, inside_b = self.contains(a_ned), self.contains(b_ned)
         return (inside_a and inside_b) if self.inclusion else not (inside_a or inside_b)
+
+    def path_clear(self, points_ne: np.ndarray, margin_m: float = 0.0) -> bool:
+        """:meth:`segment_clear` for every segment of a polyline (n >= 2, 2), vectorised; an exclusion zone whose
+        bounding box (grown by the margin) misses the path's is clear at once."""
+        if not self.inclusion:
+            lo, hi = points_ne.min(axis=0), points_ne.max(axis=0)
+            n0, e0, n1, e1 = self._box
+            m = margin_m + 1e-9
+            if lo[0] > n1 + m or hi[0] < n0 - m or lo[1] > e1 + m or hi[1] < e0 - m:
+                return True
+        starts, ends = self._edges()
+        gap = _polyline_gap(points_ne, starts, ends, distance=margin_m > 0.0)
+        if gap <= 0.0 or gap < margin_m:
+            return False
+        inside = _points_inside(points_ne, starts)
+        return bool(inside.all()) if self.inclusion else not bool(inside.any())
 
 
 FenceZone = CircleZone | PolygonZone
@@ -173,6 +241,16 @@ class Geofence:
         groups = self._inclusion_groups()
         return not groups or any(all(z.segment_clear(a_ned, b_ned, margin_m) for z in g) for g in groups)
 
+    def path_clear(self, points_ned: np.ndarray, margin_m: float = 0.0) -> bool:
+        """:meth:`segment_clear` for every segment of a sampled path (n >= 2, 2 or 3), vectorised per zone."""
+        pts = np.ascontiguousarray(np.asarray(points_ned, dtype=float)[:, :2])
+        if len(pts) < 2:
+            return len(pts) == 0 or not self.violates(pts[0], margin_m)
+        if not all(z.path_clear(pts, margin_m) for z in self.exclusions):
+            return False
+        groups = self._inclusion_groups()
+        return not groups or any(all(z.path_clear(pts, margin_m) for z in g) for g in groups)
+
 
 def _check_latlon(index: int, item: MissionItem) -> None:
     lat, lon = item.x_lat_deg, item.y_lon_deg
@@ -182,10 +260,44 @@ def _check_latlon(index: int, item: MissionItem) -> None:
         raise FenceError(index, f"longitude {lon} outside [-180, 180]", "y_lon_deg")
 
 
-def geofence_from_items(items: Sequence[MissionItem], home: GeoPoint) -> Geofence:
-    """Parse FENCE items into zones about ``home``. Raises :class:`FenceError` naming the item."""
-    frame = LocalNedFrame(home)
-    zones: list[FenceZone] = []
+@dataclass(frozen=True, slots=True)
+class GeoZone:
+    """One zone as uploaded (geodetic): a circle (``radius_m`` > 0, one vertex = the centre) or a polygon.
+
+    ``first_item`` is the index of its first FENCE item (for messages naming the item)."""
+
+    vertices_lat_lon_deg: tuple[tuple[float, float], ...]
+    radius_m: float  # 0 for a polygon
+    inclusion: bool
+    group: int
+    first_item: int
+
+    def to_local(self, frame: LocalNedFrame, alt_amsl_m: float) -> FenceZone:
+        """The zone in local NED about ``frame``'s origin (horizontal only)."""
+        pts: list[Vec2] = []
+        for lat, lon in self.vertices_lat_lon_deg:
+            n, e, _ = frame.ned_from_geodetic(lat, lon, alt_amsl_m)
+            pts.append((n, e))
+        if self.radius_m > 0.0:
+            return CircleZone(pts[0], self.radius_m, self.inclusion, self.group)
+        return PolygonZone(tuple(pts), self.inclusion, self.group)
+
+
+@dataclass(frozen=True, slots=True)
+class GeoFence:
+    """A FENCE upload stored geodetically (SPEC §7): accepted before home is known, made local once it is."""
+
+    zones: tuple[GeoZone, ...] = ()
+
+    def to_local(self, home: GeoPoint) -> Geofence:
+        """The zones about ``home`` (north, east in metres)."""
+        frame = LocalNedFrame(home)
+        return Geofence(tuple(z.to_local(frame, home.alt_amsl_m) for z in self.zones))
+
+
+def geo_fence_from_items(items: Sequence[MissionItem]) -> GeoFence:
+    """Parse FENCE items into geodetic zones (no home needed). Raises :class:`FenceError` naming the item."""
+    zones: list[GeoZone] = []
     i = 0
     while i < len(items):
         item = items[i]
@@ -198,9 +310,9 @@ def geofence_from_items(items: Sequence[MissionItem], home: GeoPoint) -> Geofenc
             radius = item.param1
             if not (math.isfinite(radius) and radius > 0.0):
                 raise FenceError(i, f"circle radius (param1) {radius} must be > 0 m", "param1")
-            n, e, _ = frame.ned_from_geodetic(item.x_lat_deg, item.y_lon_deg, home.alt_amsl_m)
             inclusion = item.command == MavCmd.NAV_FENCE_CIRCLE_INCLUSION
-            zones.append(CircleZone((n, e), radius, inclusion, int(item.param2) if inclusion else 0))
+            group = _group(i, item) if inclusion else 0
+            zones.append(GeoZone(((item.x_lat_deg, item.y_lon_deg),), float(radius), inclusion, group, i))
             i += 1
             continue
         count = item.param1
@@ -209,7 +321,7 @@ def geofence_from_items(items: Sequence[MissionItem], home: GeoPoint) -> Geofenc
         count = int(count)
         if i + count > len(items):
             raise FenceError(i, f"polygon declares {count} vertices but only {len(items) - i} items follow")
-        verts: list[Vec2] = []
+        verts: list[tuple[float, float]] = []
         for k in range(i, i + count):
             v = items[k]
             if v.command != item.command or v.param1 != item.param1:
@@ -219,12 +331,34 @@ def geofence_from_items(items: Sequence[MissionItem], home: GeoPoint) -> Geofenc
                     f"with vertex count {count}, got {command_name(v.command)} count {v.param1}",
                 )
             _check_latlon(k, v)
-            n, e, _ = frame.ned_from_geodetic(v.x_lat_deg, v.y_lon_deg, home.alt_amsl_m)
-            verts.append((n, e))
+            verts.append((v.x_lat_deg, v.y_lon_deg))
         inclusion = item.command == MavCmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION
-        zones.append(PolygonZone(tuple(verts), inclusion, int(item.param2) if inclusion else 0))
+        zones.append(GeoZone(tuple(verts), 0.0, inclusion, _group(i, item) if inclusion else 0, i))
         i += count
-    return Geofence(tuple(zones))
+    return GeoFence(tuple(zones))
+
+
+def _group(index: int, item: MissionItem) -> int:
+    group = item.param2
+    if not (math.isfinite(group) and group == int(group) and 0 <= group <= 255):
+        raise FenceError(index, f"inclusion group (param2) {group} must be an integer in [0, 255]", "param2")
+    return int(group)
+
+
+def geofence_from_items(items: Sequence[MissionItem], home: GeoPoint) -> Geofence:
+    """Parse FENCE items into zones about ``home``. Raises :class:`FenceError` naming the item."""
+    return geo_fence_from_items(items).to_local(home)
+
+
+def zone_label(zone: FenceZone, index: int) -> str:
+    """e.g. ``exclusion circle 2 (r 8 m at 60 N 10 E)`` for messages (``index`` counts zones from 1)."""
+    kind = ("inclusion " if zone.inclusion else "exclusion ") + (
+        "circle" if isinstance(zone, CircleZone) else "polygon"
+    )
+    if isinstance(zone, CircleZone):
+        n, e = zone.center_ne_m
+        return f"{kind} {index} (r {zone.radius_m:.0f} m at {n:.0f} N {e:.0f} E)"
+    return f"{kind} {index} ({len(zone.vertices_ne_m)} vertices)"
 
 
 def circle_fence_items(

@@ -12,12 +12,13 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from autopilot.mission.fence import FenceError, geofence_from_items
+from autopilot.mission.fence import FenceError, geo_fence_from_items
 from autopilot.mission.param_decls import MISSION_PARAM_DEFAULTS
 from autopilot.mission.plan import alt_rel_home_m, is_wpl_home_line, uses_current_position
 from autopilot.params import ParamStore
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
 from mavlink_bridge.contract.mav_enums import (
+    AMSL_FRAMES,
     GLOBAL_FRAMES,
     MISSION_COMMANDS,
     NAV_COMMANDS,
@@ -95,7 +96,9 @@ def _check_finite(i: int, item: MissionItem) -> None:
             raise _RefusedError(result, i, name, f"{label} is {value} (must be finite)")
 
 
-def _check_position(i: int, item: MissionItem, home: GeoPoint, frame: LocalNedFrame, limits: MissionLimits) -> None:
+def _check_position(
+    i: int, item: MissionItem, home: GeoPoint | None, frame: LocalNedFrame | None, limits: MissionLimits
+) -> None:
     if item.frame not in GLOBAL_FRAMES:
         raise _RefusedError(
             MissionResult.UNSUPPORTED_FRAME,
@@ -114,8 +117,10 @@ def _check_position(i: int, item: MissionItem, home: GeoPoint, frame: LocalNedFr
             raise _RefusedError(
                 MissionResult.INVALID_PARAM6_Y, i, "y_lon_deg", f"longitude {item.y_lon_deg:g} outside [-180, 180]"
             )
-        n, e, _ = frame.ned_from_geodetic(item.x_lat_deg, item.y_lon_deg, home.alt_amsl_m)
-        dist = math.hypot(n, e)
+        dist = 0.0
+        if frame is not None and home is not None:  # without home: checked again once it is known
+            n, e, _ = frame.ned_from_geodetic(item.x_lat_deg, item.y_lon_deg, home.alt_amsl_m)
+            dist = math.hypot(n, e)
         if dist > limits.max_dist_m:
             raise _RefusedError(
                 MissionResult.INVALID_PARAM5_X,
@@ -123,9 +128,13 @@ def _check_position(i: int, item: MissionItem, home: GeoPoint, frame: LocalNedFr
                 "x_lat_deg",
                 f"{dist:.0f} m from home, more than the {limits.max_dist_m:g} m allowed (MIS_DIST_MAX)",
             )
-    on_ground_ok = (here and item.command == MavCmd.NAV_LOITER_TIME) or is_wpl_home_line(i, item, home)
+    if home is None and item.frame in AMSL_FRAMES:
+        return  # an AMSL altitude is checked once home is known
+    on_ground_ok = (here and item.command == MavCmd.NAV_LOITER_TIME) or (
+        home is not None and is_wpl_home_line(i, item, home)
+    )
     if item.command in _ALT_CHECKED and not on_ground_ok:
-        alt = alt_rel_home_m(item, home)
+        alt = alt_rel_home_m(item, home) if home is not None else item.z_alt_m
         if not limits.alt_min_m <= alt <= limits.alt_max_m:
             raise _RefusedError(
                 MissionResult.INVALID_PARAM7,
@@ -172,8 +181,8 @@ def _check_params(i: int, item: MissionItem, items: Sequence[MissionItem], limit
             raise _RefusedError(p1, i, "param1", f"DO_JUMP loop {int(target)}..{i} contains no navigation item")
 
 
-def _check_mission_items(items: Sequence[MissionItem], home: GeoPoint, limits: MissionLimits) -> None:
-    frame = LocalNedFrame(home)
+def _check_mission_items(items: Sequence[MissionItem], home: GeoPoint | None, limits: MissionLimits) -> None:
+    frame = LocalNedFrame(home) if home is not None else None
     for i, item in enumerate(items):
         if item.seq != i:
             raise _RefusedError(MissionResult.INVALID_SEQUENCE, i, "seq", f"sequence number {item.seq}, expected {i}")
@@ -202,7 +211,7 @@ def _check_mission_items(items: Sequence[MissionItem], home: GeoPoint, limits: M
         _check_params(i, item, items, limits)
 
 
-def _check_fence_items(items: Sequence[MissionItem], home: GeoPoint) -> None:
+def _check_fence_items(items: Sequence[MissionItem]) -> None:
     for i, item in enumerate(items):
         if item.seq != i:
             raise _RefusedError(MissionResult.INVALID_SEQUENCE, i, "seq", f"sequence number {item.seq}, expected {i}")
@@ -211,15 +220,18 @@ def _check_fence_items(items: Sequence[MissionItem], home: GeoPoint) -> None:
                 MissionResult.INVALID, i, "mission_type", f"mission_type {item.mission_type!r} in a FENCE list"
             )
     try:
-        geofence_from_items(items, home)
+        geo_fence_from_items(items)
     except FenceError as exc:
         raise _RefusedError(MissionResult.INVALID, exc.item_index, exc.field, exc.message) from None
 
 
 def check_mission(
-    items: Sequence[MissionItem], home: GeoPoint, limits: MissionLimits | None = None
+    items: Sequence[MissionItem], home: GeoPoint | None, limits: MissionLimits | None = None
 ) -> MissionIssue | None:
     """The first problem of a complete upload, or None when it can be installed.
+
+    With ``home`` None (no position fix yet) what needs home (MIS_DIST_MAX, AMSL altitudes) is left for the
+    check once home is known (:mod:`autopilot.mission.uploads`).
 
     The list's mission type is taken from its first item (an empty list is a valid "clear").
     FENCE lists are checked by parsing them into zones (:func:`geofence_from_items`).
@@ -236,7 +248,7 @@ def check_mission(
         if not items:
             return None
         if items[0].mission_type == MissionType.FENCE:
-            _check_fence_items(items, home)
+            _check_fence_items(items)
         elif items[0].mission_type == MissionType.MISSION:
             _check_mission_items(items, home, limits)
         else:
@@ -249,7 +261,7 @@ def check_mission(
 
 
 def validate_mission(
-    items: Sequence[MissionItem], home: GeoPoint, limits: MissionLimits | None = None
+    items: Sequence[MissionItem], home: GeoPoint | None, limits: MissionLimits | None = None
 ) -> tuple[MissionResult, str]:
     """``(ACCEPTED, "")`` or the MAVLink result and a user-readable reason naming the item."""
     issue = check_mission(items, home, limits)

@@ -7,6 +7,8 @@ PX4's navigator in spirit: it owns what the vehicle is asked to fly in AUTO_MISS
 - Owns: the uploaded MISSION and FENCE items, the :class:`MissionExecutor`, the :class:`Geofence`, the
   :class:`AvoidancePlanner` and the route glue between them (the route handed to the planner, waypoints a
   detour bypassed or that lie inside an obstacle's safety volume skipped, the nose along the path).
+- Routes (issue 13): uploads accepted before home is known and checked once it is (:class:`UploadStore`);
+  legs routed around the fence and known obstacles (:class:`LegRouting`); bypassed items reported as such.
 - Emits: one :class:`NavOutput` per step (the commander's mission target, items reached, gripper actions)
   and, while avoiding, a :class:`ReferenceOverride` for the setpoint generator; status texts.
 
@@ -19,11 +21,11 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
-from typing import Protocol
 
 import numpy as np
 
 from autopilot.estimation import VehicleState
+from autopilot.failsafe import FailsafeEvent
 from autopilot.fence_zones import planner_fence_zones
 from autopilot.mission.executor import (
     ActionKind,
@@ -34,14 +36,17 @@ from autopilot.mission.executor import (
     NavKind,
     VehicleSample,
 )
-from autopilot.mission.executor import NavTarget as MissionTarget
-from autopilot.mission.fence import FenceError, Geofence, geofence_from_items
-from autopilot.mission.validation import MissionLimits, validate_mission
+from autopilot.mission.feasibility import FeasibilityLimits
+from autopilot.mission.fence import Geofence
+from autopilot.mission.uploads import UploadStore
+from autopilot.mission.validation import MissionLimits
 from autopilot.navigation.home_frame import HomeFrame
+from autopilot.navigation.leg_routing import LegRouting, RoutePlanner
+from autopilot.navigation.targets import face_along_path, mission_nav_target
 from autopilot.params import ParamStore
 from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import AvoidancePlanner
-from autopilot.setpoints import NavTarget, TargetKind
+from autopilot.setpoints import NavTarget
 from mavlink_bridge.contract.frames import Vec3
 from mavlink_bridge.contract.mav_enums import MissionState
 from mavlink_bridge.contract.vehicle_api import (
@@ -58,25 +63,6 @@ from mavlink_bridge.contract.wire import ObstacleDetection, fast_frozen_init
 #: checks it after the rejoin), at most this many points.
 ROUTE_AHEAD_LOOKAHEADS = 2.0
 ROUTE_MAX_POINTS = 64
-#: In AUTO_MISSION the nose (forward camera) faces a route point at least this far ahead (m), none closer than
-#: FACE_MIN_M (closer, the heading is kept: no spinning over a waypoint).
-FACE_AHEAD_M = 6.0
-FACE_MIN_M = 2.0
-
-
-class RoutePlanner(Protocol):
-    """The avoidance planner seam (``autopilot.planner.planner.AvoidancePlanner.update``); positions about home."""
-
-    def update(
-        self,
-        time_us: int,
-        pos_ned: Sequence[float],
-        vel_ned: Sequence[float],
-        q_ned_frd: Sequence[float],
-        detections: Sequence[ObstacleDetection],
-        route_target_ned: Sequence[float],
-        route_next_ned: Sequence[float] | np.ndarray | None = None,
-    ) -> object: ...
 
 
 @fast_frozen_init
@@ -87,6 +73,8 @@ class NavOutput:
     mission_target: NavTarget | None  # None: the mission flies nothing now (or the mode is not AUTO_MISSION)
     reached: tuple[int, ...] = ()  # items reached at this step
     gripper_release: bool | None = None  # a DO_GRIPPER action at this step: True release, False grab
+    bypassed: tuple[int, ...] = ()  # items flown around (a detour rejoined past them), never reached
+    failsafe: FailsafeEvent | None = None  # no route for CA_NOROUTE_T: CA_NOROUTE_ACT (once)
 
 
 @fast_frozen_init
@@ -102,27 +90,6 @@ class ReferenceOverride:
 _NOTHING = NavOutput(None)
 
 
-def mission_nav_target(target: MissionTarget, frame: HomeFrame, params: ParamStore, land_speed_m_s: float,
-                       face_yaw_rad: float = math.nan) -> NavTarget:  # fmt: skip
-    """The executor's target (about home) as a commander target (about the origin); a waypoint or return
-    without a yaw of its own gets ``face_yaw_rad`` (MPC_YAW_MODE 0: the nose, and the camera, along the path)."""
-    p = params.get
-    n, e, d = frame.origin_from_home(target.pos_ned_m)
-    speed = min(target.speed_m_s, p("MPC_XY_VEL_MAX"))
-    up, down = p("MPC_Z_VEL_MAX_UP"), p("MPC_Z_VEL_MAX_DN")
-    yaw = math.nan if math.isnan(target.yaw_deg) else math.radians(target.yaw_deg)
-    if math.isnan(yaw) and target.kind in (NavKind.WAYPOINT, NavKind.RETURN):
-        yaw = face_yaw_rad
-    kind = target.kind
-    if kind is NavKind.IDLE:
-        return NavTarget(TargetKind.IDLE, (n, e, d))
-    if kind is NavKind.LAND:
-        return NavTarget(TargetKind.LAND, (n, e, d), yaw, speed, up, land_speed_m_s)
-    if kind is NavKind.TAKEOFF:
-        up = p("MPC_TKO_SPEED")
-    return NavTarget(TargetKind.POSITION, (n, e, d), yaw, speed, up, down)
-
-
 class Navigator:
     """Missions, fences and avoidance about home; pure (no clock or I/O), stepped by the runner."""
 
@@ -136,10 +103,11 @@ class Navigator:
         self.planner = planner
         #: The commander's descent speed for a mission LAND now (it changes at MPC_LAND_ALT2).
         self.land_speed_m_s = land_speed_m_s or (lambda: params.get("MPC_LAND_SPEED"))
-        self.geofence = Geofence()
+        self.uploads = UploadStore()
+        self.geofence = Geofence()  # the uploaded FENCE about home (empty until home is known)
+        self.routing = LegRouting(PlannerParams.from_store(params))
         self.executor: MissionExecutor | None = None
-        self.mission: list[MissionItem] = []
-        self.fence: list[MissionItem] = []
+        self.bypassed_seqs: list[int] = []
         self.frame: HomeFrame | None = None  # home about the origin (before arming: the origin itself)
         self.planner_output: object | None = None
         self._texts: list[StatusText] = []
@@ -150,30 +118,46 @@ class Navigator:
         self._nav_faces = False  # the cached mission target's yaw is the per-step heading along the path
         self._param_version = 0
         self._detections: Sequence[ObstacleDetection] = ()
+        self._bypass_reason: dict[int, str] = {}
         self.apply_planner_params()
         self.apply_altitude_limits()
+        self.apply_upload_limits()
 
     # ------------------------------------------------------------------ configuration
     def apply_planner_params(self) -> None:
-        """CA_* into the planner."""
+        """CA_* into the planner and the router (CA_FENCE_MARG_M re-checks the mission: its routes change)."""
+        params = PlannerParams.from_store(self.params)
         if isinstance(self.planner, AvoidancePlanner):
-            self.planner.set_params(PlannerParams.from_store(self.params))
+            self.planner.set_params(params)
+        self.routing.set_params(params)
+        self.apply_upload_limits()
+
+    def apply_upload_limits(self) -> None:
+        """GF_MAX_VER_DIST, GF_MAX_HOR_DIST, CA_FENCE_MARG_M, MIS_* into the upload checks (re-checks the mission)."""
+        if not hasattr(self, "uploads"):
+            return
+        self.uploads.set_limits(FeasibilityLimits.from_params(self.params.get), MissionLimits.from_params(self.params))
+        self._sync_uploads()
 
     def apply_altitude_limits(self) -> None:
-        """GF_MAX_VER_DIST (when set) is a ceiling for detours too."""
+        """GF_MAX_VER_DIST (when set) is a ceiling for detours too, and for the mission's items."""
         if isinstance(self.planner, AvoidancePlanner):
             ceiling = self.params.get("GF_MAX_VER_DIST")
             self.planner.set_altitude_limits(0.0, ceiling if ceiling > 0.0 else math.inf)
+        self.apply_upload_limits()
 
     def apply_mission_params(self) -> None:
-        """MIS_* into the executor; any parameter change invalidates the cached mission target."""
+        """MIS_* into the executor and the upload checks; any parameter change invalidates the cached target."""
         if self.executor is not None:
             self.executor.configure(ExecutorConfig.from_params(self.params))
+        self.apply_upload_limits()
 
     def params_changed(self) -> None:
         self._param_version += 1
 
     def drain_texts(self) -> list[StatusText]:
+        for text in self.uploads.drain_texts():
+            self._texts.append(StatusText(text.severity, text.text))
         out, self._texts = self._texts, []
         return out
 
@@ -182,51 +166,54 @@ class Navigator:
 
     # ------------------------------------------------------------------ home
     def set_home(self, frame: HomeFrame) -> None:
-        """Home moved (first fix, arming): the executor and the fence are re-anchored on it."""
+        """Home moved (first fix, arming): the executor and the fence are re-anchored on it and the stored
+        mission is checked against it (an infeasible one is reported and not flown)."""
         self.frame = frame
         executor = self._executor()
         if executor is not None:
             executor.set_home(frame.geo)
-        if self.fence:
-            self._set_geofence(geofence_from_items(self.fence, frame.geo))
+        self.uploads.set_home(frame.geo)
+        self._sync_uploads()
 
     def _executor(self) -> MissionExecutor | None:
         if self.executor is None and self.frame is not None:
             self.executor = MissionExecutor(self.frame.geo, ExecutorConfig.from_params(self.params))
         return self.executor
 
-    def _set_geofence(self, fence: Geofence) -> None:
-        self.geofence = fence
-        if isinstance(self.planner, AvoidancePlanner):
-            self.planner.set_fences(planner_fence_zones(fence))
+    def _sync_uploads(self) -> None:
+        """The fence (about home) into the planner, router and failsafe; the flyable mission into the executor."""
+        uploads = self.uploads
+        if uploads.fence is not self.geofence:
+            self.geofence = uploads.fence
+            if isinstance(self.planner, AvoidancePlanner):
+                self.planner.set_fences(planner_fence_zones(uploads.fence))
+            self.routing.set_fence(uploads.fence)
+        executor = self.executor
+        if executor is not None:
+            flyable = uploads.mission if uploads.flyable else []
+            if executor.items != flyable:
+                executor.set_mission(flyable)
+                self.routing.reset()
+
+    @property
+    def mission(self) -> list[MissionItem]:
+        """The accepted MISSION items (flown once home is known and they are feasible)."""
+        return self.uploads.mission
+
+    @property
+    def fence(self) -> list[MissionItem]:
+        """The accepted FENCE items."""
+        return self.uploads.fence_items
 
     # ------------------------------------------------------------------ uploads (GCS)
     def replace_mission(self, mission_type: MissionType, items: list[MissionItem]) -> tuple[MissionResult, str]:
-        """A whole MISSION or FENCE upload: validated about home, kept only when accepted."""
-        if mission_type not in (MissionType.MISSION, MissionType.FENCE):
-            return MissionResult.UNSUPPORTED, f"mission type {mission_type.name} is not supported"
-        frame = self.frame
-        if frame is None:
-            return MissionResult.ERROR, "no position fix yet: upload again once the vehicle has a position"
-        if mission_type is MissionType.FENCE:
-            try:
-                fence = geofence_from_items(items, frame.geo)
-            except FenceError as exc:
-                return MissionResult.INVALID, str(exc)
-            self.fence = list(items)
-            self._set_geofence(fence)
-            self._say(f"Geofence: {len(items)} items")
-            return MissionResult.ACCEPTED, ""
-        result, reason = validate_mission(items, frame.geo, MissionLimits.from_params(self.params))
-        if result is not MissionResult.ACCEPTED:
-            return result, reason
-        executor = self._executor()
-        if executor is None:
-            return MissionResult.ERROR, "no position fix yet"
-        executor.set_mission(items)
-        self.mission = list(items)
-        self._say(f"Mission: {len(items)} items")
-        return MissionResult.ACCEPTED, ""
+        """A whole MISSION or FENCE upload, accepted whenever it arrives (before the first fix too) and kept
+        only when valid; checked against home and the fence as soon as both are known. A refusal says why,
+        also as a STATUSTEXT naming the item."""
+        result, reason = self.uploads.upload(mission_type, items)
+        if result is MissionResult.ACCEPTED:
+            self._sync_uploads()
+        return result, reason
 
     def mission_items(self, mission_type: MissionType) -> list[MissionItem]:
         if mission_type is MissionType.FENCE:
@@ -235,17 +222,22 @@ class Navigator:
 
     @property
     def mission_ready(self) -> bool:
-        return bool(self.mission)
+        """A mission is stored, home is known and the mission passed the feasibility checks."""
+        return self.uploads.flyable
 
     def set_current_mission_item(self, seq: int) -> bool:
         return self.executor is not None and self.executor.set_current(seq)
 
     def start_mission(self, time_us: int, seq: int | None = None) -> bool:
+        if self.uploads.mission_issue:
+            self._say(f"Mission not started: {self.uploads.mission_issue}", Severity.WARNING)
+            return False
         return self.executor is not None and self.executor.start(time_us, seq)
 
     def mode_changed(self, mode: FlightMode, previous: FlightMode, time_us: int) -> None:
         """Entering AUTO_MISSION starts (or resumes) the mission; leaving it pauses the mission."""
         executor = self.executor
+        self.routing.reset()
         if executor is None:
             return
         if mode is FlightMode.AUTO_MISSION and executor.state is not MissionState.ACTIVE:
@@ -282,19 +274,30 @@ class Navigator:
         if self._skip_covered_target(state.time_us):  # never fly toward a waypoint inside an obstacle
             then = executor.step(sample)
             out = self._last_output = replace(
-                then, reached=out.reached + then.reached, actions=out.actions + then.actions
+                then,
+                reached=out.reached + then.reached,
+                actions=out.actions + then.actions,
+                bypassed=out.bypassed + then.bypassed,
             )
         for seq in out.reached:
             self._say(f"Reached item {seq}")
+        for seq in out.bypassed:
+            self.bypassed_seqs.append(seq)
+            why = self._bypass_reason.pop(seq, "a detour rejoined the route past it")
+            self._say(f"Bypassed item {seq}: {why}", Severity.WARNING)
         gripper = None
         for action in out.actions:
             gripper = action.kind is ActionKind.GRIPPER_RELEASE
         target = out.target
         if target is None:
-            return NavOutput(None, out.reached, gripper) if out.reached or gripper is not None else _NOTHING
-        face = self._face_along_path(pos, target)
-        # built once per executor target, home and parameter set (and LAND descent speed, which changes at
-        # MPC_LAND_ALT2); a target that faces along the path gets this step's heading (the only field that changes)
+            if out.reached or out.bypassed or gripper is not None:
+                return NavOutput(None, out.reached, gripper, out.bypassed)
+            return _NOTHING
+        target, failsafe = self.routing.route(state.time_us, pos, target, self._mission_route, self.planner_output,
+                                              self._say)  # fmt: skip
+        face = face_along_path(self.params, self.planner_output, pos, target, self._mission_route)
+        # built once per (routed) executor target, home and parameter set (and LAND descent speed, which changes
+        # at MPC_LAND_ALT2); a target that faces along the path gets this step's heading (the only field changing)
         key: tuple[object, ...] = (target, frame, self._param_version)
         land_speed_m_s = math.nan
         if target.kind is NavKind.LAND:
@@ -308,7 +311,14 @@ class Navigator:
         elif self._nav_faces:
             nav = NavTarget(nav.kind, nav.pos_ned_m, face, nav.speed_xy_m_s, nav.speed_up_m_s, nav.speed_down_m_s)
         self._nav = nav
-        return NavOutput(nav, out.reached, gripper)
+        if out.reached or out.bypassed or gripper is not None or failsafe is not None:
+            return NavOutput(nav, out.reached, gripper, out.bypassed, failsafe)
+        return NavOutput(nav)
+
+    @property
+    def route_path_home_ned_m(self) -> np.ndarray | None:
+        """The planned leg around the fence (and known obstacles) about home, (n, 3), for drawing; None if none."""
+        return self.routing.path_home_ned_m
 
     def avoid(self, state: VehicleState, target: NavTarget) -> ReferenceOverride | None:
         """Let the avoidance planner override the reference (AUTO_MISSION, POSITION target).
@@ -331,7 +341,10 @@ class Navigator:
         goal = frame.home_from_origin(target.pos_ned_m)
         route = self._mission_route()
         nxt: Sequence[float] | np.ndarray | None = None
-        if route is not None:
+        routed = self.routing.active
+        if routed:  # the via points, the target, the later legs around the fence
+            nxt = self.routing.ahead()
+        elif route is not None:
             nxt = route.pos_ned_m[1:] if len(route.seqs) > 1 else None
         else:
             out = self._last_output
@@ -340,7 +353,12 @@ class Navigator:
         result = planner.update(state.time_us, pos, state.vel_ned_m_s, state.q_ned_frd, detections, goal, nxt)
         self.planner_output = result
         k = int(getattr(result, "rejoin_route_index", 0))
-        if route is not None and 0 < k < len(route.seqs):  # the detour rejoins past waypoints: skip them now
+        if k > 0 and routed:  # the detour rejoins past via points (dropped) and maybe items (skipped now)
+            seq = self.routing.rejoin(k)
+            if seq is not None:
+                assert self.executor is not None
+                self.executor.skip_to(seq, state.time_us)
+        elif route is not None and 0 < k < len(route.seqs):  # the detour rejoins past waypoints: skip them now
             assert self.executor is not None
             self.executor.skip_to(route.seqs[k], state.time_us)
         for decision in getattr(result, "decisions", ()):
@@ -388,25 +406,6 @@ class Navigator:
         assert self.executor is not None
         if seq < 0 or not self.executor.skip_to(seq, time_us):
             return False
+        self._bypass_reason[route.seqs[0]] = "it lies inside an obstacle's safety volume"
         self._say(f"Skipped to item {seq}: item {route.seqs[0]} lies inside an obstacle's safety volume")
         return True
-
-    def _face_along_path(self, pos_home_ned_m: Vec3, target: MissionTarget) -> float:
-        """Heading (rad) toward where the vehicle is going, about home: the detour's look-ahead point while
-        avoiding, else the first route point at least FACE_AHEAD_M away (dense patterns), else the target.
-        NaN (keep the heading) with MPC_YAW_MODE 1 or nothing far enough away."""
-        if self.params.get("MPC_YAW_MODE") >= 0.5:
-            return math.nan
-        pos = pos_home_ned_m
-        look = getattr(self.planner_output, "look_ahead_ned", None)
-        if look is None or getattr(self.planner_output, "setpoint", None) is None:
-            look = target.pos_ned_m
-            if target.kind is NavKind.WAYPOINT and math.hypot(look[0] - pos[0], look[1] - pos[1]) < FACE_AHEAD_M:
-                route = self._mission_route()
-                if route is not None:
-                    for row in route.pos_ned_m.tolist()[1:]:
-                        look = row
-                        if math.hypot(row[0] - pos[0], row[1] - pos[1]) >= FACE_AHEAD_M:
-                            break
-        dn, de = look[0] - pos[0], look[1] - pos[1]
-        return math.atan2(de, dn) if math.hypot(dn, de) >= FACE_MIN_M else math.nan

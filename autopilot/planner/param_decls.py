@@ -25,6 +25,9 @@ def planner_param_specs() -> tuple[ParamSpec, ...]:
         ParamSpec("CA_CEILING_M", 120.0, 5.0, 1000.0, "m", "Highest altitude above home a detour may use"),
         ParamSpec("CA_SENS_RANGE_M", 25.0, 1.0, 200.0, "m", "Obstacle sensor range (stereo camera max range)"),
         ParamSpec("CA_REPLAN_S", 0.2, 0.0, 5.0, "s", "Shortest interval between two replans"),
+        ParamSpec("CA_FENCE_MARG_M", 3.0, 0.0, 50.0, "m", "Routes keep this far from fence boundaries"),
+        ParamSpec("CA_NOROUTE_T", 30.0, 0.0, 3600.0, "s", "With no route, hold this long, then CA_NOROUTE_ACT"),
+        ParamSpec("CA_NOROUTE_ACT", 3.0, 2.0, 4.0, "", "Action when no route exists: 2 hold, 3 return, 4 land"),
     )
 
 
@@ -47,6 +50,9 @@ class PlannerParams:
     ceiling_m: float = 120.0
     sensor_range_m: float = 25.0
     replan_s: float = 0.2
+    fence_margin_m: float = 3.0
+    noroute_t_s: float = 30.0
+    noroute_action: int = 3
 
     @classmethod
     def from_store(cls, store: ParamStore) -> PlannerParams:
@@ -68,4 +74,7 @@ class PlannerParams:
             ceiling_m=g("CA_CEILING_M"),
             sensor_range_m=g("CA_SENS_RANGE_M"),
             replan_s=g("CA_REPLAN_S"),
+            fence_margin_m=g("CA_FENCE_MARG_M"),
+            noroute_t_s=g("CA_NOROUTE_T"),
+            noroute_action=int(g("CA_NOROUTE_ACT")),
         )

@@ -19,6 +19,7 @@ TRAIL = "world/trail"
 HOME = "world/home"
 ROUTE = "world/home/route"
 DETOUR = "world/home/detour"
+PLANNED_ROUTE = "world/home/planned_route"  # the leg routed around the fence / known obstacles (issue 13)
 OBSTACLES_SENSED = "world/home/obstacles/sensed"
 OBSTACLES_SAFETY = "world/home/obstacles/safety"
 OBSTACLES_TRUE = "world/home/obstacles/true"

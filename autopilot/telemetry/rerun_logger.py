@@ -113,6 +113,7 @@ _LEVEL = {
 _COLOR_TRAIL = (60, 140, 255)
 _COLOR_ROUTE = (240, 200, 40)
 _COLOR_DETOUR = (40, 220, 120)
+_COLOR_PLANNED = (255, 170, 0)  # the routed leg around the no-fly zones
 _COLOR_SENSED = (255, 120, 40, 200)
 _COLOR_SAFETY = (255, 60, 60, 120)
 _COLOR_TRUE = (150, 150, 160, 160)
@@ -185,6 +186,7 @@ class RerunTelemetry:
         self._last_target_key: Sequence[float] | None = None  # the latest target drawn (LAND: its xy only)
         self._targets: list[tuple[float, float, float]] = []
         self._last_detour: object | None = None
+        self._last_planned_route: object | None = None
         self._last_obstacle_key: tuple[Any, ...] | None = None
         self._steps: list[int] = []  # the step number of each buffered row (decimation keeps its phase)
         self._blueprint_sent = blueprint_sent
@@ -266,6 +268,10 @@ class RerunTelemetry:
                     self._add_target(t_us, pos)
             if planner is not None:
                 self._planner_3d(t_us, planner)
+            planned = getattr(record, "planned_route_home_ned_m", None)
+            if planned is not self._last_planned_route:  # a replanned leg around the zones (issue 13)
+                self._last_planned_route = planned
+                self.on_planned_route(planned, t_us)
         if record.texts or record.mode is not self._last_mode or record.armed is not self._last_armed:
             self._events(record)
         if record.mission_seq != self._last_seq:
@@ -501,6 +507,15 @@ class RerunTelemetry:
             self.rec.log(ent.DETOUR, rr.Clear(recursive=False))
             return
         self.rec.log(ent.DETOUR, rr.LineStrips3D([points_ned_home], colors=[_COLOR_DETOUR], radii=0.12))
+
+    def on_planned_route(self, points_ned_home: np.ndarray | None, time_us: int) -> None:
+        """The leg routed around the fence and known obstacles (m, 3) about home; None clears it (direct leg)."""
+        self._set_time(time_us)
+        if points_ned_home is None or len(points_ned_home) < 2:
+            self.rec.log(ent.PLANNED_ROUTE, rr.Clear(recursive=False))
+            return
+        self.rec.log(ent.PLANNED_ROUTE, rr.LineStrips3D([points_ned_home], colors=[_COLOR_PLANNED], radii=0.15),
+                     rr.Points3D(points_ned_home, colors=[_COLOR_PLANNED], radii=0.35))  # fmt: skip
 
     # ------------------------------------------------------------------ flushing
     def flush(self) -> None:

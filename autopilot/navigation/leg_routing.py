@@ -1,0 +1,135 @@
+"""The navigator's route glue around :class:`MissionRouter` (issue 13), about home.
+
+:class:`LegRouting` turns the executor's positional target into the target the commander flies (the leg's
+next via point around the fence, and after a HOLD of the avoidance planner around the tracked obstacles;
+the hold point when no route exists), hands the avoidance planner the routed route ahead, and maps a
+detour's rejoin index back to the mission item to skip to. Planned on events (a new target, a new fence,
+a HOLD, a detour's end); the same objects come back while nothing changes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+from typing import Protocol
+
+import numpy as np
+
+from autopilot.failsafe import FailsafeAction, FailsafeEvent, FailsafeKind
+from autopilot.mission.executor import MissionRoute, NavKind
+from autopilot.mission.executor import NavTarget as MissionTarget
+from autopilot.mission.fence import Geofence
+from autopilot.planner.mission_router import MissionRouter, RouteStatus, RouteStep
+from autopilot.planner.param_decls import PlannerParams
+from autopilot.planner.planner import PlannerState
+from mavlink_bridge.contract.frames import Vec3
+from mavlink_bridge.contract.vehicle_api import Severity
+from mavlink_bridge.contract.wire import ObstacleDetection
+
+
+class RoutePlanner(Protocol):
+    """The avoidance planner seam (``autopilot.planner.planner.AvoidancePlanner.update``); positions about home."""
+
+    def update(
+        self,
+        time_us: int,
+        pos_ned: Sequence[float],
+        vel_ned: Sequence[float],
+        q_ned_frd: Sequence[float],
+        detections: Sequence[ObstacleDetection],
+        route_target_ned: Sequence[float],
+        route_next_ned: Sequence[float] | np.ndarray | None = None,
+    ) -> object: ...
+
+
+#: Executor targets whose leg is routed around the fence (a takeoff or a landing is vertical).
+ROUTED_KINDS = frozenset({NavKind.WAYPOINT, NavKind.LOITER, NavKind.RETURN})
+
+
+class LegRouting:
+    """The routed leg to the executor's current target (see the module docstring)."""
+
+    def __init__(self, params: PlannerParams) -> None:
+        self.router = MissionRouter(params)
+        self._key: object = None  # the routed target (seq, kind, position)
+        self._pts: np.ndarray | None = None  # the mission's route from the target on (about home)
+        self._seqs: tuple[int, ...] = ()
+        self._step: RouteStep | None = None
+        self._src: MissionTarget | None = None  # the executor's target the routed one was made from
+        self._routed: MissionTarget | None = None
+
+    def set_params(self, params: PlannerParams) -> None:
+        self.router.set_params(params)
+
+    def set_fence(self, fence: Geofence) -> None:
+        self.router.set_fence(fence)
+        self._key = None
+
+    def reset(self) -> None:
+        """Forget the leg (mode change, new mission)."""
+        self.router.reset()
+        self._key, self._step = None, None
+
+    @property
+    def step(self) -> RouteStep | None:
+        return self._step
+
+    @property
+    def active(self) -> bool:
+        """The current leg is routed (or direct): the planner gets :meth:`ahead`, a rejoin goes to :meth:`rejoin`."""
+        step = self._step
+        return step is not None and step.status in (RouteStatus.ROUTED, RouteStatus.DIRECT)
+
+    @property
+    def path_home_ned_m(self) -> np.ndarray | None:
+        """The planned leg around the fence (and known obstacles), (n, 3) about home; None when not routed."""
+        step = self._step
+        return step.path_ned_m if step is not None and step.status is RouteStatus.ROUTED else None
+
+    def route(
+        self,
+        time_us: int,
+        pos_home_ned_m: Vec3,
+        target: MissionTarget,
+        mission_route: Callable[[], MissionRoute | None],
+        planner_output: object | None,
+        say: Callable[[str, Severity], None],
+    ) -> tuple[MissionTarget, FailsafeEvent | None]:
+        """The target to fly now and, once, the no-route failsafe (CA_NOROUTE_ACT after CA_NOROUTE_T)."""
+        if target.kind not in ROUTED_KINDS:
+            if self._key is not None:
+                self.reset()
+            return target, None
+        key = (target.seq, target.kind, target.pos_ned_m)
+        if key != self._key:
+            self._key = key
+            route = mission_route()
+            if route is not None and route.seqs and route.seqs[0] == target.seq:
+                self._pts, self._seqs = route.pos_ned_m, route.seqs
+            else:
+                self._pts, self._seqs = np.array((target.pos_ned_m,), float), (target.seq,)
+        state = getattr(planner_output, "state", PlannerState.CLEAR)
+        obstacles: Sequence[object] = getattr(planner_output, "obstacles", ())
+        step = self.router.update(time_us, pos_home_ned_m, self._pts, key, obstacles, state, f"item {target.seq}")
+        for text in step.texts:
+            say(text, Severity.WARNING if step.status is RouteStatus.NO_ROUTE else Severity.INFO)
+        failsafe = None
+        if step.action is not None:
+            failsafe = FailsafeEvent(FailsafeKind.NO_ROUTE, FailsafeAction(step.action),
+                                     f"Failsafe: no route to item {target.seq}: {step.reason}")  # fmt: skip
+        if step is not self._step or target is not self._src:
+            self._step, self._src = step, target
+            goal = step.goal_ned_m
+            self._routed = target if goal is None or goal == target.pos_ned_m else replace(target, pos_ned_m=goal)
+        assert self._routed is not None
+        return self._routed, failsafe
+
+    def ahead(self) -> np.ndarray | None:
+        """The route after the goal for the avoidance planner: via points, the target, the later legs."""
+        step = self._step
+        return step.route_ahead_ned_m if step is not None and len(step.route_ahead_ned_m) else None
+
+    def rejoin(self, k: int) -> int | None:
+        """A detour rejoins the handed route at point ``k``: the mission item to skip to, None if none."""
+        m = self.router.consume(k)
+        return self._seqs[m] if 0 < m < len(self._seqs) else None
