@@ -25,7 +25,6 @@ MAX_LINES = 420
 LONG_MODULES: dict[str, str] = {
     "autopilot.commander": "being split (modes, arming, land detector)",
     "autopilot.mission.executor": "being split",
-    "autopilot.mission.files": "being split (one module per file format)",
     "autopilot.planner.detour": "being split",
     "autopilot.planner.planner": "being split",
     "autopilot.runner": "being split",
