@@ -133,7 +133,7 @@ def test_fly_fails_after_a_failsafe_took_over(link, tmp_path, capsys) -> None:
     rc = gcs.main([*connect, "fly", str(mission), "--summary", str(summary), "--no-progress", "--timeout-s", "30"])
     thread.join(5.0)
     assert rc == 1
-    assert "a failsafe took over: Failsafe: battery_critical" in _err_line(capsys)
+    assert "failsafe during the mission: Failsafe: battery_critical" in _err_line(capsys)
     assert '"ok": false' in summary.read_text()
 
 

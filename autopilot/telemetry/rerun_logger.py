@@ -21,106 +21,49 @@ are disabled by :func:`autopilot.telemetry.sinks.open_recording`. Angles are log
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import rerun as rr
 
-from autopilot.control.cascade import ControlSample
 from autopilot.estimation.state import EstimatorStatus, VehicleState
 from autopilot.setpoints import TargetKind
 from autopilot.telemetry import entities as ent
-from autopilot.telemetry.blueprint import Framing, flight_blueprint, tick_spacing_m
+from autopilot.telemetry.blueprint import Framing, flight_blueprint
 from autopilot.telemetry.estimator_errors import EstimatorErrorLog
-from autopilot.telemetry.scene import TrueObstacle, fence_outlines, route_points_ned, true_obstacles
-from mavlink_bridge.contract.frames import GeoPoint
-from mavlink_bridge.contract.vehicle_api import FlightMode, MissionItem, Severity
+from autopilot.telemetry.scene_log import SceneLog
+from autopilot.telemetry.step_columns import (
+    ANGLE_COLS,
+    C_ATT_ERR,
+    DECIMATION,
+    LIVE_BATCH_ROWS,
+    LIVE_TRAIL_POINTS,
+    N_3D,
+    N_COLS,
+    N_CTRL,
+    SAVE_BATCH_ROWS,
+    SAVE_TRAIL_POINTS,
+    SERIES,
+)
+from mavlink_bridge.contract.vehicle_api import FlightMode, Severity
 from mavlink_bridge.contract.wire import GroundTruth
 
 if TYPE_CHECKING:
     from autopilot.reporting import StepRecord
 
-# ---- scalar row layout (angles in rad while buffered, degrees once flushed) ----
-C_POS, C_POS_SP, C_POS_ERR, C_ATT = 0, 3, 6, 9
-C_MOTOR, C_BAT_PCT, C_BAT_V, C_CLEARANCE, C_SEQ = 12, 16, 17, 18, 19
-# the controller block (CascadeDiagnostics, NaN while the controller is off)
-C_ATT_ERR, C_ATT_SP = 20, 23
-C_KP, C_KI, C_KD = 26, 32, 38  # 6 channels each: x, y, z, roll, pitch, yaw
-C_THRUST, C_TORQUE = 44, 45
-N_COLS = 48
-_N_CTRL = N_COLS - C_ATT_ERR  # the ControlSample block
-assert _N_CTRL == ControlSample.SIZE, "the control columns mirror autopilot.control.cascade.ControlSample"
-_ANGLE_COLS = (slice(C_ATT, C_ATT + 3), slice(C_ATT_ERR, C_ATT_SP + 3))
-_NAN_CTRL = (math.nan,) * _N_CTRL
-
-#: (entity path, first column, width, series names)
-SERIES: tuple[tuple[str, int, int, tuple[str, ...]], ...] = (
-    (ent.POS_NED, C_POS, 3, ent.XYZ),
-    (ent.POS_SP_NED, C_POS_SP, 3, tuple(f"{n} sp" for n in ent.XYZ)),
-    (ent.POS_ERR_NED, C_POS_ERR, 3, ent.XYZ),
-    (ent.ATT_ERR, C_ATT_ERR, 3, ent.RPY),
-    (ent.ATT, C_ATT, 3, ent.RPY),
-    (ent.ATT_SP, C_ATT_SP, 3, tuple(f"{n} sp" for n in ent.RPY)),
-    (ent.gain_path("position", "kp"), C_KP, 3, ("k_p x", "k_p y", "k_p z")),
-    (ent.gain_path("attitude", "kp"), C_KP + 3, 3, ("k_p roll", "k_p pitch", "k_p yaw")),
-    (ent.gain_path("position", "ki"), C_KI, 3, ("k_i x", "k_i y", "k_i z")),
-    (ent.gain_path("attitude", "ki"), C_KI + 3, 3, ("k_i roll", "k_i pitch", "k_i yaw")),
-    (ent.gain_path("position", "kd"), C_KD, 3, ("k_d x", "k_d y", "k_d z")),
-    (ent.gain_path("attitude", "kd"), C_KD + 3, 3, ("k_d roll", "k_d pitch", "k_d yaw")),
-    (ent.MOTORS, C_MOTOR, 4, ent.MOTOR_NAMES),
-    (ent.THRUST, C_THRUST, 1, ("thrust (N)",)),
-    (ent.TORQUE, C_TORQUE, 3, ("roll torque (N·m)", "pitch torque (N·m)", "yaw torque (N·m)")),
-    (ent.BATTERY_REMAINING, C_BAT_PCT, 1, ("charge (%)",)),
-    (ent.BATTERY_VOLTAGE, C_BAT_V, 1, ("voltage (V)",)),
-    (ent.CLEARANCE, C_CLEARANCE, 1, ("clearance (m)",)),
-    (ent.MISSION_SEQ, C_SEQ, 1, ("current item",)),
-)
-
-#: Series flushed at every N-th control step only (250 Hz / N); the rest at every step.
-DECIMATION: dict[str, int] = {
-    ent.POS_SP_NED: 5,
-    ent.ATT_SP: 5,
-    **{ent.gain_path(loop, term): 5 for loop in ("position", "attitude") for term in ("kp", "ki", "kd")},
-    ent.THRUST: 5,
-    ent.TORQUE: 5,
-    ent.CLEARANCE: 10,
-    ent.BATTERY_REMAINING: 50,
-    ent.BATTERY_VOLTAGE: 50,
-    ent.MISSION_SEQ: 50,
-}
-
-#: Batch sizes (control steps) and trail segment lengths (3D samples): a file wants few large chunks,
-#: a live viewer wants to see the data within seconds.
-SAVE_BATCH_ROWS, SAVE_TRAIL_POINTS = 30_000, 3000
-LIVE_BATCH_ROWS, LIVE_TRAIL_POINTS = 1000, 125
-
-# ---- 3D row layout ----
-D_POS, D_QUAT, D_SP = 0, 3, 7  # quaternion stored x, y, z, w (Rerun order)
-N_3D = 10
-
-_LEVEL = {
-    Severity.EMERGENCY: rr.TextLogLevel.CRITICAL,
-    Severity.ALERT: rr.TextLogLevel.CRITICAL,
-    Severity.CRITICAL: rr.TextLogLevel.CRITICAL,
-    Severity.ERROR: rr.TextLogLevel.ERROR,
-    Severity.WARNING: rr.TextLogLevel.WARN,
-    Severity.NOTICE: rr.TextLogLevel.INFO,
-    Severity.INFO: rr.TextLogLevel.INFO,
-    Severity.DEBUG: rr.TextLogLevel.DEBUG,
-}
+__all__ = [
+    "DECIMATION",
+    "LIVE_BATCH_ROWS",
+    "LIVE_TRAIL_POINTS",
+    "SAVE_BATCH_ROWS",
+    "SAVE_TRAIL_POINTS",
+    "SERIES",
+    "RerunTelemetry",
+]
 
 _COLOR_TRAIL = (60, 140, 255)
-_COLOR_ROUTE = (240, 200, 40)
-_COLOR_DETOUR = (40, 220, 120)
-_COLOR_PLANNED = (255, 170, 0)  # the routed leg around the no-fly zones
-_COLOR_SENSED = (255, 120, 40, 200)
-_COLOR_SAFETY = (255, 60, 60, 120)
-_COLOR_TRUE = (150, 150, 160, 160)
-_COLOR_FENCE_EXCL = (255, 40, 40)
-_COLOR_FENCE_INCL = (40, 200, 255)
 _COLOR_TARGETS = (255, 150, 0)
-_COLOR_TICKS = (140, 140, 140, 160)
 _MAX_TARGETS = 2000
 
 
@@ -128,7 +71,7 @@ def _time_column(t_us: np.ndarray) -> rr.TimeColumn:
     return rr.TimeColumn(ent.TIMELINE, duration=t_us.astype("timedelta64[us]"))
 
 
-class RerunTelemetry:
+class RerunTelemetry(SceneLog):
     """Passive per-step listener that writes one flight into a Rerun recording stream.
 
     Methods (all take sim time, never wall time):
@@ -160,14 +103,19 @@ class RerunTelemetry:
         self._estimator_errors: EstimatorErrorLog | None = None
         if not (rate_3d_hz > 0.0 and batch_rows >= 1 and trail_segment_points >= 2):
             raise ValueError("need rate_3d_hz > 0, batch_rows >= 1 and trail_segment_points >= 2")
-        self.rec = rec
-        self.safety_radius_m = float(safety_radius_m)
+        super().__init__(
+            rec,
+            safety_radius_m=safety_radius_m,
+            blueprint_sent=blueprint_sent,
+            rtl_alt_m=rtl_alt_m,
+            obstacles_known=obstacles_known,
+        )
         self._period_3d_us = round(1e6 / rate_3d_hz)
         self._obstacle_period_us = round(obstacle_period_s * 1e6)
         self._batch_rows = int(batch_rows)
         self._vals: list[float] = []
         self._times: list[int] = []
-        self._ctrl = np.full((self._batch_rows, _N_CTRL), math.nan)
+        self._ctrl = np.full((self._batch_rows, N_CTRL), math.nan)
         self._has_battery: bool | None = None
         self._vals3: list[float] = []
         self._times3: list[int] = []
@@ -178,20 +126,15 @@ class RerunTelemetry:
         self._trail_t_us = 0
         self._next_3d_us = -1
         self._next_obstacles_us = -1
-        self._last_t_us = -1
         self._last_mode: FlightMode | None = None
         self._last_armed: bool | None = None
         self._last_seq: int | None = None
-        self._last_home: tuple[float, float, float] | None = None
         self._last_target_key: Sequence[float] | None = None  # the latest target drawn (LAND: its xy only)
         self._targets: list[tuple[float, float, float]] = []
         self._last_detour: object | None = None
         self._last_planned_route: object | None = None
         self._last_obstacle_key: tuple[Any, ...] | None = None
         self._steps: list[int] = []  # the step number of each buffered row (decimation keeps its phase)
-        self._blueprint_sent = blueprint_sent
-        self.rtl_alt_m = rtl_alt_m
-        self._obstacles_known = obstacles_known
         self.steps_logged = 0
         self.closed = False
         self._log_static(rotor_pos_frd_m)
@@ -361,161 +304,12 @@ class RerunTelemetry:
                 self._next_obstacles_us = t_us + self._obstacle_period_us
                 self.on_obstacles(obstacles, t_us)
 
-    # ------------------------------------------------------------------ events and scene
+    # ------------------------------------------------------------------ estimate against truth
     def on_truth(self, state: VehicleState, truth: GroundTruth, status: EstimatorStatus | None = None) -> None:
         """The estimate against the sim's truth (``estimator/`` error series, 25 Hz of sim time)."""
         if self._estimator_errors is None:
             self._estimator_errors = EstimatorErrorLog(self.rec, ent.TIMELINE)
         self._estimator_errors.log(state, truth, status)
-
-    def _set_time(self, t_us: int) -> None:
-        self.rec.set_time(ent.TIMELINE, duration=np.timedelta64(int(t_us), "us"))
-
-    def on_event(self, text: str, severity: Severity = Severity.INFO, time_us: int | None = None) -> None:
-        """A text-log line (mode change, mission item, avoidance decision, failsafe) at sim time."""
-        self._set_time(self._last_t_us if time_us is None else time_us)
-        self.rec.log(ent.LOG, rr.TextLog(text, level=_LEVEL.get(severity, rr.TextLogLevel.INFO)))
-
-    def on_route(self, points_ned_home: np.ndarray | Sequence[Sequence[float]]) -> None:
-        """The reference route (k, 3) NED about home, as a line with its waypoints (static)."""
-        pts = np.asarray(points_ned_home, dtype=np.float64).reshape(-1, 3)
-        self.rec.log(
-            ent.ROUTE,
-            rr.LineStrips3D([pts], colors=[_COLOR_ROUTE], radii=0.08),
-            rr.Points3D(pts, colors=[_COLOR_ROUTE], radii=0.3),
-            static=True,
-        )
-        if not len(pts):
-            return
-        framing = Framing.of_route(pts + np.asarray(self._last_home or (0.0, 0.0, 0.0)), self._obstacles_known)
-        self.on_ticks(framing)
-        if not self._blueprint_sent:  # one blueprint per recording, framed on the first route
-            self._blueprint_sent = True
-            self.rec.send_blueprint(flight_blueprint(framing), make_active=True, make_default=True)
-
-    def on_ticks(self, framing: Framing) -> None:
-        """The top view's labelled grid about home (static; shown in the top view only)."""
-        step = tick_spacing_m(framing.span_m)
-        (cn, ce), half = framing.center_ne_m, 0.6 * framing.span_m
-        home = self._last_home or (0.0, 0.0, 0.0)
-        n_lines = np.arange(math.floor((cn - half - home[0]) / step), math.ceil((cn + half - home[0]) / step) + 1)
-        e_lines = np.arange(math.floor((ce - half - home[1]) / step), math.ceil((ce + half - home[1]) / step) + 1)
-        n_vals, e_vals = n_lines * step, e_lines * step
-        n_lo, n_hi, e_lo, e_hi = float(n_vals[0]), float(n_vals[-1]), float(e_vals[0]), float(e_vals[-1])
-        strips = [[(n, e_lo, 0.0), (n, e_hi, 0.0)] for n in n_vals]
-        strips += [[(n_lo, e, 0.0), (n_hi, e, 0.0)] for e in e_vals]
-        labels = [f"N {n:g}" for n in n_vals] + [f"E {e:g}" for e in e_vals]
-        points = [(n, e_lo, 0.0) for n in n_vals] + [(n_lo, e, 0.0) for e in e_vals]
-        self.rec.log(
-            ent.TICKS,
-            rr.LineStrips3D(strips, colors=[_COLOR_TICKS], radii=0.03),
-            rr.Points3D(points, labels=labels, colors=[_COLOR_TICKS], radii=0.01, show_labels=True),
-            static=True,
-        )
-
-    def on_mission(self, items: Sequence[MissionItem], home: GeoPoint) -> None:
-        """The uploaded mission as the reference route (see :func:`scene.route_points_ned`)."""
-        self.on_route(route_points_ned(items, home, rtl_alt_m=self.rtl_alt_m))
-
-    def on_fence(self, zones: Sequence[object], ceiling_alt_m: float = 0.0) -> None:
-        """Fence zones (circles/polygons) as outlines on the ground (and at ``ceiling_alt_m`` if > 0); static."""
-        outlines, inclusion = fence_outlines(zones)
-        strips, colors = [], []
-        for ne, inc in zip(outlines, inclusion, strict=True):
-            color = _COLOR_FENCE_INCL if inc else _COLOR_FENCE_EXCL
-            for down in (0.0, -ceiling_alt_m) if ceiling_alt_m > 0.0 else (0.0,):
-                strips.append(np.column_stack([ne, np.full(len(ne), down)]))
-                colors.append(color)
-        self.rec.log(ent.FENCE, rr.LineStrips3D(strips, colors=colors, radii=0.1), static=True)
-
-    def on_world(self, world: Mapping[str, Any] | None) -> None:
-        """True obstacles of a mission ``world:`` mapping (what the simulator knows; the autopilot does not)."""
-        self.on_true_obstacles(true_obstacles(world))
-
-    def on_true_obstacles(self, obstacles: Sequence[TrueObstacle]) -> None:
-        """True obstacles about home (static): cylinders, boxes and spheres."""
-        by_shape: dict[str, list[TrueObstacle]] = {"cylinder": [], "box": [], "sphere": []}
-        for o in obstacles:
-            by_shape[o.shape.value].append(o)
-        cyl, box, sph = by_shape["cylinder"], by_shape["box"], by_shape["sphere"]
-        base = ent.OBSTACLES_TRUE
-        rec = self.rec
-        if cyl:
-            rec.log(
-                f"{base}/cylinders",
-                rr.Cylinders3D(
-                    lengths=[2.0 * o.half_size_m[2] for o in cyl],
-                    radii=[o.half_size_m[0] for o in cyl],
-                    centers=[o.center_ned_m for o in cyl],
-                    colors=[_COLOR_TRUE],
-                    fill_mode=rr.components.FillMode.Solid,
-                ),
-                static=True,
-            )
-        if box:
-            rec.log(
-                f"{base}/boxes",
-                rr.Boxes3D(
-                    centers=[o.center_ned_m for o in box],
-                    half_sizes=[o.half_size_m for o in box],
-                    rotation_axis_angles=[rr.RotationAxisAngle(axis=(0, 0, 1), radians=o.yaw_rad) for o in box],
-                    colors=[_COLOR_TRUE],
-                    fill_mode=rr.components.FillMode.Solid,
-                ),
-                static=True,
-            )
-        if sph:
-            rec.log(
-                f"{base}/spheres",
-                rr.Ellipsoids3D(
-                    centers=[o.center_ned_m for o in sph],
-                    half_sizes=[o.half_size_m for o in sph],
-                    colors=[_COLOR_TRUE],
-                    fill_mode=rr.components.FillMode.Solid,
-                ),
-                static=True,
-            )
-
-    def on_obstacles(self, tracked: Sequence[Any], time_us: int) -> None:
-        """Sensed (tracked) obstacles about home and their safety spheres (radius + ``safety_radius_m``).
-
-        Each item needs ``obstacle_id``, ``center_ned`` (about home) and ``radius_m``
-        (``autopilot.planner.obstacle_map.TrackedObstacle``).
-        """
-        self._set_time(time_us)
-        if not tracked:
-            self.rec.log(ent.OBSTACLES_SENSED, rr.Clear(recursive=False))
-            self.rec.log(ent.OBSTACLES_SAFETY, rr.Clear(recursive=False))
-            return
-        centers = [tuple(o.center_ned) for o in tracked]
-        radii = [float(o.radius_m) for o in tracked]
-        labels = [f"obs {o.obstacle_id}" for o in tracked]
-        self.rec.log(
-            ent.OBSTACLES_SENSED,
-            rr.Ellipsoids3D(centers=centers, radii=radii, colors=[_COLOR_SENSED], labels=labels,
-                            fill_mode=rr.components.FillMode.Solid),
-        )  # fmt: skip
-        self.rec.log(
-            ent.OBSTACLES_SAFETY,
-            rr.Ellipsoids3D(centers=centers, radii=[r + self.safety_radius_m for r in radii], colors=[_COLOR_SAFETY]),
-        )
-
-    def on_detour(self, points_ned_home: np.ndarray | None, time_us: int) -> None:
-        """The planned detour (m, 3) about home; None clears it (back on the route)."""
-        self._set_time(time_us)
-        if points_ned_home is None or len(points_ned_home) < 2:
-            self.rec.log(ent.DETOUR, rr.Clear(recursive=False))
-            return
-        self.rec.log(ent.DETOUR, rr.LineStrips3D([points_ned_home], colors=[_COLOR_DETOUR], radii=0.12))
-
-    def on_planned_route(self, points_ned_home: np.ndarray | None, time_us: int) -> None:
-        """The leg routed around the fence and known obstacles (m, 3) about home; None clears it (direct leg)."""
-        self._set_time(time_us)
-        if points_ned_home is None or len(points_ned_home) < 2:
-            self.rec.log(ent.PLANNED_ROUTE, rr.Clear(recursive=False))
-            return
-        self.rec.log(ent.PLANNED_ROUTE, rr.LineStrips3D([points_ned_home], colors=[_COLOR_PLANNED], radii=0.15),
-                     rr.Points3D(points_ned_home, colors=[_COLOR_PLANNED], radii=0.35))  # fmt: skip
 
     # ------------------------------------------------------------------ flushing
     def flush(self) -> None:
@@ -526,7 +320,7 @@ class RerunTelemetry:
             rows = np.empty((n, N_COLS))
             rows[:, :C_ATT_ERR] = np.array(self._vals, dtype=np.float64).reshape(n, C_ATT_ERR)
             rows[:, C_ATT_ERR:] = self._ctrl[:n]
-            for cols in _ANGLE_COLS:
+            for cols in ANGLE_COLS:
                 rows[:, cols] *= 180.0 / math.pi
             t_us = np.array(self._times, dtype=np.int64)
             steps = np.array(self._steps, dtype=np.int64)
