@@ -43,6 +43,7 @@ from enum import Enum
 
 from autopilot.estimation import EstimatorStatus, VehicleState
 from autopilot.failsafe import FailsafeAction, FailsafeEvent, FailsafeKind
+from autopilot.land_detector import LandDetector
 from autopilot.manual_control import stick_demand
 from autopilot.params import ParamStore
 from autopilot.setpoints import NavTarget, TargetKind
@@ -178,15 +179,13 @@ class Commander:
         self._speed_xy_m_s: float | None = None  # DO_CHANGE_SPEED override
         self._speeds_key: tuple[int, float | None] = (-1, None)  # _speeds() cache
         self._speeds_m_s = (0.0, 0.0, 0.0)
-        self._lndmc_version = -1  # _land_detector_limits() cache
-        self._lndmc = (0.0, 0.0, 0.0, 0.0)
+        self.land_detector = LandDetector(params)
         self._mission_target: NavTarget | None = None
         self._offboard_target: NavTarget | None = None
         self._offboard_body_vel: Vec3 | None = None  # a body-frame velocity setpoint, turned every step
         self._sticks: ManualInput | None = None
         self._sticks_flying = False  # POSCTL flies the sticks, or brakes after them (not yet holding)
         self._stick_brake_since_us: int | None = None
-        self._landed_since_us: int | None = None
         self._touchdown_us: int | None = None
         self._armed_at_us = 0
 
@@ -602,16 +601,6 @@ class Commander:
             self._speeds_m_s = (self.speed_xy_m_s, p("MPC_Z_VEL_MAX_UP"), p("MPC_Z_VEL_MAX_DN"))
         return self._speeds_m_s
 
-    def _land_detector_limits(self) -> tuple[float, float, float, float]:
-        """LNDMC_Z_VEL_MAX, LNDMC_XY_VEL_MAX, LNDMC_LOW_T_THR, LNDMC_TRIG_TIME (µs), cached per parameter version."""
-        version = self.params.version
-        if version != self._lndmc_version:
-            p = self.params.get
-            self._lndmc_version = version
-            trig_us = p("LNDMC_TRIG_TIME") * 1e6
-            self._lndmc = (p("LNDMC_Z_VEL_MAX"), p("LNDMC_XY_VEL_MAX"), p("LNDMC_LOW_T_THR"), trig_us)
-        return self._lndmc
-
     def mission_land_speed_m_s(self) -> float:
         """The descent speed of a mission LAND at the latest state (MPC_LAND_SPEED before any: the vehicle is
         then taken to be at home's height, below MPC_LAND_ALT2)."""
@@ -708,19 +697,6 @@ class Commander:
                 return NavTarget(TargetKind.POSITION, self._goto_ned, math.nan, *self._speeds())
         return self._land_target(state)
 
-    def _detect_landing(self, state: VehicleState, thrust_ratio: float) -> bool:
-        """Touchdown: slow and low thrust for LNDMC_TRIG_TIME (sim time)."""
-        z_vel_max, xy_vel_max, low_thrust, trig_us = self._land_detector_limits()
-        vn, ve, vd = state.vel_ned_m_s
-        xy_quiet = self._land_blind or math.hypot(vn, ve) < xy_vel_max  # blind: the xy velocity is dead reckoned
-        quiet = abs(vd) < z_vel_max and xy_quiet and thrust_ratio < low_thrust
-        if not quiet:
-            self._landed_since_us = None
-            return False
-        if self._landed_since_us is None:
-            self._landed_since_us = state.time_us
-        return state.time_us - self._landed_since_us >= trig_us
-
     def _auto_disarm_on_ground(self, state: VehicleState) -> None:
         """COM_DISARM_LAND after a touchdown, COM_DISARM_PRFLT after arming without takeoff."""
         p = self.params.get
@@ -764,7 +740,7 @@ class Commander:
                 return NavTarget(TargetKind.IDLE)
             self.landed_state = LandedState.TAKEOFF
             self._touchdown_us = None
-            self._landed_since_us = None
+            self.land_detector.reset()
             self._say("Takeoff")
             return target
         target = self._mode_target(state)
@@ -776,7 +752,7 @@ class Commander:
             return target  # no land detection before leaving the ground
         elif self.landed_state is LandedState.LANDING:
             self.landed_state = LandedState.IN_AIR
-        if self._detect_landing(state, thrust_ratio):
+        if self.land_detector.landed(state, thrust_ratio, blind=self._land_blind):
             self.landed_state = LandedState.ON_GROUND
             self._touchdown_us = state.time_us
             self._say("Landing detected")

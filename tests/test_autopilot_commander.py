@@ -261,6 +261,6 @@ def test_cached_speeds_and_land_detector_follow_parameter_changes_in_flight() ->
     assert commander.handle_command(command(MavCmd.NAV_LAND)) is CommandResult.ACCEPTED
     commander.params.set("LNDMC_TRIG_TIME", 1.5)  # a longer confirmation before "Landing detected"
     assert loop.run_until(lambda: commander.landed_state is LandedState.ON_GROUND, 60.0)
-    quiet_since_us = commander._landed_since_us
+    quiet_since_us = commander.land_detector.quiet_since_us
     assert quiet_since_us is not None
     assert loop.time_us - round(loop.dt_s * 1e6) - quiet_since_us >= 1.5e6
