@@ -15,15 +15,8 @@ import math
 import numpy as np
 from numba import njit
 
-from mavlink_bridge.contract.frames import (
-    _GEODETIC_ITERATIONS,
-    _WGS84_A_M,
-    _WGS84_B_M,
-    _WGS84_E2,
-    _WGS84_EP2,
-    DEG_E7,
-    LocalNedFrame,
-)
+from mavlink_bridge.contract.frames import DEG_E7, LocalNedFrame
+from mavlink_bridge.contract.geodetic import geodetic_from_ned
 from mavlink_bridge.contract.sensor_values import (
     N_VALUES,
     V_ACCEL_FRD,
@@ -77,33 +70,12 @@ N_CONSTANTS = 51
 NOISE_PER_STEP = 16
 
 _DEG_E7 = DEG_E7
-_RAD_TO_DEG = 180.0 / math.pi  # math.degrees (same bits, checked by the tests)
 _GPS_PERIOD_US = GPS_PERIOD_US
 
 
 def frame_constants(frame: LocalNedFrame) -> list[float]:
     """The 12 numbers of ``LocalNedFrame.geodetic_from_ned``: home ECEF, then the NED rows in ECEF."""
     return list(frame.ecef_constants)
-
-
-@_njit
-def _geodetic(c: np.ndarray, o: int, north_m: float, east_m: float, down_m: float) -> tuple[float, float, float]:
-    """``LocalNedFrame.geodetic_from_ned`` in numba: (lat °, lon °, alt m AMSL)."""
-    x = c[o] + c[o + 3] * north_m + c[o + 6] * east_m + c[o + 9] * down_m
-    y = c[o + 1] + c[o + 4] * north_m + c[o + 7] * east_m + c[o + 10] * down_m
-    z = c[o + 2] + c[o + 5] * north_m + c[o + 8] * east_m + c[o + 11] * down_m
-    lon = math.atan2(y, x)
-    p = math.hypot(x, y)
-    theta = math.atan2(z * _WGS84_A_M, p * _WGS84_B_M)
-    st, ct = math.sin(theta), math.cos(theta)
-    lat = math.atan2(z + _WGS84_EP2 * _WGS84_B_M * st * st * st, p - _WGS84_E2 * _WGS84_A_M * ct * ct * ct)
-    alt = 0.0
-    for _ in range(_GEODETIC_ITERATIONS):
-        s = math.sin(lat)
-        n = _WGS84_A_M / math.sqrt(1.0 - _WGS84_E2 * s * s)
-        alt = p / math.cos(lat) - n
-        lat = math.atan2(z, p * (1.0 - _WGS84_E2 * n / (n + alt)))
-    return lat * _RAD_TO_DEG, lon * _RAD_TO_DEG, alt
 
 
 @_njit
@@ -155,7 +127,7 @@ def fill_values(
     # ground truth (VehicleSim.ground_truth)
     for k in range(7):  # q, rates
         v[V_Q_NED_FRD + k] = x[6 + k]
-    lat, lon, alt = _geodetic(c, C_TRUTH_FRAME, x[0], x[1], x[2])
+    lat, lon, alt = geodetic_from_ned(c, C_TRUTH_FRAME, x[0], x[1], x[2])
     v[V_LAT_DEG] = lat
     v[V_LON_DEG] = lon
     v[V_ALT_AMSL] = alt
@@ -172,7 +144,7 @@ def fill_values(
     decay = c[C_GPS_DECAY]
     for k in range(3):
         gps_error_ned_m[k] = gps_error_ned_m[k] * decay + c[C_GPS_INNOVATION + k] * noise[j + k]
-    lat, lon, alt = _geodetic(
+    lat, lon, alt = geodetic_from_ned(
         c, C_GPS_FRAME, x[0] + gps_error_ned_m[0], x[1] + gps_error_ned_m[1], x[2] + gps_error_ned_m[2]
     )
     v[V_GPS_LAT_DEG] = np.rint(lat * _DEG_E7) / _DEG_E7 if math.isfinite(lat) else lat

@@ -40,7 +40,7 @@ from sim.world import empty_world
 #: autopilot/control/default_gains.yaml (issue 14: same end state, position RMS 0.101 -> 0.116 m), and when the
 #: navigator and commander moved to 50 Hz (same flight within the 50 Hz tick), and when the summary gained
 #: items_bypassed (issue 13; the same motor commands and texts); see the commits.
-GOLDEN_SHA256 = "876cbc18238b71e3ad793eb21df0b6542e7a689d26469dbe6aacfa51b69540b9"
+GOLDEN_SHA256 = "6106abdfad94453fd9950407ad1be3ff2dec878e5c0e775c8a64a705628f0157"
 RATE_HZ = 250
 #: Sim time (s) → parameter changes applied between frames (as a GCS would).
 PARAM_CHANGES: dict[float, dict[str, float]] = {

@@ -15,10 +15,11 @@ import pytest
 
 from mavlink_bridge.codec import make_mavlink
 from mavlink_bridge.contract.frames import DEG_E7, GRAVITY_M_S2, GeoPoint, LocalNedFrame
+from mavlink_bridge.contract.geodetic import geodetic_from_ned
 from mavlink_bridge.contract.wire import ObstacleDetection
 from mavlink_bridge.frame_writer import FrameWriter
 from mavlink_bridge.lockstep import LockstepFrame
-from sim.frame_kernel import C_TRUTH_FRAME, SensorValues, _geodetic, frame_constants
+from sim.frame_kernel import C_TRUTH_FRAME, SensorValues, frame_constants
 from sim.obstacle_sensor import ObstacleSensor
 from sim.sensors import SensorModel
 from sim.vehicle import VehicleSim
@@ -233,7 +234,7 @@ def test_geodetic_kernel_matches_pymap3d() -> None:
         c = np.zeros(C_TRUTH_FRAME + 12)
         c[C_TRUTH_FRAME:] = frame_constants(frame)
         for n, e, d in (rng.standard_normal((500, 3)) * [2000.0, 2000.0, 300.0]).tolist():
-            lat, lon, alt = _geodetic(c, C_TRUTH_FRAME, n, e, d)
+            lat, lon, alt = geodetic_from_ned(c, C_TRUTH_FRAME, n, e, d)
             ref_lat, ref_lon, ref_alt = pymap3d.ned2geodetic(n, e, d, home.lat_deg, home.lon_deg, home.alt_amsl_m)
             assert lat == pytest.approx(ref_lat, abs=1e-9) and alt == pytest.approx(ref_alt, abs=1e-4)
             assert (lon - ref_lon + 180.0) % 360.0 - 180.0 == pytest.approx(0.0, abs=1e-9)

@@ -68,6 +68,10 @@ def warm() -> dict[str, float]:
     timings["autopilot_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
+    from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
+
+    LocalNedFrame(GeoPoint(47.0, 8.0, 400.0)).geodetic_from_ned(1.0, 2.0, -3.0)  # contract.geodetic kernels
+    LocalNedFrame(GeoPoint(47.0, 8.0, 400.0)).ned_from_geodetic(47.0, 8.0, 401.0)
     from mavlink_bridge.frame_reader import new_out, read_values
 
     read_values(b"", new_out())  # the lockstep reader both processes use (codec.Decoder)

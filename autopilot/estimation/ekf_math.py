@@ -69,7 +69,7 @@ from autopilot.estimation.ekf_layout import (
     X_VEL,
     G,
 )
-from mavlink_bridge.contract.frames import _GEODETIC_ITERATIONS, _WGS84_A_M, _WGS84_B_M, _WGS84_E2, _WGS84_EP2
+from mavlink_bridge.contract import geodetic
 
 
 @njit(cache=True)
@@ -86,40 +86,14 @@ def set_euler(x, roll, pitch, yaw):  # pragma: no cover - numba kernel
 
 @njit(cache=True)
 def ned_from_geodetic(prm, lat_deg, lon_deg, alt_m, out3):  # pragma: no cover - numba kernel
-    """``LocalNedFrame.ned_from_geodetic`` about the origin in ``prm[P_ECEF:]``."""
-    lat, lon = math.radians(lat_deg), math.radians(lon_deg)
-    s, c = math.sin(lat), math.cos(lat)
-    n = _WGS84_A_M / math.sqrt(1.0 - _WGS84_E2 * s * s)
-    dx = (n + alt_m) * c * math.cos(lon) - prm[P_ECEF]
-    dy = (n + alt_m) * c * math.sin(lon) - prm[P_ECEF + 1]
-    dz = (n * (1.0 - _WGS84_E2) + alt_m) * s - prm[P_ECEF + 2]
-    e = P_ECEF + 3
-    out3[0] = prm[e] * dx + prm[e + 1] * dy + prm[e + 2] * dz
-    out3[1] = prm[e + 3] * dx + prm[e + 4] * dy
-    out3[2] = prm[e + 6] * dx + prm[e + 7] * dy + prm[e + 8] * dz
+    """GPS position to local NED about the origin in ``prm[P_ECEF:]`` (:mod:`mavlink_bridge.contract.geodetic`)."""
+    out3[0], out3[1], out3[2] = geodetic.ned_from_geodetic(prm, P_ECEF, lat_deg, lon_deg, alt_m)
 
 
 @njit(cache=True)
 def geodetic_from_ned(prm, n_m, e_m, d_m, out, at):  # pragma: no cover - numba kernel
-    """``LocalNedFrame.geodetic_from_ned`` (Bowring start + fixed-point steps) into ``out[at:at+3]``."""
-    e = P_ECEF + 3
-    x = prm[P_ECEF] + prm[e] * n_m + prm[e + 3] * e_m + prm[e + 6] * d_m
-    y = prm[P_ECEF + 1] + prm[e + 1] * n_m + prm[e + 4] * e_m + prm[e + 7] * d_m
-    z = prm[P_ECEF + 2] + prm[e + 2] * n_m + prm[e + 5] * e_m + prm[e + 8] * d_m
-    lon = math.atan2(y, x)
-    p = math.sqrt(x * x + y * y)
-    theta = math.atan2(z * _WGS84_A_M, p * _WGS84_B_M)
-    st, ct = math.sin(theta), math.cos(theta)
-    lat = math.atan2(z + _WGS84_EP2 * _WGS84_B_M * st * st * st, p - _WGS84_E2 * _WGS84_A_M * ct * ct * ct)
-    alt = 0.0
-    for _ in range(_GEODETIC_ITERATIONS):
-        s = math.sin(lat)
-        nn = _WGS84_A_M / math.sqrt(1.0 - _WGS84_E2 * s * s)
-        alt = p / math.cos(lat) - nn
-        lat = math.atan2(z, p * (1.0 - _WGS84_E2 * nn / (nn + alt)))
-    out[at] = math.degrees(lat)
-    out[at + 1] = math.degrees(lon)
-    out[at + 2] = alt
+    """The estimate's (lat °, lon °, alt m) into ``out[at:at+3]`` (:mod:`mavlink_bridge.contract.geodetic`)."""
+    out[at], out[at + 1], out[at + 2] = geodetic.geodetic_from_ned(prm, P_ECEF, n_m, e_m, d_m)
 
 
 @njit(cache=True)

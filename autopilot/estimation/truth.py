@@ -44,6 +44,8 @@ class TruthEstimator:
         self._frame: LocalNedFrame | None = None
         self._gps: GpsSample | None = None
         self._status = _NO_FIX
+        # the geodetic kernels' first call JIT-loads them: now, not inside the lockstep
+        LocalNedFrame(GeoPoint(0.0, 0.0, 0.0)).ned_from_geodetic(0.0, 0.0, 0.0)
 
     @property
     def origin(self) -> GeoPoint | None:

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mavlink_bridge.contract import geodetic
+
 Vec3 = tuple[float, float, float]
 #: Hamilton, w first.
 Quat = tuple[float, float, float, float]
@@ -135,51 +137,29 @@ def wrap_pi(angle_rad: float | np.ndarray) -> float | np.ndarray:
     return (np.asarray(angle_rad) + np.pi) % (2.0 * np.pi) - np.pi
 
 
-_WGS84_A_M = 6378137.0
-_WGS84_F = 1.0 / 298.257223563
-_WGS84_E2 = _WGS84_F * (2.0 - _WGS84_F)
-_WGS84_B_M = _WGS84_A_M * (1.0 - _WGS84_F)
-_WGS84_EP2 = _WGS84_E2 / (1.0 - _WGS84_E2)
-#: Fixed-point steps of ``geodetic_from_ned`` after Bowring's start: 1 stays < 1 mm from pymap3d from
-#: -1 km to 10 km altitude, any latitude, within 20 km of home (``tests/test_frames_geodetic_iterations.py``).
-_GEODETIC_ITERATIONS = 1
-
-
-def _ecef_from_geodetic(lat_deg: float, lon_deg: float, alt_m: float) -> tuple[float, float, float]:
-    lat, lon = math.radians(lat_deg), math.radians(lon_deg)
-    s, c = math.sin(lat), math.cos(lat)
-    n = _WGS84_A_M / math.sqrt(1.0 - _WGS84_E2 * s * s)
-    return ((n + alt_m) * c * math.cos(lon), (n + alt_m) * c * math.sin(lon), (n * (1.0 - _WGS84_E2) + alt_m) * s)
-
-
 class LocalNedFrame:
     """Exact WGS-84 ↔ local NED about a home point (ECEF with a fixed tangent-plane rotation).
 
-    Hand-written in scalar ``math`` rather than calling pymap3d per sample because it runs
-    on every lockstep step at 250 Hz; ``tests/test_frames.py`` checks it against pymap3d.
+    The conversions are the compiled ones of :mod:`mavlink_bridge.contract.geodetic` (one implementation for
+    this class, the simulator and the EKF); ``tests/test_frames.py`` checks them against pymap3d.
     """
 
-    __slots__ = ("_home_ecef", "_r", "home")
+    __slots__ = ("_c", "_home_ecef", "_r", "home")
 
     def __init__(self, home: GeoPoint) -> None:
         self.home = home
-        self._home_ecef = _ecef_from_geodetic(home.lat_deg, home.lon_deg, home.alt_amsl_m)
         lat, lon = math.radians(home.lat_deg), math.radians(home.lon_deg)
         sl, cl, so, co = math.sin(lat), math.cos(lat), math.sin(lon), math.cos(lon)
+        n = geodetic.WGS84_A_M / math.sqrt(1.0 - geodetic.WGS84_E2 * sl * sl)
+        alt = home.alt_amsl_m
+        self._home_ecef = ((n + alt) * cl * co, (n + alt) * cl * so, (n * (1.0 - geodetic.WGS84_E2) + alt) * sl)
         # rows: north, east, down expressed in ECEF
         self._r = ((-sl * co, -sl * so, cl), (-so, co, 0.0), (-cl * co, -cl * so, -sl))
+        self._c = np.array(self.ecef_constants, dtype=np.float64)
 
     def ned_from_geodetic(self, lat_deg: float, lon_deg: float, alt_amsl_m: float) -> Vec3:
         """Local NED (m) of a WGS-84 point."""
-        x, y, z = _ecef_from_geodetic(lat_deg, lon_deg, alt_amsl_m)
-        hx, hy, hz = self._home_ecef
-        dx, dy, dz = x - hx, y - hy, z - hz
-        rn, re, rd = self._r
-        return (
-            rn[0] * dx + rn[1] * dy + rn[2] * dz,
-            re[0] * dx + re[1] * dy,
-            rd[0] * dx + rd[1] * dy + rd[2] * dz,
-        )
+        return geodetic.ned_from_geodetic(self._c, 0, lat_deg, lon_deg, alt_amsl_m)
 
     @property
     def ecef_constants(self) -> tuple[float, ...]:
@@ -188,29 +168,8 @@ class LocalNedFrame:
         return (*self._home_ecef, *rn, *re, *rd)
 
     def geodetic_from_ned(self, north_m: float, east_m: float, down_m: float) -> GeoPoint:
-        """WGS-84 point of a local NED position (m).
-
-        ``sim/frame_kernel.py`` computes the simulator's per-step ground truth with the same method in numba
-        (``tests/test_sim_frame_writer.py`` checks it against pymap3d).
-        """
-        rn, re, rd = self._r
-        hx, hy, hz = self._home_ecef
-        x = hx + rn[0] * north_m + re[0] * east_m + rd[0] * down_m
-        y = hy + rn[1] * north_m + re[1] * east_m + rd[1] * down_m
-        z = hz + rn[2] * north_m + re[2] * east_m + rd[2] * down_m
-        lon = math.atan2(y, x)
-        p = math.hypot(x, y)
-        # Bowring's start (parametric latitude), then fixed-point steps on lat with alt = p / cos(lat) - N
-        theta = math.atan2(z * _WGS84_A_M, p * _WGS84_B_M)
-        st, ct = math.sin(theta), math.cos(theta)
-        lat = math.atan2(z + _WGS84_EP2 * _WGS84_B_M * st * st * st, p - _WGS84_E2 * _WGS84_A_M * ct * ct * ct)
-        alt = 0.0
-        for _ in range(_GEODETIC_ITERATIONS):
-            s = math.sin(lat)
-            n = _WGS84_A_M / math.sqrt(1.0 - _WGS84_E2 * s * s)
-            alt = p / math.cos(lat) - n
-            lat = math.atan2(z, p * (1.0 - _WGS84_E2 * n / (n + alt)))
-        return GeoPoint(math.degrees(lat), math.degrees(lon), alt)
+        """WGS-84 point of a local NED position (m)."""
+        return GeoPoint(*geodetic.geodetic_from_ned(self._c, 0, north_m, east_m, down_m))
 
 
 def deg_e7_from_deg(angle_deg: float) -> int:
