@@ -13,7 +13,7 @@ from autopilot.mission.files import expand_pattern
 from autopilot.planner.geometry import CircleZone, PolygonZone
 from autopilot.planner.param_decls import PlannerParams
 from sim.world import load_world
-from tools.benchmarks.avoidance import benchmark_fields, fly_route, random_field
+from tools.benchmarks._planner_follower import benchmark_fields, fly_route, random_field
 
 PARAMS = PlannerParams()
 FLOOR_M = PARAMS.r_safe_m - PARAMS.track_tol_m

@@ -8,7 +8,7 @@ reason* (counted, never flown). The others are flown in-process with the autopil
 :class:`MissionRouter` (route on the known world: fences, and tracked obstacles after a HOLD), the reactive
 :class:`AvoidancePlanner` (Bézier detours for what is newly sensed) and the sim's :class:`ObstacleSensor`,
 glued as :func:`fly_mission` does (the navigator's route logic), on the point-mass follower of
-:mod:`tools.benchmarks.avoidance`.
+:mod:`tools.benchmarks._planner_follower`.
 
 Worlds are flyable by construction where it matters: an obstacle is only added when the route still exists
 with every obstacle known (inflated by R_safe + 1 m), so a world that ends stuck is the planners' failure.
@@ -41,7 +41,7 @@ from mavlink_bridge.contract.vehicle_api import FlightMode, MissionItem, Mission
 from sim.obstacle_sensor import ObstacleSensor
 from sim.world import Box, Cylinder, Sphere, WindConfig, World, empty_world
 from tools.benchmarks import BenchResult
-from tools.benchmarks.avoidance import ACCEPT_RADIUS_M, KD_VEL, KP_POS, VEHICLE_ACC_MAX_M_S2
+from tools.benchmarks._planner_follower import ACCEPT_RADIUS_M, KD_VEL, KP_POS, VEHICLE_ACC_MAX_M_S2
 
 #: Seed of the benchmark's world sequence (world i is the i-th of it, flown with sensor seed i).
 WORLD_SEED = 20261123
@@ -328,14 +328,14 @@ def run(quick: bool) -> list[BenchResult]:
     return [
         BenchResult("route_worlds", float(n), note="seeded worlds: fences across the route + obstacles"),
         BenchResult("route_refused", float(n - len(flown)), note="refused at upload with a reason"),
-        BenchResult("route_collisions", float(collisions), "== 0", collisions == 0),
+        BenchResult("avoid_collisions", float(collisions), "== 0", collisions == 0),
         BenchResult("route_fence_breaches", float(breaches), "== 0", breaches == 0),
         BenchResult("route_stuck", float(stuck), "== 0", stuck == 0, "flown, not completed"),
         BenchResult("route_completed_pct", 100.0 * len(done) / max(len(flown), 1), note="of the flown"),
-        BenchResult("route_min_clearance_m", min_clear, f">= {floor:g}", min_clear >= floor, "R_safe - track tol"),
+        BenchResult("avoid_min_clearance_m", min_clear, f">= {floor:g}", min_clear >= floor, "R_safe - track tol"),
         BenchResult("route_path_overhead_pct", overhead, note="vs shortest route with every obstacle known"),
         BenchResult("route_items_bypassed", float(sum(f.items_bypassed for f in flown))),
-        BenchResult("route_local_plan_p99_ms", local_p99, "<= 5", local_p99 <= 5.0, "reactive detour searches"),
+        BenchResult("plan_p99_ms", local_p99, "<= 5", local_p99 <= 5.0, "reactive detour searches"),
         BenchResult("route_known_plan_p99_ms", known_p99, "<= 50", known_p99 <= 50.0, "routes on the known world"),
         BenchResult("route_known_plans", float(len(known_ms)), note="route searches (legs, replans after HOLD)"),
     ]

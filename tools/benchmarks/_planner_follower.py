@@ -1,22 +1,13 @@
-"""Avoidance benchmark (SPEC §11): seeded Monte Carlo of random obstacle fields on delivery routes.
+"""The avoidance planner on a point-mass follower: the planner's own closed loop, for planner tests.
 
-Each field is flown in-process: the sim's :class:`ObstacleSensor` (stereo + ultrasonic, 10 Hz) feeds
-the autopilot's :class:`AvoidancePlanner`; a point-mass follower with speed and acceleration limits
-(a stand-in for the position loop: PD on the reference plus its acceleration feed-forward) flies the
-route or the planner's detour, nose toward the planner's look-ahead point on a detour and toward
-the next waypoint near a corner (the forward camera looks where the vehicle is going). When the
-planner reports bypassed waypoints (``PlannerOutput.rejoin_route_index``) the follower's target skips
-them, as the mission executor must. :func:`fly_route` is also what ``tests/test_planner_closed_loop.py`` uses.
-
-Fields (:func:`random_field`) keep a feasible corridor by construction, so a field that ends in
-HOLD is the planner's failure to find it; those are counted apart (``avoid_blocked_fields``).
-
-Keys: ``avoid_collisions`` (target 0), ``avoid_min_clearance_m``, ``avoid_path_overhead_pct``
-(flown length over the obstacle-free route), ``avoid_completed_pct``, ``avoid_blocked_fields``,
-``plan_p99_ms`` / ``plan_mean_ms`` (CPU time of every planner update that ran a detour search:
-first plans, replans and HOLD retries; target p99 <= 5 ms), ``avoid_update_mean_ms`` (every step).
-Times are thread CPU time (``time.thread_time``), not wall time: the figure is the planner's cost,
-independent of what else the machine runs.
+The sim's :class:`ObstacleSensor` (stereo + ultrasonic, 10 Hz) feeds the autopilot's :class:`AvoidancePlanner`;
+a point-mass follower with speed and acceleration limits (PD on the reference plus its acceleration
+feed-forward) flies the route or the planner's detour. ``tests/test_planner_closed_loop.py`` uses
+:func:`fly_route` and the seeded fields (:func:`random_field`, :func:`benchmark_fields`) to test the planner
+alone. The shipped route glue (route ahead, rejoin skipping, nose heading) is the navigator's: the
+``routing`` benchmark suite flies the autopilot's :class:`~autopilot.navigation.Navigator` over seeded worlds
+with obstacles and fences and reports the avoidance keys (``avoid_collisions``, ``avoid_min_clearance_m``,
+``plan_p99_ms``).
 """
 
 from __future__ import annotations
@@ -35,7 +26,6 @@ from autopilot.planner.planner import AvoidancePlanner, PlannerState
 from mavlink_bridge.contract.frames import quat_from_euler
 from sim.obstacle_sensor import ObstacleSensor, ObstacleSensorConfig
 from sim.world import Box, Cylinder, Sphere, WindConfig, World, empty_world
-from tools.benchmarks import BenchResult
 
 #: Follower gains (1/s², 1/s) and limits: stiffer and more agile than the planner's limits.
 KP_POS = 4.0
@@ -252,33 +242,3 @@ def benchmark_fields(n_fields: int, params: PlannerParams) -> Iterator[tuple[Wor
     rng = np.random.default_rng(FIELD_SEED)
     for _ in range(n_fields):
         yield random_field(rng, r_keep_m=params.r_safe_m + 6.0)
-
-
-def run(quick: bool) -> list[BenchResult]:
-    """Monte Carlo over seeded random fields (200, or 30 with ``quick``)."""
-    params = PlannerParams()
-    n_fields = 30 if quick else 200
-    results = [
-        fly_route(world, wps, params, seed=i) for i, (world, wps) in enumerate(benchmark_fields(n_fields, params))
-    ]
-    plan_ms = np.array([t for r in results for t in r.plan_times_s]) * 1e3
-    upd_ms = np.array([t for r in results for t in r.update_times_s]) * 1e3
-    collisions = sum(r.collisions for r in results)
-    min_clear = min(r.min_clearance_m for r in results)
-    done = [r for r in results if r.completed]
-    blocked = sum(r.blocked for r in results)
-    overhead = 100.0 * float(np.mean([r.path_length_m / r.route_length_m - 1.0 for r in done])) if done else math.nan
-    p99 = float(np.percentile(plan_ms, 99)) if len(plan_ms) else 0.0
-    floor = params.r_safe_m - params.track_tol_m
-    return [
-        BenchResult("avoid_fields", float(n_fields), note="random obstacle fields flown"),
-        BenchResult("avoid_collisions", float(collisions), "== 0", collisions == 0),
-        BenchResult("avoid_min_clearance_m", min_clear, f">= {floor:g}", min_clear >= floor, "R_safe - tracking tol"),
-        BenchResult("avoid_path_overhead_pct", overhead, note="completed flights, vs obstacle-free route"),
-        BenchResult("avoid_completed_pct", 100.0 * len(done) / n_fields, note="every field has a free corridor"),
-        BenchResult("avoid_blocked_fields", float(blocked), note="ended holding: no safe detour found"),
-        BenchResult("avoid_replans", float(len(plan_ms)), note="planner decisions"),
-        BenchResult("plan_p99_ms", p99, "<= 5", p99 <= 5.0, "per replan"),
-        BenchResult("plan_mean_ms", float(plan_ms.mean()) if len(plan_ms) else 0.0),
-        BenchResult("avoid_update_mean_ms", float(upd_ms.mean()), note="every planner step"),
-    ]
