@@ -67,7 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
         type=loss_fraction,
         default=0.0,
         metavar="FRACTION",
-        help="drop this share of lockstep datagrams each way (a lossy relay in the sim, to test; default 0)",
+        help="drop this share of lockstep datagrams each way at the sim, seeded (to test loss; default 0)",
     )
     p.add_argument("--log-dir", default=None, metavar="DIR", help="where both processes write their summaries (JSON)")
     p.add_argument("--duration-s", type=float, default=None, metavar="S", help="stop after this much sim time")

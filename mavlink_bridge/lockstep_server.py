@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import random
 import time
 
 import numpy as np
@@ -52,8 +53,16 @@ class LockstepServer:
         peer_lost_timeout_s: float = 3.0,
         spin_s: float = DEFAULT_SPIN_S,
         min_resend_timeout_s: float = MIN_RESEND_TIMEOUT_S,
+        loss_fraction: float = 0.0,
+        loss_seed: int = 0,
     ) -> None:
-        """``resend_timeout_s`` is the ceiling of the adaptive resend timeout, ``min_resend_timeout_s`` its floor."""
+        """``resend_timeout_s`` is the ceiling of the adaptive resend timeout, ``min_resend_timeout_s`` its floor.
+
+        ``loss_fraction`` (``--sim-loss``): once the lockstep runs, this share of the datagrams is dropped each way
+        at this end, at random (seeded), as a lossy network would; the flight stays the same flight.
+        """
+        if not 0.0 <= loss_fraction < 1.0:
+            raise ValueError(f"lockstep loss: expected a fraction in [0, 1), got {loss_fraction}")
         url = LinkUrl.parse(listen_url)
         if url.mode is not LinkMode.LISTEN:
             raise LinkUrlError(f"the simulator listens: use udpin:HOST:PORT or udp:HOST:PORT, got {listen_url!r}")
@@ -77,6 +86,9 @@ class LockstepServer:
         read_answer(self._link.array, 0, 0, self.answer, self._payload)  # load the compiled reader now
         self._datagram = b""
         self._sent_at_s = 0.0
+        self._loss = loss_fraction
+        self._loss_rng = random.Random(loss_seed)
+        self.dropped = 0  # datagrams the loss injection dropped (both ways)
 
     def interrupt(self) -> None:
         """Make a waiting ``exchange`` raise ``LockstepInterrupted`` (and ``wait_for_autopilot`` return
@@ -158,8 +170,19 @@ class LockstepServer:
         """
         self._frame_time_us = frame_time_us
         self._datagram = datagram
-        self._link.send(datagram)
+        self._send(datagram)
         self._sent_at_s = time.monotonic()
+
+    def _lost(self) -> bool:
+        """Loss injection: True when this datagram is to be dropped (only once the lockstep runs)."""
+        if self._loss > 0.0 and self._locked and self._loss_rng.random() < self._loss:
+            self.dropped += 1
+            return True
+        return False
+
+    def _send(self, datagram: bytes) -> None:
+        if not self._lost():
+            self._link.send(datagram)
 
     def wait_answer(self) -> ActuatorCommand:
         """Second half of ``exchange``: the answer to the frame of the last ``send`` (re-sending as needed).
@@ -193,6 +216,8 @@ class LockstepServer:
             if n >= 0:
                 if link.last_sender != peer and (self._locked or not self._candidate(n, now)):
                     self._foreign += 1  # a stranger: unread (and no reason to skip the resend check below)
+                elif self._lost():
+                    pass  # lost on the way in (loss injection): as if it never came
                 else:
                     result = read_answer(array, n, frame_time_us, out, payload)
                     if result == ANSWER_OTHER:
@@ -216,7 +241,7 @@ class LockstepServer:
                         f"no answer from the autopilot for {now - sent_at:.1f} s "
                         f"(frame t={frame_time_us} us, peer {peer})"
                     )
-                link.send(datagram)
+                self._send(datagram)
                 if not self._locked:
                     for candidate in self._candidates:
                         if candidate != peer:

@@ -80,7 +80,7 @@ def build_parser() -> argparse.ArgumentParser:
         type=loss_fraction,
         default=0.0,
         metavar="FRACTION",
-        help="drop this share of lockstep datagrams each way (a lossy relay on the listen address; default 0)",
+        help="drop this share of lockstep datagrams each way, seeded by --seed (to test loss; default 0)",
     )
     p.add_argument("--log-dir", type=Path, default=None, metavar="DIR", help="where sim_summary.json is written")
     p.add_argument("--duration-s", type=float, default=None, metavar="S", help="stop after this much sim time")

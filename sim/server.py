@@ -35,9 +35,7 @@ import yaml
 from mavlink_bridge.answer_kernel import A_ARMED, A_GRIPPER_RELEASE, A_MOTORS
 from mavlink_bridge.contract.wire import ObstacleDetection
 from mavlink_bridge.frame_writer import FrameWriter
-from mavlink_bridge.link import LinkUrl
 from mavlink_bridge.lockstep import DEFAULT_SPIN_S, AutopilotLost, LockstepInterrupted, LockstepServer
-from mavlink_bridge.lossy import LossProfile, LossyUdpProxy
 from sim.end_reason import EndReason
 from sim.frame_kernel import SensorValues
 from sim.sensors import SensorModel
@@ -73,7 +71,7 @@ class SimConfig:
     sensor_noise: bool = True
     truth_log: Path | None = None  # .npz of the truth state at control rate
     lockstep_spin_s: float = DEFAULT_SPIN_S  # busy-poll for the answer before sleeping (0 = never)
-    loss_fraction: float = 0.0  # > 0: a lossy relay on the listen address drops this share of datagrams each way
+    loss_fraction: float = 0.0  # > 0: the lockstep drops this share of datagrams each way (seeded; --sim-loss)
 
 
 @dataclass(frozen=True, slots=True)
@@ -100,7 +98,7 @@ class SimSummary:
     invalid_answers: int  # answers stamped ahead of the frame or with motors NaN / outside [0, 1]: never applied
     resend_timeout_us: float  # the adaptive resend timeout at the end of the run
     exchange_us: float  # smoothed frame-to-answer time (the resend timeout's basis)
-    relay_dropped: int  # datagrams the --sim-loss relay dropped (0 without it)
+    loss_dropped: int  # datagrams --sim-loss dropped, both ways (0 without it)
     final_pos_ned_m: tuple[float, float, float]
     truth_sha256: str  # hash of the truth state after every control step (determinism checks)
     sim_step_us: float  # mean wall time per step in the sim itself (all but the answer wait and pacing sleeps)
@@ -184,34 +182,22 @@ class SimServer:
         self._next_detection_us = 0
         if not 0.0 <= config.loss_fraction < 1.0:
             raise SimSetupError(f"sim loss: expected a fraction in [0, 1), got {config.loss_fraction}")
-        listen = LinkUrl.parse(config.listen_url)
-        self.relay: LossyUdpProxy | None = None
         self.lockstep = LockstepServer(
-            f"udpin:{listen.host}:0" if config.loss_fraction > 0.0 else config.listen_url,
+            config.listen_url,
             resend_timeout_s=config.resend_timeout_s,
             peer_lost_timeout_s=config.autopilot_timeout_s,
             spin_s=config.lockstep_spin_s,
+            loss_fraction=config.loss_fraction,  # --sim-loss: dropped at this end, both ways, seeded
+            loss_seed=config.seed,
         )
-        if config.loss_fraction > 0.0:  # the relay takes the public address and impairs both directions
-            try:
-                self.relay = LossyUdpProxy(
-                    self.lockstep.local_address,
-                    LossProfile(drop_p=config.loss_fraction, seed=config.seed),
-                    listen_host=listen.host,
-                    listen_port=listen.port,
-                    exclusive=True,
-                )
-            except OSError:
-                self.lockstep.close()
-                raise
         self._stop_requested = False
         self._answer_motors = self.lockstep.answer[A_MOTORS : A_MOTORS + 4]  # a view: the answer, in place
         self._motors_off = np.zeros(4)
 
     @property
     def local_address(self) -> tuple[str, int]:
-        """Where the autopilot sends (the lockstep server, or the lossy relay in front of it)."""
-        return self.relay.listen_address if self.relay is not None else self.lockstep.local_address
+        """Where the autopilot sends (the lockstep server)."""
+        return self.lockstep.local_address
 
     def request_stop(self) -> None:
         """Finish the run at the next step (signal-handler safe): end reason STOPPED."""
@@ -261,8 +247,6 @@ class SimServer:
         wait_s = sleep_s = 0.0  # wall time waiting for answers, pacing sleeps
         wall0 = time.perf_counter()
         cpu0 = time.process_time()
-        if self.relay is not None:
-            self.relay.start()
         try:
             connected = self._wait_for_autopilot()
             wall0 = time.perf_counter()
@@ -305,8 +289,6 @@ class SimServer:
             wall_s = time.perf_counter() - wall0
             cpu_s = time.process_time() - cpu0
             lockstep.close()
-            if self.relay is not None:
-                self.relay.stop()
         if cfg.truth_log is not None:
             self._write_truth_log(cfg.truth_log, truth_rows)
         steps = max(self.lockstep.stats.frames, 1)
@@ -362,11 +344,11 @@ class SimServer:
             resends=stats.resends,
             stale_answers=stats.stale_answers,
             malformed=stats.malformed,
-            foreign_datagrams=stats.foreign + (self.relay.stats.foreign if self.relay is not None else 0),
+            foreign_datagrams=stats.foreign,
             invalid_answers=stats.invalid_answers,
             resend_timeout_us=stats.resend_timeout_us,
             exchange_us=stats.exchange_us,
-            relay_dropped=self.relay.stats.dropped if self.relay is not None else 0,
+            loss_dropped=self.lockstep.dropped,
             final_pos_ned_m=(float(v.pos_ned[0]), float(v.pos_ned[1]), float(v.pos_ned[2])),
             truth_sha256=truth_sha256,
             sim_step_us=timing_us[0],

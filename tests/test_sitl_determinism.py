@@ -55,7 +55,7 @@ def test_lossy_link_gives_the_identical_flight(tmp_path: Path) -> None:
             stop(proc)
     assert lossy_hashes == clean_hashes
     sim_summary = read_json(tmp_path / "lossy" / "sim_summary.json")
-    assert sim_summary["relay_dropped"] > 50  # the link really lost datagrams
+    assert sim_summary["loss_dropped"] > 50  # the link really lost datagrams
     assert sim_summary["resends"] > 0
 
 
