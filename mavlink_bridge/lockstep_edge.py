@@ -77,7 +77,7 @@ MAX_FRAME_STEP_US = 1_000_000
 #: MAVLink ``time_boot_ms`` uint32 fields) would overflow; a 2^63 µs stamp is a stranger's, not a simulator's.
 MAX_FRAME_TIME_US = 10**12
 #: Floor and initial value of the adaptive resend timeout (s); the ceiling is ``resend_timeout_s``.
-MIN_RESEND_TIMEOUT_S = 0.00025
+MIN_RESEND_TIMEOUT_S = 0.00015  # ~2 exchanges on an idle loopback; a spurious resend costs one cached re-answer
 INITIAL_RESEND_TIMEOUT_S = 0.005
 #: HEARTBEAT senders the sim sends its first frame to before one of them answers it (see ``LockstepServer``).
 MAX_CANDIDATES = 8
