@@ -26,7 +26,6 @@ LONG_MODULES: dict[str, str] = {
     "autopilot.commander": "being split (modes, arming, land detector)",
     "autopilot.mission.executor": "being split",
     "autopilot.planner.detour": "being split",
-    "autopilot.planner.planner": "being split",
 }
 #: Bridge internals still imported outside the I/O edges (a ratchet, like LONG_MODULES).
 KNOWN_BRIDGE_IMPORTS: set[tuple[str, str]] = set()
