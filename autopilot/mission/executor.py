@@ -45,11 +45,9 @@ Route and skipping (issue 6, obstacle avoidance; SPEC §7-§8):
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import replace
 from enum import IntEnum
-
-import numpy as np
 
 from autopilot.mission.executor_types import (
     ActionKind,
@@ -62,15 +60,14 @@ from autopilot.mission.executor_types import (
     VehicleSample,
 )
 from autopilot.mission.plan import is_wpl_home_line, item_position_ned, items_match, uses_current_position
+from autopilot.mission.route_ahead import DO_ITEMS as _DO_ITEMS
+from autopilot.mission.route_ahead import SKIPPABLE as _SKIPPABLE
+from autopilot.mission.route_ahead import execution_order, route_through
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame, Vec3
 from mavlink_bridge.contract.mav_enums import GripperAction, MavCmd, MissionState
 from mavlink_bridge.contract.vehicle_api import MissionItem
 
 _NAN = float("nan")
-
-
-_SKIPPABLE = (MavCmd.NAV_WAYPOINT, MavCmd.NAV_LOITER_TIME)
-_DO_ITEMS = (MavCmd.DO_CHANGE_SPEED, MavCmd.DO_GRIPPER, MavCmd.DO_JUMP)
 
 
 class _Phase(IntEnum):
@@ -272,46 +269,16 @@ class MissionExecutor:
         key = (self._cur, self._version, min_length_m, max_points)
         if key == self._route_key and self._route is not None:
             return self._route
-        seqs: list[int] = []
-        pts: list[Vec3] = []
-        next_seq, length = -1, 0.0
+        order: Iterable[int] = ()
         if self._items and self._state in (MissionState.ACTIVE, MissionState.PAUSED):
-            for k in self._execution_order(self._cur, {}):
-                item = self._items[k]
-                if item.command in _DO_ITEMS:
-                    continue
-                pos = self._pos_ned[k]
-                if item.command not in _SKIPPABLE or pos is None:
-                    next_seq = k if seqs else -1
-                    break
-                if pts:
-                    length += math.dist(pts[-1], pos)
-                seqs.append(k)
-                pts.append(pos)
-                if length >= min_length_m or len(pts) >= max_points:
-                    break
-        arr = np.array(pts, float).reshape(-1, 3)
-        arr.flags.writeable = False
-        self._route = MissionRoute(tuple(seqs), arr, next_seq)
+            order = self._execution_order(self._cur, {})
+        self._route = route_through(self._items, self._pos_ned, order, min_length_m, max_points)
         self._route_key = key
         return self._route
 
     def _execution_order(self, start: int, jumps: dict[int, int]) -> Iterator[int]:
-        """Item indices from ``start`` on as they would run: DO_JUMPs followed while they have repeats left
-        (counts from ``_jumps_done``, updated in ``jumps``); bounded, so a jump loop of DO items ends."""
-        k = start
-        for _ in range(4 * len(self._items) + 4):
-            if not 0 <= k < len(self._items):
-                return
-            yield k
-            item = self._items[k]
-            if item.command == MavCmd.DO_JUMP:
-                done = jumps.get(k, self._jumps_done[k])
-                if item.param2 < 0 or done < item.param2:
-                    jumps[k] = done + 1
-                    k = int(item.param1)
-                    continue
-            k += 1
+        """Item indices from ``start`` on as they would run (:func:`execution_order`)."""
+        return execution_order(self._items, self._jumps_done, start, jumps)
 
     # ------------------------------------------------------------------ stepping
 
