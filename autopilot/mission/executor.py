@@ -47,7 +47,6 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import replace
-from enum import IntEnum
 
 from autopilot.mission.executor_types import (
     ActionKind,
@@ -59,24 +58,17 @@ from autopilot.mission.executor_types import (
     NavTarget,
     VehicleSample,
 )
+from autopilot.mission.nav_target import ItemPhase as _Phase
+from autopilot.mission.nav_target import phase_target
 from autopilot.mission.plan import is_wpl_home_line, item_position_ned, items_match, uses_current_position
 from autopilot.mission.route_ahead import DO_ITEMS as _DO_ITEMS
 from autopilot.mission.route_ahead import SKIPPABLE as _SKIPPABLE
-from autopilot.mission.route_ahead import execution_order, route_through
+from autopilot.mission.route_ahead import execution_order, next_position, route_through
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame, Vec3
 from mavlink_bridge.contract.mav_enums import GripperAction, MavCmd, MissionState
 from mavlink_bridge.contract.vehicle_api import MissionItem
 
 _NAN = float("nan")
-
-
-class _Phase(IntEnum):
-    START = 0
-    CLIMB = 1
-    APPROACH = 2
-    HOLD = 3
-    RETURN = 4
-    DESCEND = 5
 
 
 def _hdist(a: Sequence[float], b: Sequence[float]) -> float:
@@ -405,17 +397,6 @@ class MissionExecutor:
                 return False
             self._target = None
 
-    def _lookahead(self) -> Vec3 | None:
-        """Position of the next waypoint/loiter after the current item, following DO items and pending jumps."""
-        for k in self._execution_order(self._cur + 1, {}):
-            command = self._items[k].command
-            if command in (MavCmd.DO_JUMP, MavCmd.DO_CHANGE_SPEED, MavCmd.DO_GRIPPER):
-                continue
-            if command in (MavCmd.NAV_WAYPOINT, MavCmd.NAV_LOITER_TIME):
-                return self._pos_ned[k]
-            return None
-        return None
-
     def _make_target(self, s: VehicleSample) -> NavTarget | None:
         speed, acc = self.speed_m_s, self.config.accept_radius_m
         if self._state in (MissionState.PAUSED, MissionState.COMPLETE):
@@ -426,19 +407,8 @@ class MissionExecutor:
         if self._state != MissionState.ACTIVE:
             return None
         item = self._items[self._cur]
-        cmd, yaw = item.command, item.param4
-        if self._phase == _Phase.CLIMB:
-            kind = NavKind.TAKEOFF if cmd == MavCmd.NAV_TAKEOFF else NavKind.RETURN
-            return NavTarget(kind, self._cur, self._goal, yaw if kind == NavKind.TAKEOFF else _NAN, speed, acc)
-        if self._phase == _Phase.RETURN:
-            return NavTarget(NavKind.RETURN, self._cur, self._goal, _NAN, speed, acc)
-        if self._phase == _Phase.DESCEND:
-            return NavTarget(NavKind.LAND, self._cur, self._goal, yaw if cmd == MavCmd.NAV_LAND else _NAN, speed, acc)
-        if self._phase == _Phase.APPROACH:
-            radius = self._accept_radius(item)
-            nxt = self._lookahead() if self._hold_s <= 0.0 and cmd == MavCmd.NAV_WAYPOINT else None
-            return NavTarget(NavKind.WAYPOINT, self._cur, self._goal, yaw, speed, radius, nxt is not None, nxt)
-        if self._phase == _Phase.HOLD:
-            kind = NavKind.IDLE if s.landed else NavKind.LOITER
-            return NavTarget(kind, self._cur, self._goal, yaw if cmd != MavCmd.NAV_DELAY else _NAN, speed, acc)
-        return None
+        lookahead = None
+        if self._phase == _Phase.APPROACH and self._hold_s <= 0.0 and item.command == MavCmd.NAV_WAYPOINT:
+            lookahead = next_position(self._items, self._pos_ned, self._execution_order(self._cur + 1, {}))
+        radius = self._accept_radius(item)
+        return phase_target(self._phase, item, self._cur, self._goal, speed, acc, radius, lookahead, s.landed)

@@ -71,3 +71,15 @@ def route_through(
     arr = np.array(pts, float).reshape(-1, 3)
     arr.flags.writeable = False
     return MissionRoute(tuple(seqs), arr, next_seq)
+
+
+def next_position(items: Sequence[MissionItem], pos_ned_m: Sequence[Vec3 | None], order: Iterable[int]) -> Vec3 | None:
+    """Position of the first waypoint/loiter along ``order`` with only DO items before it, else None."""
+    for k in order:
+        command = items[k].command
+        if command in DO_ITEMS:
+            continue
+        if command in SKIPPABLE:
+            return pos_ned_m[k]
+        return None
+    return None
