@@ -32,13 +32,13 @@ from .detour import (
     DetourLimits,
     DetourPlan,
     DetourSide,
-    brake_path,
     check_path,
     plan_detour,
 )
 from .geometry import FenceZone
 from .obstacle_map import ObstacleMap, TrackedObstacle
 from .param_decls import PlannerParams
+from .path_shapes import brake_path
 from .planner_output import AvoidanceDecision, DecisionReason, DetourSetpoint, PlannerOutput, PlannerState
 from .threat import Threat, assess_threat
 

@@ -11,8 +11,9 @@ import numpy as np
 from mavlink_bridge.contract.wire import Vec3, fast_frozen_init
 
 from .bezier import BezierPath
-from .detour import CandidateReport, CandidateStatus, DetourPlan, DetourSide, sample_path
+from .detour import CandidateReport, CandidateStatus, DetourPlan, DetourSide
 from .obstacle_map import TrackedObstacle
+from .path_shapes import sample_path
 from .threat import Threat
 
 
