@@ -84,7 +84,7 @@ class StepRecord:
     reached: tuple[int, ...]
     texts: tuple[StatusText, ...]
     detections: tuple[ObstacleDetection, ...]
-    planner_output: object | None  # autopilot.planner.planner.PlannerOutput (frozen) while avoiding
+    planner_output: object | None  # autopilot.planner.planner_output.PlannerOutput (frozen) while avoiding
     control: ControlSample | None  # the cascade's step (None while idle)
     battery_remaining_pct: float = math.nan
     battery_voltage_v: float = math.nan

@@ -45,134 +45,30 @@ Route and skipping (issue 6, obstacle avoidance; SPEC §7-§8):
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, replace
-from enum import IntEnum
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import replace
 
-import numpy as np
-
-from autopilot.mission.param_decls import MISSION_PARAM_DEFAULTS
+from autopilot.mission.executor_types import (
+    ActionKind,
+    ExecutorConfig,
+    ExecutorOutput,
+    MissionAction,
+    MissionRoute,
+    NavKind,
+    NavTarget,
+    VehicleSample,
+)
+from autopilot.mission.nav_target import ItemPhase as _Phase
+from autopilot.mission.nav_target import phase_target
 from autopilot.mission.plan import is_wpl_home_line, item_position_ned, items_match, uses_current_position
-from autopilot.params import ParamStore
+from autopilot.mission.route_ahead import DO_ITEMS as _DO_ITEMS
+from autopilot.mission.route_ahead import SKIPPABLE as _SKIPPABLE
+from autopilot.mission.route_ahead import execution_order, next_position, route_through
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame, Vec3
 from mavlink_bridge.contract.mav_enums import GripperAction, MavCmd, MissionState
 from mavlink_bridge.contract.vehicle_api import MissionItem
-from mavlink_bridge.contract.wire import fast_frozen_init
 
 _NAN = float("nan")
-
-
-@dataclass(frozen=True, slots=True)
-class ExecutorConfig:
-    """Executor settings (MIS_ACC_RAD, MIS_ALT_ACC_RAD, MIS_CRUISE_SPD, MIS_RTL_ALT; defaults: theirs)."""
-
-    accept_radius_m: float = MISSION_PARAM_DEFAULTS["MIS_ACC_RAD"]
-    alt_accept_m: float = MISSION_PARAM_DEFAULTS["MIS_ALT_ACC_RAD"]
-    cruise_speed_m_s: float = MISSION_PARAM_DEFAULTS["MIS_CRUISE_SPD"]
-    rtl_alt_m: float = MISSION_PARAM_DEFAULTS["MIS_RTL_ALT"]
-
-    @classmethod
-    def from_params(cls, params: ParamStore) -> ExecutorConfig:
-        return cls(
-            accept_radius_m=params.get("MIS_ACC_RAD"),
-            alt_accept_m=params.get("MIS_ALT_ACC_RAD"),
-            cruise_speed_m_s=params.get("MIS_CRUISE_SPD"),
-            rtl_alt_m=params.get("MIS_RTL_ALT"),
-        )
-
-
-@fast_frozen_init  # built every control step
-@dataclass(frozen=True, slots=True)
-class VehicleSample:
-    """What the executor needs of the vehicle each step: sim time, local NED state about home, landed flag."""
-
-    time_us: int
-    pos_ned_m: Vec3
-    vel_ned_m_s: Vec3
-    landed: bool
-
-
-class NavKind(IntEnum):
-    """What the setpoint generator is asked to do."""
-
-    IDLE = 0  # nothing to fly (on the ground, no mission running)
-    TAKEOFF = 1  # climb vertically to pos_ned_m
-    WAYPOINT = 2  # fly to pos_ned_m (pass-through when pass_through)
-    LOITER = 3  # hold at pos_ned_m (loiter, delay, waypoint hold, pause, mission complete)
-    RETURN = 4  # RTL transit: climb, then fly home at pos_ned_m's altitude
-    LAND = 5  # descend at pos_ned_m's horizontal position until landed
-
-
-@dataclass(frozen=True, slots=True)
-class NavTarget:
-    """A navigation setpoint target in local NED (m). ``yaw_deg`` NaN: the vehicle chooses (along the path)."""
-
-    kind: NavKind
-    seq: int  # mission item it serves; -1 when not from an item (pause, complete)
-    pos_ned_m: Vec3
-    yaw_deg: float
-    speed_m_s: float
-    accept_radius_m: float
-    pass_through: bool = False
-    next_pos_ned_m: Vec3 | None = None
-
-
-class ActionKind(IntEnum):
-    """One-shot actions the autopilot turns into actuator channels."""
-
-    GRIPPER_RELEASE = 0  # payload release -> wire.GRIPPER_CHANNEL = 1
-    GRIPPER_GRAB = 1
-
-
-@dataclass(frozen=True, slots=True)
-class MissionAction:
-    """An action raised by a DO item at ``time_us``."""
-
-    kind: ActionKind
-    seq: int
-    time_us: int
-    gripper_instance: int = 1
-
-
-@fast_frozen_init  # built every control step
-@dataclass(frozen=True, slots=True)
-class ExecutorOutput:
-    """Result of one step: the MISSION_CURRENT values, the target, and this step's events."""
-
-    state: MissionState
-    current_seq: int
-    target: NavTarget | None
-    reached: tuple[int, ...]
-    actions: tuple[MissionAction, ...]
-    speed_m_s: float
-    bypassed: tuple[int, ...] = ()  # positional items ``skip_to`` passed over (flown around, not reached)
-
-
-@dataclass(frozen=True, slots=True)
-class MissionRoute:
-    """Positional items from the current one on, in execution order (local NED about home, m).
-
-    ``seqs[k]`` is the item at ``pos_ned_m[k]`` (row 0: the current item). ``next_seq`` is the
-    non-positional NAV item the route stops at (e.g. RTL or LAND), -1 when it was cut by length or
-    count or the mission ends after its last point. Empty when the current item is not positional.
-    """
-
-    seqs: tuple[int, ...]
-    pos_ned_m: np.ndarray  # (n, 3), read-only
-    next_seq: int = -1
-
-
-_SKIPPABLE = (MavCmd.NAV_WAYPOINT, MavCmd.NAV_LOITER_TIME)
-_DO_ITEMS = (MavCmd.DO_CHANGE_SPEED, MavCmd.DO_GRIPPER, MavCmd.DO_JUMP)
-
-
-class _Phase(IntEnum):
-    START = 0
-    CLIMB = 1
-    APPROACH = 2
-    HOLD = 3
-    RETURN = 4
-    DESCEND = 5
 
 
 def _hdist(a: Sequence[float], b: Sequence[float]) -> float:
@@ -365,46 +261,16 @@ class MissionExecutor:
         key = (self._cur, self._version, min_length_m, max_points)
         if key == self._route_key and self._route is not None:
             return self._route
-        seqs: list[int] = []
-        pts: list[Vec3] = []
-        next_seq, length = -1, 0.0
+        order: Iterable[int] = ()
         if self._items and self._state in (MissionState.ACTIVE, MissionState.PAUSED):
-            for k in self._execution_order(self._cur, {}):
-                item = self._items[k]
-                if item.command in _DO_ITEMS:
-                    continue
-                pos = self._pos_ned[k]
-                if item.command not in _SKIPPABLE or pos is None:
-                    next_seq = k if seqs else -1
-                    break
-                if pts:
-                    length += math.dist(pts[-1], pos)
-                seqs.append(k)
-                pts.append(pos)
-                if length >= min_length_m or len(pts) >= max_points:
-                    break
-        arr = np.array(pts, float).reshape(-1, 3)
-        arr.flags.writeable = False
-        self._route = MissionRoute(tuple(seqs), arr, next_seq)
+            order = self._execution_order(self._cur, {})
+        self._route = route_through(self._items, self._pos_ned, order, min_length_m, max_points)
         self._route_key = key
         return self._route
 
     def _execution_order(self, start: int, jumps: dict[int, int]) -> Iterator[int]:
-        """Item indices from ``start`` on as they would run: DO_JUMPs followed while they have repeats left
-        (counts from ``_jumps_done``, updated in ``jumps``); bounded, so a jump loop of DO items ends."""
-        k = start
-        for _ in range(4 * len(self._items) + 4):
-            if not 0 <= k < len(self._items):
-                return
-            yield k
-            item = self._items[k]
-            if item.command == MavCmd.DO_JUMP:
-                done = jumps.get(k, self._jumps_done[k])
-                if item.param2 < 0 or done < item.param2:
-                    jumps[k] = done + 1
-                    k = int(item.param1)
-                    continue
-            k += 1
+        """Item indices from ``start`` on as they would run (:func:`execution_order`)."""
+        return execution_order(self._items, self._jumps_done, start, jumps)
 
     # ------------------------------------------------------------------ stepping
 
@@ -531,17 +397,6 @@ class MissionExecutor:
                 return False
             self._target = None
 
-    def _lookahead(self) -> Vec3 | None:
-        """Position of the next waypoint/loiter after the current item, following DO items and pending jumps."""
-        for k in self._execution_order(self._cur + 1, {}):
-            command = self._items[k].command
-            if command in (MavCmd.DO_JUMP, MavCmd.DO_CHANGE_SPEED, MavCmd.DO_GRIPPER):
-                continue
-            if command in (MavCmd.NAV_WAYPOINT, MavCmd.NAV_LOITER_TIME):
-                return self._pos_ned[k]
-            return None
-        return None
-
     def _make_target(self, s: VehicleSample) -> NavTarget | None:
         speed, acc = self.speed_m_s, self.config.accept_radius_m
         if self._state in (MissionState.PAUSED, MissionState.COMPLETE):
@@ -552,19 +407,8 @@ class MissionExecutor:
         if self._state != MissionState.ACTIVE:
             return None
         item = self._items[self._cur]
-        cmd, yaw = item.command, item.param4
-        if self._phase == _Phase.CLIMB:
-            kind = NavKind.TAKEOFF if cmd == MavCmd.NAV_TAKEOFF else NavKind.RETURN
-            return NavTarget(kind, self._cur, self._goal, yaw if kind == NavKind.TAKEOFF else _NAN, speed, acc)
-        if self._phase == _Phase.RETURN:
-            return NavTarget(NavKind.RETURN, self._cur, self._goal, _NAN, speed, acc)
-        if self._phase == _Phase.DESCEND:
-            return NavTarget(NavKind.LAND, self._cur, self._goal, yaw if cmd == MavCmd.NAV_LAND else _NAN, speed, acc)
-        if self._phase == _Phase.APPROACH:
-            radius = self._accept_radius(item)
-            nxt = self._lookahead() if self._hold_s <= 0.0 and cmd == MavCmd.NAV_WAYPOINT else None
-            return NavTarget(NavKind.WAYPOINT, self._cur, self._goal, yaw, speed, radius, nxt is not None, nxt)
-        if self._phase == _Phase.HOLD:
-            kind = NavKind.IDLE if s.landed else NavKind.LOITER
-            return NavTarget(kind, self._cur, self._goal, yaw if cmd != MavCmd.NAV_DELAY else _NAN, speed, acc)
-        return None
+        lookahead = None
+        if self._phase == _Phase.APPROACH and self._hold_s <= 0.0 and item.command == MavCmd.NAV_WAYPOINT:
+            lookahead = next_position(self._items, self._pos_ned, self._execution_order(self._cur + 1, {}))
+        radius = self._accept_radius(item)
+        return phase_target(self._phase, item, self._cur, self._goal, speed, acc, radius, lookahead, s.landed)

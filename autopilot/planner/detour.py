@@ -35,17 +35,18 @@ import heapq
 import itertools
 import math
 from collections.abc import Collection, Sequence
-from dataclasses import dataclass, field
-from enum import Enum
+from dataclasses import dataclass
 
 import numpy as np
 
-from .bezier import BezierPath, bernstein_matrix, fit_detour
-from .geometry import FenceZone, path_clear_of_fences
+from .bezier import fit_detour
+from .detour_types import CandidateReport, CandidateStatus, DetourLimits, DetourPlan, DetourResult, DetourSide
+from .geometry import path_clear_of_fences
 from .obstacle_map import ObstacleArrays, ObstacleKind, TrackedObstacle, row_signed_distance
+from .path_shapes import SAMPLE_STEP_M as _SAMPLE_STEP_M
+from .path_shapes import enclosing_volume
 
 _ARC_STEP_RAD = math.radians(30.0)
-_SAMPLE_STEP_M = 0.4
 #: How many times blocking neighbours may be merged into the threat's volume before giving up.
 MAX_CLUSTER_MERGES = 3
 #: The route after the rejoin point is checked for the stopping distance plus this many seconds of flight.
@@ -58,85 +59,6 @@ _MAX_REJOIN_PUSHES = 3
 V3 = tuple[float, float, float]
 #: ``ObstacleArrays.rows``: (id, north, east, down, radius, is_sphere, top_down).
 Row = tuple[int, float, float, float, float, bool, float]
-
-
-class DetourSide(Enum):
-    """Which way a detour passes the obstacle (HOLD: no safe detour, brake and hover)."""
-
-    OVER = "OVER"
-    UNDER = "UNDER"
-    LEFT = "LEFT"
-    RIGHT = "RIGHT"
-    HOLD = "HOLD"
-
-
-class CandidateStatus(Enum):
-    """Outcome of one candidate."""
-
-    CHOSEN = "chosen"
-    RULED_OUT = "ruled out"  # by a rule before fitting (ground, ceiling, column top unknown)
-    BLOCKED = "blocked"  # its polyline or fitted curve fails a check (obstacle, fence, limits)
-    NOT_EVALUATED = "not evaluated"  # a cheaper candidate was chosen first
-
-
-@dataclass(frozen=True, slots=True)
-class CandidateReport:
-    """One candidate's cost (tangent–arc–tangent length, m; inf when ruled out) and fate."""
-
-    side: DetourSide
-    cost_m: float
-    status: CandidateStatus
-    reason: str = ""
-
-
-@dataclass(frozen=True, slots=True)
-class DetourLimits:
-    """What a detour must respect (altitudes above home; the ground is at altitude 0)."""
-
-    r_safe_m: float
-    margin_m: float
-    v_max_m_s: float
-    a_max_m_s2: float
-    rejoin_m: float
-    min_agl_m: float
-    alt_floor_m: float
-    alt_ceiling_m: float
-    fences: tuple[FenceZone, ...] = ()
-    cruise_m_s: float = 5.0  # detour speed when the vehicle flies slower (e.g. starts from a hover)
-
-
-@dataclass(frozen=True, slots=True)
-class DetourPlan:
-    """A chosen detour: via polyline, the fitted Bézier path, its samples and checks.
-
-    ``rejoin_route_index`` is the index, in the route the detour was planned on (0 = the current
-    target, k = the k-th waypoint after it), of the waypoint that ends the route leg the detour
-    rejoins: once the detour is flown, the route resumes toward it (the waypoints before it were
-    bypassed). ``continuation_ned`` is the route after the rejoin point that was checked clear.
-    """
-
-    side: DetourSide
-    obstacle_id: int
-    via_ned: np.ndarray  # (k+1, 3) tangent–arc–tangent polyline, vehicle -> rejoin
-    path: BezierPath
-    samples_ned: np.ndarray  # (m, 3) consecutive points <= _SAMPLE_STEP_M apart
-    cost_m: float
-    min_clearance_m: float  # over the samples, to the tracked obstacles within R_safe + 1 m of the curve (inf: none)
-    rejoin_ned: np.ndarray
-    rejoin_route_index: int = 0
-    continuation_ned: np.ndarray = field(default_factory=lambda: np.empty((0, 3)))
-    sample_times_s: np.ndarray = field(default_factory=lambda: np.empty(0))  # time of each sample on the path
-
-
-@dataclass(frozen=True, slots=True)
-class DetourResult:
-    """The plan (None when no candidate is safe) and the report of every candidate."""
-
-    plan: DetourPlan | None
-    candidates: tuple[CandidateReport, ...]
-
-
-# ------------------------------------------------------------------------------- scalar geometry
 
 
 def _seg_distance(a: V3, b: V3, c: V3, planar: bool) -> tuple[float, float]:
@@ -627,43 +549,3 @@ def plan_detour(
                 dynamic_failed.add(cand.side)
     reported = levels[chosen_level] if chosen is not None else levels[-1]
     return DetourResult(chosen, tuple(c.report() for c in reported.candidates))
-
-
-def enclosing_volume(a: TrackedObstacle, b: TrackedObstacle) -> TrackedObstacle:
-    """The smallest sphere (or, if either is a column, vertical column) enclosing two obstacles; keeps a's id."""
-    column = ObstacleKind.COLUMN in (a.kind, b.kind)
-    ca, cb = a.center_ned, b.center_ned
-    if column:
-        cb = (cb[0], cb[1], ca[2])
-    d = math.dist(ca, cb)
-    if d + b.radius_m <= a.radius_m:
-        c, r = ca, a.radius_m
-    elif d + a.radius_m <= b.radius_m:
-        c, r = cb, b.radius_m
-    else:
-        r = 0.5 * (d + a.radius_m + b.radius_m)
-        f = (r - a.radius_m) / d
-        c = (ca[0] + (cb[0] - ca[0]) * f, ca[1] + (cb[1] - ca[1]) * f, ca[2] + (cb[2] - ca[2]) * f)
-    kind = ObstacleKind.COLUMN if column else ObstacleKind.SPHERE
-    return TrackedObstacle(a.obstacle_id, kind, c, r, a.first_seen_us, a.last_seen_us, a.detections)
-
-
-def brake_path(pos_ned: np.ndarray, vel_ned: np.ndarray, a_max_m_s2: float) -> BezierPath:
-    """Straight constant deceleration to a hover (cubic Hermite with end velocity 0, |a| = |v|/T)."""
-    pos = np.asarray(pos_ned, float)
-    vel = np.asarray(vel_ned, float)
-    speed = float(np.linalg.norm(vel))
-    duration = max(speed / a_max_m_s2, 0.05)
-    stop = pos + vel * duration / 2.0
-    ctrl = np.stack((pos, pos + vel * duration / 3.0, stop, stop))[None]
-    ctrl.setflags(write=False)
-    durations = np.array((duration,))
-    durations.setflags(write=False)
-    return BezierPath(ctrl, durations, speed, speed / duration, True)
-
-
-def sample_path(path: BezierPath) -> np.ndarray:
-    """Samples of a path at the planner's checking step (for telemetry and checks)."""
-    n = max(2, math.ceil(path.v_bound_m_s * float(path.durations_s.max()) / _SAMPLE_STEP_M))
-    basis = bernstein_matrix(3, np.linspace(0.0, 1.0, n + 1))
-    return np.einsum("mj,kjd->kmd", basis, path.ctrl_ned).reshape(-1, 3)

@@ -42,7 +42,7 @@ class _Obstacle:
 
 @dataclass(frozen=True, slots=True)
 class _PlannerOut:
-    """The fields of ``autopilot.planner.planner.PlannerOutput`` the telemetry reads."""
+    """The fields of ``autopilot.planner.planner_output.PlannerOutput`` the telemetry reads."""
 
     detour: object | None
     hold_path: object | None
