@@ -66,7 +66,6 @@ def test_fence_upload_right_after_the_first_heartbeat_is_accepted(tmp_path: Path
     plan = load_mission_file(mission)
     with sitl_pair(tmp_path, mission) as s, connect_gcs(s.gcs_url) as client:
         serial = client.statustext_serial
-        before_fix = client.telemetry().home is None
         client.upload_mission(plan.fence, MissionType.FENCE)  # as QGC and scripts do on connect; raises if refused
         client.upload_mission(plan.items, MissionType.MISSION)
         assert len(client.download_mission(MissionType.FENCE)) == len(plan.fence)
@@ -76,8 +75,8 @@ def test_fence_upload_right_after_the_first_heartbeat_is_accepted(tmp_path: Path
         assert len(client.download_mission(MissionType.MISSION)) == len(plan.items)
     assert status.home is not None
     assert not [t for t in texts if "refused" in t or "not flyable" in t], texts
-    if before_fix:  # the usual case: the heartbeat comes before the simulator's first frame
-        assert any("(placed once home is known)" in t for t in texts), texts
+    # whether the vehicle had its first fix when the upload arrived is a race at --speed max (the GCS's telemetry
+    # lags); storing before the fix and placing once home is known is tested in-process (test_autopilot_routing)
 
 
 def test_leg_across_an_exclusion_circle_with_a_tall_building_past_it(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
