@@ -119,8 +119,7 @@ class Autopilot:
         self._truth: object | None = None  # the latest truth, for the step record (estimate vs truth)
         self._pending_control: SingleStep | None = None  # this step's cascade output, booked by after_answer
         self._motor = (0.0, 0.0, 0.0, 0.0)
-        self._next_failsafe_us = 0
-        self._next_nav_us = 0
+        self._next_failsafe_us = self._next_nav_us = 0
         autopilot_bindings(
             self.navigator, self.control, self.battery, self._apply_controller_params, self._listener_safety_radius
         ).attach(self.params)
@@ -196,6 +195,7 @@ class Autopilot:
         self.frames += 1
         self.frame_detections = getattr(frame, "detections", ())
         seen = self.sensor_check.apply(self.failures.apply_to_frame(frame), self.commander.in_air)
+        self.estimator.set_landed(self.commander.landed_state is LandedState.ON_GROUND)
         state = self.estimator.update(seen)
         self._pending_truth = self._truth = frame.truth
         commander = self.commander

@@ -67,6 +67,14 @@ class FlightStats:
     height_m: np.ndarray = field(repr=False)  # per row: true height above the take-off point
     gps_err_ned_m: np.ndarray = field(repr=False)
     tracking_err_m: np.ndarray = field(repr=False)  # |true position − position setpoint|, 10 Hz, in the mission
+    touchdown_s: float = math.nan  # sim time the vehicle last came to rest on the ground (the sim's contact)
+    disarmed_s: float = math.nan  # sim time the autopilot disarmed after it
+    landed_alt_rel_m: float = math.nan  # the altitude above home the autopilot reports at that disarm
+
+    @property
+    def disarm_delay_s(self) -> float:
+        """Touchdown to disarm (s): the land detector's trigger time plus COM_DISARM_LAND plus the estimate's lag."""
+        return self.disarmed_s - self.touchdown_s
 
     @property
     def rtf(self) -> float:
@@ -127,6 +135,7 @@ def fly_delivery(
     max_steps = round(timeout_s * CONTROL_HZ)
     wall0, cpu0 = time.perf_counter(), time.process_time()
     steps = 0
+    touchdown_s = disarmed_s = landed_alt_rel_m = math.nan
     for steps in range(1, max_steps + 1):
         truth = sim.ground_truth()
         gps = sensors.gps(sim)
@@ -136,10 +145,13 @@ def fly_delivery(
         ap.after_answer()
         if cmd.gripper_release and sim.payload_kg > 0.0:
             sim.release_payload()
+        was_on_ground = sim.on_ground
         sim.step(cmd.motor_cmd)
         if sim.end_reason is not EndReason.RUNNING:
             break
         commander = ap.commander
+        if state_phase == 2 and sim.on_ground and not was_on_ground:
+            touchdown_s = sim.t_s  # the last touchdown counts (a touch-and-go is not a landing)
         if state_phase == 0 and ap.state is not None and ap.state.valid:
             vehicle.replace_mission(MissionType.MISSION, list(plan.items))
             vehicle.replace_mission(MissionType.FENCE, list(plan.fence))
@@ -150,6 +162,9 @@ def fly_delivery(
                 state_phase = 2
         elif state_phase == 2 and not commander.armed and commander.landed_state is LandedState.ON_GROUND:
             state_phase = 3
+            disarmed_s = frame.sensor.time_us * 1e-6
+            if ap.state is not None:
+                landed_alt_rel_m = commander.alt_rel_home_m(ap.state)
             break
         if instrument and gps is not None:
             pt = truth_frame.ned_from_geodetic(truth.lat_deg, truth.lon_deg, truth.alt_amsl_m)
@@ -196,6 +211,9 @@ def fly_delivery(
         height_m=a[:, 15],
         gps_err_ned_m=np.array(gps_rows) if gps_rows else np.zeros((0, 3)),
         tracking_err_m=np.array(tracking),
+        touchdown_s=touchdown_s,
+        disarmed_s=disarmed_s,
+        landed_alt_rel_m=landed_alt_rel_m,
     )
 
 
