@@ -62,7 +62,8 @@ class EkfEstimator:
     """Extended (error-state) Kalman filter on the step's IMU, GPS, baro and magnetometer samples.
 
     Reads ``frame.sensor`` and ``frame.gps`` only: ``frame.truth`` is never touched. Returns None until the
-    first good fix has set the local origin; then a state every step, ``valid`` once aligned and positioned. :meth:`set_landed` (the land detector, each step) enables the zero-velocity update.
+    first good fix has set the local origin; then a state every step, ``valid`` once aligned and positioned.
+    :meth:`set_landed` (the land detector, each step) enables the zero-velocity update.
     """
 
     def __init__(self, params: EkfParams | None = None) -> None:
