@@ -8,9 +8,11 @@ origin choice does not count), and the GPS receiver's fixes with the truth at th
 
 Keys: ``ekf_pos_horiz_rms_m`` vs ``gps_pos_horiz_rms_m`` (target: not worse), ``ekf_vel_rms_m_s`` (<= 0.15),
 ``ekf_att_rms_deg`` (<= 1, the rotation angle between estimate and truth), tracking error vs truth with the EKF
-and with ``--estimator truth``, ``ekf_update_us`` (the estimator's own cost per step), ``rtf_ekf`` / ``rtf_truth``
-(whole-flight real-time factor of the in-process loop, the same seed back to back) and the cost share
-``ekf_rtf_cost_fraction = 1 − rtf_ekf / rtf_truth`` (target <= 0.10); and (``estimator_mc``) the Monte Carlo.
+and with ``--estimator truth``, touchdown to disarm on each estimator and their difference ``ekf_disarm_delay_s``
+(<= 0.3 s) with the altitude reported at that disarm, ``ekf_update_us`` (the estimator's own cost per step),
+``rtf_ekf`` / ``rtf_truth`` (whole-flight real-time factor of the in-process loop, the same seed back to back) and
+the cost share ``ekf_rtf_cost_fraction = 1 − rtf_ekf / rtf_truth`` (target <= 0.10); and (``estimator_mc``) the
+Monte Carlo.
 """
 
 from __future__ import annotations
@@ -259,6 +261,16 @@ def run(quick: bool) -> list[BenchResult]:
                     "delivery mission: |true position − setpoint| RMS, flying on the EKF"),
         bench_result("tracking_rms_truth_m", rms(truth.tracking_err_m),
                     "the same with --estimator truth (same seed)"),
+        bench_result("ekf_touchdown_to_disarm_s", ekf.disarm_delay_s,
+                    "delivery mission: sim touchdown (ground contact) to the autopilot's disarm, flying on the EKF"),
+        bench_result("truth_touchdown_to_disarm_s", truth.disarm_delay_s,
+                    "the same with --estimator truth (same mission and seed)"),
+        bench_result("ekf_disarm_delay_s", ekf.disarm_delay_s - truth.disarm_delay_s,
+                    "ekf_touchdown_to_disarm_s − truth_touchdown_to_disarm_s: the estimator's share of the wait",
+                    "<= 0.3", ekf.disarm_delay_s - truth.disarm_delay_s <= 0.3),
+        bench_result("ekf_landed_alt_rel_m", ekf.landed_alt_rel_m,
+                    "altitude above home the autopilot reports at that disarm (on the ground)", "|x| <= 0.1",
+                    abs(ekf.landed_alt_rel_m) <= 0.1),
     ]  # fmt: skip
     # cost: the estimator's own CPU time per step (one timed flight each), and the whole-flight CPU-time RTF of
     # untimed, uninstrumented flights, EKF and truth back to back; the cost is the median over the pairs of
