@@ -25,7 +25,7 @@ class Links:
     """The sockets of one autopilot process (SPEC §3); any of the GCS/API servers may be absent."""
 
     lockstep: object  # mavlink_bridge.lockstep.LockstepClient
-    gcs: list[object] = field(default_factory=list)  # mavlink_bridge.gcs_server.GcsServer
+    gcs: list[object] = field(default_factory=list)  # mavlink_bridge.gcs_server.server.GcsServer
 
 
 def run_loop(

@@ -8,7 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from mavlink_bridge.answer_kernel import (
+from mavlink_bridge.contract.wire import ActuatorCommand
+from mavlink_bridge.lockstep.answer_kernel import (
     A_ARMED,
     A_GRIPPER_RELEASE,
     A_MOTORS,
@@ -20,8 +21,7 @@ from mavlink_bridge.answer_kernel import (
     AnswerWriter,
     read_answer,
 )
-from mavlink_bridge.codec import AUTOPILOT_COMPONENT_ID, AUTOPILOT_SYSTEM_ID, Encoder, Heartbeat, make_mavlink
-from mavlink_bridge.contract.wire import ActuatorCommand
+from mavlink_bridge.wire.codec import AUTOPILOT_COMPONENT_ID, AUTOPILOT_SYSTEM_ID, Encoder, Heartbeat, make_mavlink
 
 CASES = [
     ActuatorCommand(4000, (0.5, 0.25, 0.125, 1.0), True),

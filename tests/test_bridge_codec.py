@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mav2
 
-from mavlink_bridge.codec import HIL_SENSOR_FIELDS_ALL, Decoder, Encoder, Heartbeat, make_mavlink
 from mavlink_bridge.contract.frames import GRAVITY_M_S2
 from mavlink_bridge.contract.wire import (
     GRIPPER_CHANNEL,
@@ -21,6 +20,7 @@ from mavlink_bridge.contract.wire import (
     ObstacleShape,
     SensorSample,
 )
+from mavlink_bridge.wire.codec import HIL_SENSOR_FIELDS_ALL, Decoder, Encoder, Heartbeat, make_mavlink
 
 F32 = np.float32
 

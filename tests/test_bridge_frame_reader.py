@@ -1,4 +1,4 @@
-"""The compiled lockstep reader (``mavlink_bridge.frame_reader``) decodes exactly what the Python decoder does.
+"""The compiled lockstep reader (``mavlink_bridge.wire.frame_reader``) decodes exactly what the Python decoder does.
 
 Every datagram is decoded twice, with ``Decoder()`` (compiled fast path, Python fallback) and with
 ``Decoder(compiled=False)``; messages (compared by ``repr``, so NaN and -0.0 count), ids and counters must
@@ -13,8 +13,6 @@ import random
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mav2
 
-from mavlink_bridge import codec, frame_reader
-from mavlink_bridge.codec import Decoder, Encoder, Heartbeat
 from mavlink_bridge.contract.wire import (
     ActuatorCommand,
     GpsSample,
@@ -23,6 +21,8 @@ from mavlink_bridge.contract.wire import (
     ObstacleShape,
     SensorSample,
 )
+from mavlink_bridge.wire import codec, frame_reader
+from mavlink_bridge.wire.codec import Decoder, Encoder, Heartbeat
 
 SPECIALS = (math.nan, math.inf, -math.inf, -0.0, 0.0, 1e-40, 3.4e38, -1e9)
 

@@ -6,8 +6,8 @@ import threading
 
 import pytest
 
-from mavlink_bridge.link import LinkMode, LinkUrl, LinkUrlError, UdpLink, spin_allowed
 from mavlink_bridge.lockstep import LockstepClient, LockstepInterrupted, LockstepServer
+from mavlink_bridge.wire.link import LinkMode, LinkUrl, LinkUrlError, UdpLink, spin_allowed
 from tests.test_bridge_lockstep import make_frame
 
 
@@ -85,14 +85,14 @@ def test_spinning_recv_gets_datagrams_and_still_times_out() -> None:
 
 
 def test_no_spin_on_one_cpu(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr("mavlink_bridge.link.os.sched_getaffinity", lambda _pid: {0})
+    monkeypatch.setattr("mavlink_bridge.wire.link.os.sched_getaffinity", lambda _pid: {0})
     assert not spin_allowed()
     with UdpLink.from_url("udpin:127.0.0.1:0", spin_s=0.001) as link:
         assert link.spin_s == 0.0
 
 
 def test_spinning_backs_off_while_the_peer_is_slow(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr("mavlink_bridge.link.spin_allowed", lambda: True)
+    monkeypatch.setattr("mavlink_bridge.wire.link.spin_allowed", lambda: True)
     with UdpLink.from_url("udpin:127.0.0.1:0", spin_s=0.001) as server:
         spins: list[float] = []
         real_spin = UdpLink._spin

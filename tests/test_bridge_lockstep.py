@@ -10,7 +10,6 @@ import threading
 import numpy as np
 import pytest
 
-from mavlink_bridge.codec import SIM_COMPONENT_ID, SIM_SYSTEM_ID, Encoder
 from mavlink_bridge.contract.wire import (
     ActuatorCommand,
     GpsSample,
@@ -19,7 +18,6 @@ from mavlink_bridge.contract.wire import (
     ObstacleShape,
     SensorSample,
 )
-from mavlink_bridge.link import UdpLink
 from mavlink_bridge.lockstep import (
     AutopilotLost,
     LockstepClient,
@@ -28,7 +26,9 @@ from mavlink_bridge.lockstep import (
     ResendTimer,
     encode_frame,
 )
-from mavlink_bridge.lossy import LossProfile, LossyUdpProxy
+from mavlink_bridge.wire.codec import SIM_COMPONENT_ID, SIM_SYSTEM_ID, Encoder
+from mavlink_bridge.wire.link import UdpLink
+from mavlink_bridge.wire.lossy import LossProfile, LossyUdpProxy
 
 FRAME_PERIOD_US = 4000
 

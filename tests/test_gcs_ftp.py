@@ -1,7 +1,7 @@
 """MAVLink FTP over an empty file system: every request gets the answer a real server would give, at once.
 
 The expected reply layout is written out here from the MAVLink FTP spec (not imported from the module), so a
-wrong header in ``ftp_protocol`` fails these tests.
+wrong header in ``mavlink_bridge.gcs_server.ftp`` fails these tests.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import time
 import pytest
 from gcs_fakes import served_fake_vehicle
 
-from mavlink_bridge.ftp_protocol import ftp_reply
+from mavlink_bridge.gcs_server.ftp import ftp_reply
 
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil

@@ -14,16 +14,16 @@ from gcs_fakes import MAV_CMD_COMPONENT_ARM_DISARM, FakeVehicle, ServerHarness
 
 from autopilot.params import ParamSpec, ParamStore
 from mavlink_bridge.contract.vehicle_api import CommandResult, FlightMode, LandedState
-from mavlink_bridge.gcs_client import (
+from mavlink_bridge.gcs_client.client import (
     CommandFailedError,
     GcsClient,
     GcsTimeoutError,
     ParamNotFoundError,
     ParamRefusedError,
 )
-from mavlink_bridge.gcs_server import GcsServer
-from mavlink_bridge.lossy import LossProfile, LossyUdpProxy
-from mavlink_bridge.signing import signing_key_from_text
+from mavlink_bridge.gcs_server.server import GcsServer
+from mavlink_bridge.wire.lossy import LossProfile, LossyUdpProxy
+from mavlink_bridge.wire.signing import signing_key_from_text
 
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil

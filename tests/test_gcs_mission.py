@@ -14,10 +14,10 @@ from conftest import free_udp_port
 from gcs_fakes import FakeVehicle, ServerHarness, fence_circle, waypoint
 
 from mavlink_bridge.contract.vehicle_api import MissionResult, MissionType
-from mavlink_bridge.gcs_client import GcsClient, MissionUploadError
-from mavlink_bridge.gcs_server import GcsServer
-from mavlink_bridge.lossy import LossProfile, LossyUdpProxy
-from mavlink_bridge.mission_protocol import TransferTimeouts
+from mavlink_bridge.gcs_client.client import GcsClient, MissionUploadError
+from mavlink_bridge.gcs_server.missions import TransferTimeouts
+from mavlink_bridge.gcs_server.server import GcsServer
+from mavlink_bridge.wire.lossy import LossProfile, LossyUdpProxy
 
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil

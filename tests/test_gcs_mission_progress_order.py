@@ -9,7 +9,7 @@ from dataclasses import replace
 from conftest import free_udp_port
 from gcs_fakes import FakeVehicle
 
-from mavlink_bridge.gcs_server import GcsServer
+from mavlink_bridge.gcs_server.server import GcsServer
 
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil

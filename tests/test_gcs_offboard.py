@@ -24,7 +24,7 @@ from mavlink_bridge.contract.vehicle_api import (
     VelocityFrame,
     VelocityTarget,
 )
-from mavlink_bridge.gcs_server import GcsServer
+from mavlink_bridge.gcs_server.server import GcsServer
 
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil

@@ -12,7 +12,7 @@ from gcs_fakes import FakeVehicle, ServerHarness
 
 from autopilot.mission.files import load_mission_file
 from mavlink_bridge.contract.vehicle_api import MissionType
-from mavlink_bridge.gcs_server import GcsServer
+from mavlink_bridge.gcs_server.server import GcsServer
 from tools import gcs
 
 MISSION_YAML = textwrap.dedent(

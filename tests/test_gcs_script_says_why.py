@@ -15,7 +15,7 @@ from conftest import free_udp_port
 from gcs_fakes import FakeVehicle, ServerHarness
 
 from mavlink_bridge.contract.vehicle_api import CommandRequest, CommandResult, Severity
-from mavlink_bridge.gcs_server import GcsServer
+from mavlink_bridge.gcs_server.server import GcsServer
 from tools import gcs
 
 MISSION_YAML = textwrap.dedent(

@@ -9,7 +9,7 @@ import pytest
 from gcs_fakes import FakeVehicle
 
 from mavlink_bridge.contract.vehicle_api import FlightMode
-from mavlink_bridge.telemetry_streams import TelemetryStreams
+from mavlink_bridge.gcs_server.telemetry_streams import TelemetryStreams
 
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil

@@ -38,7 +38,7 @@ from interop_clients.missions import short_delivery
 from autopilot.mission.files import load_mission_file
 from autopilot.param_schema import make_param_store
 from mavlink_bridge.contract.vehicle_api import LandedState, MissionItem
-from mavlink_bridge.gcs_client import GcsClient, VehicleStatus
+from mavlink_bridge.gcs_client.client import GcsClient, VehicleStatus
 from tools.sitl import sitl_run
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]

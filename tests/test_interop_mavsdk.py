@@ -34,7 +34,7 @@ from autopilot.mission.files import load_mission_file
 from autopilot.param_schema import make_param_store
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
 from mavlink_bridge.contract.vehicle_api import MissionItem
-from mavlink_bridge.gcs_client import GcsClient
+from mavlink_bridge.gcs_client.client import GcsClient
 from tools.sitl import SitlRun, sitl_run
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]

@@ -1,4 +1,4 @@
-"""The sim's compiled frame path (``sim.frame_kernel.SensorValues`` + ``mavlink_bridge.frame_writer.FrameWriter``)
+"""The sim's compiled frame path (``sim.frame_kernel.SensorValues`` + ``mavlink_bridge.wire.frame_writer.FrameWriter``)
 against independent oracles: pymavlink decodes every datagram (framing, CRC, layouts) and its fields are
 compared with the sensor model's Python methods on a twin vehicle (same seed); pymap3d checks the geodetic
 conversion. Edge states (NaN, inf, saturation, truncation, float32 overflow, baro beyond the ISA model)
@@ -13,12 +13,12 @@ import numpy as np
 import pymap3d
 import pytest
 
-from mavlink_bridge.codec import make_mavlink
 from mavlink_bridge.contract.frames import DEG_E7, GRAVITY_M_S2, GeoPoint, LocalNedFrame
 from mavlink_bridge.contract.geodetic import geodetic_from_ned
 from mavlink_bridge.contract.wire import ObstacleDetection
-from mavlink_bridge.frame_writer import FrameWriter
 from mavlink_bridge.lockstep import LockstepFrame
+from mavlink_bridge.wire.codec import make_mavlink
+from mavlink_bridge.wire.frame_writer import FrameWriter
 from sim.frame_kernel import C_TRUTH_FRAME, SensorValues, frame_constants
 from sim.obstacle_sensor import ObstacleSensor
 from sim.sensors import SensorModel

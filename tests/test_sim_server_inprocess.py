@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from mavlink_bridge.contract.wire import ActuatorCommand, ObstacleShape
-from mavlink_bridge.link import LinkUrlError
 from mavlink_bridge.lockstep import DEFAULT_SPIN_S, LockstepClient, LockstepFrame
-from mavlink_bridge.lossy import LossProfile, LossyUdpProxy
+from mavlink_bridge.wire.link import LinkUrlError
+from mavlink_bridge.wire.lossy import LossProfile, LossyUdpProxy
 from sim.cli import (
     EXIT_AUTOPILOT_LOST,
     EXIT_OK,

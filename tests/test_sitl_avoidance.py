@@ -18,7 +18,7 @@ from sitl_procs import connect_gcs, landed_disarmed, logs, read_json, sitl_pair,
 
 from autopilot.mission.files import load_mission_file
 from autopilot.mission.plan import MissionPlan
-from mavlink_bridge.gcs_client import GcsClient, VehicleStatus
+from mavlink_bridge.gcs_client.client import GcsClient, VehicleStatus
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 

@@ -15,7 +15,7 @@ from sitl_procs import Ports, logs, read_json, start_autopilot, start_sim, stop
 
 from mavlink_bridge.contract.frames import LocalNedFrame
 from mavlink_bridge.contract.vehicle_api import FlightMode, LandedState
-from mavlink_bridge.gcs_client import GcsClient
+from mavlink_bridge.gcs_client.client import GcsClient
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 

@@ -10,8 +10,8 @@ from conftest import free_udp_port
 from sitl_procs import logs, start_autopilot, start_sim, stop
 
 from mavlink_bridge.contract.vehicle_api import CommandResult, FlightMode
-from mavlink_bridge.gcs_client import GcsClient, GcsTimeoutError
-from mavlink_bridge.signing import signing_key_from_text
+from mavlink_bridge.gcs_client.client import GcsClient, GcsTimeoutError
+from mavlink_bridge.wire.signing import signing_key_from_text
 
 pytestmark = [pytest.mark.sitl]
 

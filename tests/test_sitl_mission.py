@@ -34,7 +34,7 @@ from autopilot.mission.files import load_mission_file
 from autopilot.telemetry.recording_reader import read_recording
 from mavlink_bridge.contract.mav_enums import MavCmd
 from mavlink_bridge.contract.vehicle_api import FlightMode, MissionItem, MissionResult
-from mavlink_bridge.gcs_client import GcsClient, MissionUploadError, VehicleStatus
+from mavlink_bridge.gcs_client.client import GcsClient, MissionUploadError, VehicleStatus
 from tools import gcs as gcs_script
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]

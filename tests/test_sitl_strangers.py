@@ -15,9 +15,9 @@ from pathlib import Path
 import pytest
 from sitl_procs import Ports, logs, read_json, start_autopilot, start_sim, stop
 
-from mavlink_bridge.codec import SIM_COMPONENT_ID, SIM_SYSTEM_ID, Encoder, Heartbeat
 from mavlink_bridge.contract.wire import ActuatorCommand, GroundTruth, SensorSample
 from mavlink_bridge.lockstep import LockstepFrame, encode_frame
+from mavlink_bridge.wire.codec import SIM_COMPONENT_ID, SIM_SYSTEM_ID, Encoder, Heartbeat
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 

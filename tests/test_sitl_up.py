@@ -12,7 +12,7 @@ import pytest
 from conftest import REPO_ROOT
 from sitl_procs import Ports, read_json
 
-from mavlink_bridge.gcs_client import GcsClient
+from mavlink_bridge.gcs_client.client import GcsClient
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 

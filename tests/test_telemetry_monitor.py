@@ -13,7 +13,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from autopilot.telemetry import entities as ent
 from autopilot.telemetry.recording_reader import read_recording
 from autopilot.telemetry.sinks import RerunSink, SinkKind, open_recording
-from mavlink_bridge.telemetry_listener import StatusTextEvent, TelemetryListener, VehicleHeartbeat
+from mavlink_bridge.gcs_client.telemetry_listener import StatusTextEvent, TelemetryListener, VehicleHeartbeat
 from tools.monitor import TIMELINE, MonitorRecorder, main
 
 PX4_AUTO_MISSION = (4 << 16) | (4 << 24)

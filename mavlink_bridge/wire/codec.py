@@ -40,8 +40,18 @@ import math
 import struct
 from collections.abc import Callable
 
-from mavlink_bridge.codec_decode import Decoder, DecoderStats
-from mavlink_bridge.codec_framing import (
+from mavlink_bridge.contract.frames import DEG_E7, GRAVITY_M_S2
+from mavlink_bridge.contract.wire import (
+    ACTUATOR_FLAG_LOCKSTEP,
+    ACTUATOR_MODE_ARMED,
+    ActuatorCommand,
+    GpsSample,
+    GroundTruth,
+    ObstacleDetection,
+    SensorSample,
+)
+from mavlink_bridge.wire.decode import Decoder, DecoderStats
+from mavlink_bridge.wire.framing import (
     _ACTUATORS_PAYLOAD,
     _CRC,
     _HEARTBEAT,
@@ -66,16 +76,6 @@ from mavlink_bridge.codec_framing import (
     _crc_mcrf4xx,
     _dialect,
     _Layout,
-)
-from mavlink_bridge.contract.frames import DEG_E7, GRAVITY_M_S2
-from mavlink_bridge.contract.wire import (
-    ACTUATOR_FLAG_LOCKSTEP,
-    ACTUATOR_MODE_ARMED,
-    ActuatorCommand,
-    GpsSample,
-    GroundTruth,
-    ObstacleDetection,
-    SensorSample,
 )
 
 __all__ = [

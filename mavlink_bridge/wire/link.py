@@ -7,7 +7,7 @@
   replies come back on the same socket.
 
 The link moves whole datagrams only: it knows nothing of MAVLink (framing, signing and
-decoding belong to ``mavlink_bridge.codec``). ``recv`` never raises on what a peer sends;
+decoding belong to ``mavlink_bridge.wire.codec``). ``recv`` never raises on what a peer sends;
 socket errors caused by a vanished peer (ICMP port unreachable) are swallowed and counted.
 
 Ports are exclusive: a listening link never sets ``SO_REUSEADDR``/``SO_REUSEPORT`` (on Linux either lets a

@@ -8,8 +8,8 @@ import time
 from pymavlink.dialects.v20 import common as mavlink2
 
 from mavlink_bridge.contract.vehicle_api import CommandResult, FlightMode
-from mavlink_bridge.gcs_errors import CommandFailedError, GcsTimeoutError
-from mavlink_bridge.gcs_session import GcsSession, Msg
+from mavlink_bridge.gcs_client.errors import CommandFailedError, GcsTimeoutError
+from mavlink_bridge.gcs_client.session import GcsSession, Msg
 
 M = mavlink2
 _FORCE_ARM_MAGIC = 21196.0  # PX4/ArduPilot: param2 of COMPONENT_ARM_DISARM that bypasses pre-arm checks

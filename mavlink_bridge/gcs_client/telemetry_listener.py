@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 from pymavlink import mavutil
 
-from mavlink_bridge.codec import make_mavlink
-from mavlink_bridge.link import UdpLink
+from mavlink_bridge.wire.codec import make_mavlink
+from mavlink_bridge.wire.link import UdpLink
 
 GCS_SYSTEM_ID = 255
 GCS_COMPONENT_ID = 190  # MAV_COMP_ID_MISSIONPLANNER

@@ -8,8 +8,8 @@ import argparse
 import math
 from dataclasses import dataclass
 
-from mavlink_bridge.codec import Encoder
 from mavlink_bridge.contract.wire import GpsSample, GroundTruth, ObstacleDetection, SensorSample
+from mavlink_bridge.wire.codec import Encoder
 
 DEFAULT_SIM_PORT = 14560
 DEFAULT_LISTEN_URL = f"udpin:127.0.0.1:{DEFAULT_SIM_PORT}"

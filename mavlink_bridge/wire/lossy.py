@@ -18,7 +18,7 @@ import threading
 import time
 from dataclasses import dataclass
 
-from mavlink_bridge.link import bind_exclusive
+from mavlink_bridge.wire.link import bind_exclusive
 
 Address = tuple[str, int]
 

@@ -26,13 +26,6 @@ from dataclasses import dataclass
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavlink_bridge.command_protocol import (
-    MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES,
-    MAV_CMD_REQUEST_MESSAGE,
-    MAV_CMD_SET_MESSAGE_INTERVAL,
-    CommandProtocol,
-    LocalHandler,
-)
 from mavlink_bridge.contract.vehicle_api import (
     CommandRequest,
     CommandResult,
@@ -40,13 +33,20 @@ from mavlink_bridge.contract.vehicle_api import (
     TelemetrySnapshot,
     VehicleInterface,
 )
-from mavlink_bridge.ftp_protocol import FtpProtocol
-from mavlink_bridge.gcs_link import MavlinkEndpoint
-from mavlink_bridge.manual_control_protocol import ManualControlProtocol
-from mavlink_bridge.mission_protocol import MissionProtocol, TransferTimeouts
-from mavlink_bridge.param_protocol import ParamProtocol
-from mavlink_bridge.setpoint_protocol import SetpointProtocol
-from mavlink_bridge.telemetry_streams import TelemetryStreams
+from mavlink_bridge.gcs_server.commands import (
+    MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES,
+    MAV_CMD_REQUEST_MESSAGE,
+    MAV_CMD_SET_MESSAGE_INTERVAL,
+    CommandProtocol,
+    LocalHandler,
+)
+from mavlink_bridge.gcs_server.ftp import FtpProtocol
+from mavlink_bridge.gcs_server.manual_control import ManualControlProtocol
+from mavlink_bridge.gcs_server.missions import MissionProtocol, TransferTimeouts
+from mavlink_bridge.gcs_server.params import ParamProtocol
+from mavlink_bridge.gcs_server.setpoints import SetpointProtocol
+from mavlink_bridge.gcs_server.telemetry_streams import TelemetryStreams
+from mavlink_bridge.wire.gcs_link import MavlinkEndpoint
 
 _log = logging.getLogger(__name__)
 _STATUSTEXT_LEN = 50

@@ -7,7 +7,8 @@ import time
 
 import numpy as np
 
-from mavlink_bridge.answer_kernel import (
+from mavlink_bridge.contract.wire import ActuatorCommand
+from mavlink_bridge.lockstep.answer_kernel import (
     A_ARMED,
     A_GRIPPER_RELEASE,
     A_MOTORS,
@@ -18,10 +19,7 @@ from mavlink_bridge.answer_kernel import (
     N_ANSWER,
     read_answer,
 )
-from mavlink_bridge.codec import SIM_COMPONENT_ID, SIM_SYSTEM_ID, Decoder, Encoder, Heartbeat
-from mavlink_bridge.contract.wire import ActuatorCommand
-from mavlink_bridge.link import LinkMode, LinkUrl, LinkUrlError, UdpLink
-from mavlink_bridge.lockstep_edge import (
+from mavlink_bridge.lockstep.edge import (
     DEFAULT_LISTEN_URL,
     DEFAULT_SPIN_S,
     MAX_CANDIDATES,
@@ -33,6 +31,8 @@ from mavlink_bridge.lockstep_edge import (
     ResendTimer,
     encode_frame,
 )
+from mavlink_bridge.wire.codec import SIM_COMPONENT_ID, SIM_SYSTEM_ID, Decoder, Encoder, Heartbeat
+from mavlink_bridge.wire.link import LinkMode, LinkUrl, LinkUrlError, UdpLink
 
 
 class LockstepServer:

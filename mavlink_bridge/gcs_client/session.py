@@ -15,9 +15,9 @@ from typing import Self, TypeVar
 from pymavlink.dialects.v20 import common as mavlink2
 
 from mavlink_bridge.contract.vehicle_api import Severity, StatusText
-from mavlink_bridge.gcs_errors import GcsTimeoutError
-from mavlink_bridge.gcs_link import MavlinkEndpoint
-from mavlink_bridge.gcs_telemetry import TelemetryState, VehicleStatus
+from mavlink_bridge.gcs_client.errors import GcsTimeoutError
+from mavlink_bridge.gcs_client.telemetry import TelemetryState, VehicleStatus
+from mavlink_bridge.wire.gcs_link import MavlinkEndpoint
 
 Msg = mavlink2.MAVLink_message
 T = TypeVar("T")

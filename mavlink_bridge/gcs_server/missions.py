@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from pymavlink.dialects.v20 import common as mavlink2
 
 from mavlink_bridge.contract.vehicle_api import MissionItem, MissionResult, MissionType, Severity, VehicleInterface
-from mavlink_bridge.mission_items import MissionItemEncodeError, item_from_msg, send_item
+from mavlink_bridge.wire.mission_items import MissionItemEncodeError, item_from_msg, send_item
 
 StatusTextSink = Callable[[Severity, str], None]
 

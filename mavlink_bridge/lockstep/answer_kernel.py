@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from mavlink_bridge.frame_reader import _accumulate_crc_extra, _crc_x25
-from mavlink_bridge.frame_writer import SCRATCH_LEN, _finish, _put_f32, _put_int
+from mavlink_bridge.wire.frame_reader import _accumulate_crc_extra, _crc_x25
+from mavlink_bridge.wire.frame_writer import SCRATCH_LEN, _finish, _put_f32, _put_int
 
 _ID_ACTUATORS, _CRC_ACTUATORS, _LEN_ACTUATORS = 93, 47, 81  # checked against pymavlink by the tests
 _GRIPPER_CHANNEL = 8

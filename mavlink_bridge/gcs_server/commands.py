@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pymavlink.dialects.v20 import common as mavlink2
 
 from mavlink_bridge.contract.vehicle_api import CommandRequest, CommandResult, VehicleInterface
-from mavlink_bridge.mission_items import xy_from_int
+from mavlink_bridge.wire.mission_items import xy_from_int
 
 MAV_CMD_SET_MESSAGE_INTERVAL = mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL
 MAV_CMD_REQUEST_MESSAGE = mavlink2.MAV_CMD_REQUEST_MESSAGE

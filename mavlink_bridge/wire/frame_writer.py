@@ -20,17 +20,6 @@ from collections.abc import Sequence
 import numpy as np
 from numba import njit
 
-from mavlink_bridge.codec import (
-    _HIL_GPS,
-    _HIL_SENSOR,
-    _HIL_STATE_Q,
-    _MG_PER_M_S2,
-    _OBSTACLE_3D,
-    HIL_SENSOR_FIELDS_ALL,
-    MAV_FRAME_BODY_FRD,
-    SIM_COMPONENT_ID,
-    SIM_SYSTEM_ID,
-)
 from mavlink_bridge.contract.frames import DEG_E7
 from mavlink_bridge.contract.sensor_values import (
     D_OBSTACLE_ID,
@@ -60,6 +49,17 @@ from mavlink_bridge.contract.sensor_values import (
     V_VEL_NED,
 )
 from mavlink_bridge.contract.wire import ObstacleDetection
+from mavlink_bridge.wire.codec import (
+    _HIL_GPS,
+    _HIL_SENSOR,
+    _HIL_STATE_Q,
+    _MG_PER_M_S2,
+    _OBSTACLE_3D,
+    HIL_SENSOR_FIELDS_ALL,
+    MAV_FRAME_BODY_FRD,
+    SIM_COMPONENT_ID,
+    SIM_SYSTEM_ID,
+)
 
 # the payload layouts this writer hard-codes (wire order); a different pymavlink fails here, not on the wire
 _FORMATS = {

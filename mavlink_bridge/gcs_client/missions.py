@@ -6,9 +6,9 @@ from collections.abc import Callable
 from dataclasses import replace
 
 from mavlink_bridge.contract.vehicle_api import MissionItem, MissionResult, MissionType
-from mavlink_bridge.gcs_errors import MissionDownloadError, MissionUploadError
-from mavlink_bridge.gcs_session import GcsSession, Msg
-from mavlink_bridge.mission_items import MissionItemEncodeError, item_from_msg, send_item, xy_to_int
+from mavlink_bridge.gcs_client.errors import MissionDownloadError, MissionUploadError
+from mavlink_bridge.gcs_client.session import GcsSession, Msg
+from mavlink_bridge.wire.mission_items import MissionItemEncodeError, item_from_msg, send_item, xy_to_int
 
 
 class GcsMissions(GcsSession):

@@ -9,8 +9,8 @@ HEARTBEAT at 1 Hz.
 
 from __future__ import annotations
 
-from mavlink_bridge.gcs_commands import REASON_WAIT_S, RESULT_MEANING, GcsCommands
-from mavlink_bridge.gcs_errors import (
+from mavlink_bridge.gcs_client.commands import REASON_WAIT_S, RESULT_MEANING, GcsCommands
+from mavlink_bridge.gcs_client.errors import (
     CommandFailedError,
     GcsError,
     GcsTimeoutError,
@@ -20,10 +20,10 @@ from mavlink_bridge.gcs_errors import (
     ParamRefused,
     ParamRefusedError,
 )
-from mavlink_bridge.gcs_missions import GcsMissions
-from mavlink_bridge.gcs_params import GcsParams
-from mavlink_bridge.gcs_session import MAV_COMP_ID_MISSIONPLANNER
-from mavlink_bridge.gcs_telemetry import VehicleStatus
+from mavlink_bridge.gcs_client.missions import GcsMissions
+from mavlink_bridge.gcs_client.params import GcsParams
+from mavlink_bridge.gcs_client.session import MAV_COMP_ID_MISSIONPLANNER
+from mavlink_bridge.gcs_client.telemetry import VehicleStatus
 
 __all__ = [
     "MAV_COMP_ID_MISSIONPLANNER",
@@ -46,5 +46,5 @@ class GcsClient(GcsMissions, GcsParams, GcsCommands):
     """A ground station on one link (``udpin:`` waits for the vehicle to talk, ``udpout:`` talks first).
 
     Missions (:class:`GcsMissions`), commands (:class:`GcsCommands`) and parameters (:class:`GcsParams`)
-    over one :class:`~mavlink_bridge.gcs_session.GcsSession`.
+    over one :class:`~mavlink_bridge.gcs_client.session.GcsSession`.
     """

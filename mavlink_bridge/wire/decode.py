@@ -11,7 +11,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mavlink_bridge.codec_framing import (
+from mavlink_bridge.contract.frames import DEG_E7, GRAVITY_M_S2
+from mavlink_bridge.contract.wire import (
+    ACTUATOR_FLAG_LOCKSTEP,
+    ACTUATOR_MODE_ARMED,
+    ActuatorCommand,
+    GpsSample,
+    GroundTruth,
+    ObstacleDetection,
+    ObstacleShape,
+    SensorSample,
+)
+from mavlink_bridge.wire.framing import (
     _ACTUATORS_PAYLOAD,
     _HEARTBEAT,
     _HIL_ACTUATORS,
@@ -34,17 +45,6 @@ from mavlink_bridge.codec_framing import (
     Heartbeat,
     WireMessage,
     _crc_mcrf4xx,
-)
-from mavlink_bridge.contract.frames import DEG_E7, GRAVITY_M_S2
-from mavlink_bridge.contract.wire import (
-    ACTUATOR_FLAG_LOCKSTEP,
-    ACTUATOR_MODE_ARMED,
-    ActuatorCommand,
-    GpsSample,
-    GroundTruth,
-    ObstacleDetection,
-    ObstacleShape,
-    SensorSample,
 )
 
 
@@ -153,7 +153,7 @@ class Decoder:
         self._values: np.ndarray | None = None
         self._read_values: Callable[[bytes, np.ndarray], int] | None = None
         if compiled:
-            from mavlink_bridge import frame_reader  # here, not at the top: it imports numba (GCS tools need not)
+            from mavlink_bridge.wire import frame_reader  # here, not at the top: it imports numba (GCS tools need not)
 
             self._values = frame_reader.new_out()
             self._read_values = frame_reader.read_values

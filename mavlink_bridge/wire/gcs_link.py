@@ -1,4 +1,4 @@
-"""MAVLink 2 endpoint of the GCS/API links on top of :class:`mavlink_bridge.link.UdpLink`.
+"""MAVLink 2 endpoint of the GCS/API links on top of :class:`mavlink_bridge.wire.link.UdpLink`.
 
 URL forms follow pymavlink connection strings (SPEC §3, §12). A ``udpin`` endpoint may be
 given a default peer (``udpout:H:P``) that it sends to until someone talks to it (PX4's
@@ -18,8 +18,8 @@ from dataclasses import dataclass
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-from mavlink_bridge.link import LinkMode, LinkUrl, UdpLink
-from mavlink_bridge.signing import RejectReason, classify_bad_data, enable_signing
+from mavlink_bridge.wire.link import LinkMode, LinkUrl, UdpLink
+from mavlink_bridge.wire.signing import RejectReason, classify_bad_data, enable_signing
 
 
 def open_link(url: str, default_peer_url: str | None = None) -> UdpLink:
