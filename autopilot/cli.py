@@ -30,13 +30,13 @@ import time
 from pathlib import Path
 from types import FrameType
 
+from autopilot.commander.script import CommandScript, ScriptError, load_script
 from autopilot.control.airframe import AirframeError
 from autopilot.estimation import DEFAULT_ESTIMATOR, ESTIMATORS
 from autopilot.io_loop import Links, run_loop
-from autopilot.params import ParamError
-from autopilot.reporting import AutopilotEndReason
+from autopilot.parameters.store import ParamError
+from autopilot.reporting.report import AutopilotEndReason
 from autopilot.runner import Autopilot, AutopilotConfig
-from autopilot.scripted_commands import CommandScript, ScriptError, load_script
 from autopilot.vehicle_adapter import VehicleAdapter
 from mavlink_bridge.contract.about import version_text
 from mavlink_bridge.gcs_server.server import GcsServer
@@ -197,8 +197,8 @@ def main(argv: list[str] | None = None) -> int:
             args.rerun,
             args.vehicle,
             args.rerun_world,
-            autopilot.params.get("CA_RSAFE_M"),
-            autopilot.params.get("MIS_RTL_ALT"),
+            autopilot.parameters.store.get("CA_RSAFE_M"),
+            autopilot.parameters.store.get("MIS_RTL_ALT"),
         )
         client = LockstepClient(
             urls["sim"],

@@ -11,7 +11,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from autopilot.reporting import AutopilotEndReason
+from autopilot.reporting.report import AutopilotEndReason
 from autopilot.runner import Autopilot
 
 #: Publish the telemetry snapshot every this many control steps (62.5 Hz at 250 Hz) and on any event.

@@ -14,7 +14,7 @@ from typing import Any
 
 from conftest import free_udp_port
 
-from autopilot.params import ParamError, ParamSpec, ParamStore
+from autopilot.parameters.store import ParamError, ParamSpec, ParamStore
 from mavlink_bridge.contract.vehicle_api import (
     CommandRequest,
     CommandResult,

@@ -7,11 +7,11 @@ import math
 import pytest
 from autopilot_fakes import FRAME, KinematicLoop, command, make_commander, make_state, set_context, update
 
-from autopilot.commander import (
+from autopilot.commander.state_machine import (
     FORCE_MAGIC,
 )
-from autopilot.failsafe import FailsafeAction, FailsafeEvent, FailsafeKind
-from autopilot.setpoints import TargetKind
+from autopilot.flight_tasks.setpoints import TargetKind
+from autopilot.safety.failsafe import FailsafeAction, FailsafeEvent, FailsafeKind
 from mavlink_bridge.contract.mav_enums import MavCmd
 from mavlink_bridge.contract.vehicle_api import CommandResult, FlightMode, LandedState
 
@@ -227,7 +227,7 @@ def test_offboard_needs_a_setpoint_and_mission_target_drives_auto_mission() -> N
     assert loop.run_until(lambda: math.dist(loop.pos, (5.0, 0.0, -12.0)) < 0.1, 20.0)
     set_context(commander, mission_ready=True)
     assert commander.handle_command(command(MavCmd.MISSION_START)) is CommandResult.ACCEPTED
-    from autopilot.setpoints import NavTarget
+    from autopilot.flight_tasks.setpoints import NavTarget
 
     loop.mission_target = NavTarget(TargetKind.POSITION, (0.0, 8.0, -6.0))
     assert loop.run_until(lambda: math.dist(loop.pos, (0.0, 8.0, -6.0)) < 0.1, 20.0)

@@ -11,7 +11,7 @@ from autopilot_loop import SimLoop
 
 from autopilot.estimation import EkfEstimator
 from autopilot.estimation.report import SENSOR_AHRS, SENSOR_GPS, SENSOR_MAG
-from autopilot.reporting import SENSOR_PREARM_CHECK
+from autopilot.reporting.report import SENSOR_PREARM_CHECK
 from mavlink_bridge.contract.vehicle_api import CommandResult, EstimatorFlags
 
 GYRO, ACCEL = 0x1, 0x2

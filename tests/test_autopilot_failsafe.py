@@ -5,16 +5,16 @@ from __future__ import annotations
 import pytest
 from autopilot_fakes import FRAME
 
-from autopilot.failsafe import (
+from autopilot.mission.fence import geofence_from_items
+from autopilot.parameters.nav_decls import nav_param_specs
+from autopilot.parameters.store import ParamStore
+from autopilot.safety.failsafe import (
     BatteryModel,
     FailsafeAction,
     FailsafeInputs,
     FailsafeKind,
     FailsafeMonitor,
 )
-from autopilot.mission.fence import geofence_from_items
-from autopilot.nav_params import nav_param_specs
-from autopilot.params import ParamStore
 from mavlink_bridge.contract.vehicle_api import MissionItem, MissionType
 
 

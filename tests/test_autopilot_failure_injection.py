@@ -9,10 +9,10 @@ from pathlib import Path
 import pytest
 from autopilot_fakes import command, make_commander
 
-from autopilot.failure_injection import SENSOR_MOTOR_OUTPUTS, SUPPORTED_FAILURES, FailureInjector, InjectedFrame
-from autopilot.nav_params import nav_param_specs
-from autopilot.params import ParamStore
-from autopilot.scripted_commands import ScriptError, load_script, parse_script
+from autopilot.commander.script import ScriptError, load_script, parse_script
+from autopilot.parameters.nav_decls import nav_param_specs
+from autopilot.parameters.store import ParamStore
+from autopilot.safety.failure_injection import SENSOR_MOTOR_OUTPUTS, SUPPORTED_FAILURES, FailureInjector, InjectedFrame
 from mavlink_bridge.contract.mav_enums import FailureType, FailureUnit, MavCmd
 from mavlink_bridge.contract.vehicle_api import CommandResult, Severity
 from mavlink_bridge.contract.wire import GpsSample, GroundTruth, SensorSample

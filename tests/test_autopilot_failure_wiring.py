@@ -7,10 +7,10 @@ from __future__ import annotations
 from autopilot_fakes import command
 from autopilot_loop import SimLoop
 
+from autopilot.commander.script import CommandScript, parse_script
 from autopilot.estimation import EstimatorStatus, FrameLike, TruthEstimator, VehicleState
-from autopilot.failure_injection import SENSOR_MOTOR_OUTPUTS
-from autopilot.scripted_commands import CommandScript, parse_script
-from autopilot.setpoints import TargetKind
+from autopilot.flight_tasks.setpoints import TargetKind
+from autopilot.safety.failure_injection import SENSOR_MOTOR_OUTPUTS
 from mavlink_bridge.contract.mav_enums import FailureType, FailureUnit, MavCmd
 from mavlink_bridge.contract.vehicle_api import CommandResult, FlightMode
 

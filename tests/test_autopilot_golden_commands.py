@@ -18,8 +18,8 @@ import hashlib
 import math
 import struct
 
+from autopilot.commander.script import CommandScript, parse_script
 from autopilot.runner import Autopilot, AutopilotConfig
-from autopilot.scripted_commands import CommandScript, parse_script
 from autopilot.vehicle_adapter import VehicleAdapter
 from mavlink_bridge.contract.frames import LocalNedFrame
 from mavlink_bridge.contract.vehicle_api import (

@@ -5,7 +5,7 @@ from __future__ import annotations
 from autopilot_fakes import set_context
 from test_autopilot_runner import Loop
 
-from autopilot.failsafe import FailsafeKind
+from autopilot.safety.failsafe import FailsafeKind
 
 PREARM_CHECK = 0x10000000
 GEOFENCE = 0x100000

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from autopilot.scripted_commands import CommandScript, ScriptError, parse_script
+from autopilot.commander.script import CommandScript, ScriptError, parse_script
 
 
 def test_steps_sorted_and_handed_out_once_when_due() -> None:

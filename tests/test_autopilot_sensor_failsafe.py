@@ -11,10 +11,10 @@ import pytest
 from autopilot_fakes import KinematicLoop, command, make_commander, update
 
 from autopilot.estimation import EstimatorStatus
-from autopilot.failsafe import FailsafeAction, FailsafeEvent, FailsafeKind, SensorFailsafe
-from autopilot.nav_params import nav_param_specs
-from autopilot.params import ParamStore
-from autopilot.setpoints import NavTarget, SetpointGenerator, TargetKind
+from autopilot.flight_tasks.setpoints import NavTarget, SetpointGenerator, TargetKind
+from autopilot.parameters.nav_decls import nav_param_specs
+from autopilot.parameters.store import ParamStore
+from autopilot.safety.failsafe import FailsafeAction, FailsafeEvent, FailsafeKind, SensorFailsafe
 from mavlink_bridge.contract.mav_enums import MavCmd
 from mavlink_bridge.contract.vehicle_api import FlightMode, LandedState, Severity
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import math
 
-from autopilot.failure_injection import InjectedFrame
-from autopilot.sensor_validation import STALE_AFTER_US, StaleSensorCheck
+from autopilot.safety.failure_injection import InjectedFrame
+from autopilot.safety.sensor_validation import STALE_AFTER_US, StaleSensorCheck
 from mavlink_bridge.contract.vehicle_api import Severity
 from mavlink_bridge.contract.wire import SensorSample
 

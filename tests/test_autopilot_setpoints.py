@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from autopilot.setpoints import (
+from autopilot.flight_tasks.setpoints import (
     LAND_MAX_LEAD_M,
     VELOCITY_MAX_LEAD_M,
     NavTarget,

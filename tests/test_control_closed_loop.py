@@ -14,9 +14,9 @@ import math
 import numpy as np
 import pytest
 
-from autopilot import metrics
 from autopilot.control import CascadeController, CascadeGains, load_airframe
-from autopilot.trajectories import make_trajectory
+from autopilot.flight_tasks.trajectories import make_trajectory
+from autopilot.tuning import metrics
 from mavlink_bridge.contract.frames import euler_from_quat
 from sim.batch import BatchSim
 from sim.vehicle_config import load_vehicle

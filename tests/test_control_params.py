@@ -15,7 +15,7 @@ from autopilot.control.param_decls import (
     limits_from_params,
     params_from_gains,
 )
-from autopilot.params import ParamStore
+from autopilot.parameters.store import ParamStore
 
 
 def test_every_gain_bound_delta_and_limit_is_declared() -> None:

@@ -12,7 +12,7 @@ import pytest
 from conftest import free_udp_port
 from gcs_fakes import MAV_CMD_COMPONENT_ARM_DISARM, FakeVehicle, ServerHarness
 
-from autopilot.params import ParamSpec, ParamStore
+from autopilot.parameters.store import ParamSpec, ParamStore
 from mavlink_bridge.contract.vehicle_api import CommandResult, FlightMode, LandedState
 from mavlink_bridge.gcs_client.client import (
     CommandFailedError,

@@ -12,7 +12,7 @@ from autopilot_fakes import command
 from autopilot_loop import SimLoop
 from gcs_fakes import served_fake_vehicle
 
-from autopilot.manual_control import deadzone, stick_demand
+from autopilot.flight_tasks.position_control import deadzone, stick_demand
 from autopilot.param_schema import make_param_store
 from mavlink_bridge.contract.vehicle_api import CommandResult, FlightMode, LandedState, ManualInput
 

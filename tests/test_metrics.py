@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from autopilot import metrics as m
+from autopilot.tuning import metrics as m
 
 TP = m.T_PEAK_POSITION_S
 

@@ -44,7 +44,7 @@ world:
 
 
 def line_pattern(ptype: str, spacing_m: float, params: dict) -> list[tuple[float, float, float]]:
-    """Stand-in for autopilot.trajectories: a straight line east at 12 m."""
+    """Stand-in for autopilot.flight_tasks.trajectories: a straight line east at 12 m."""
     assert ptype == "line"
     n = int(params["length_m"] / spacing_m)
     return [(50.0, k * spacing_m, 12.0) for k in range(n + 1)]

@@ -12,7 +12,7 @@ import pytest
 from autopilot.control.airframe import load_airframe
 from autopilot.control.cascade import CascadeController, ControlSample
 from autopilot.control.gains import CascadeGains
-from autopilot.setpoints import NavTarget, TargetKind
+from autopilot.flight_tasks.setpoints import NavTarget, TargetKind
 from autopilot.telemetry import RerunTelemetry, make_listener
 from autopilot.telemetry import entities as ent
 from autopilot.telemetry.recording_reader import RecordingReadError, read_recording

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from autopilot.trajectories import TRAJECTORY_TYPES, make_trajectory
+from autopilot.flight_tasks.trajectories import TRAJECTORY_TYPES, make_trajectory
 
 CONTINUOUS = ["storm", "lissajous", "square", "figure8", "scenic_spiral"]
 

@@ -14,7 +14,7 @@ from autopilot_loop import SimLoop
 from autopilot.control.gains import CascadeGains
 from autopilot.control.param_decls import DEFAULT_GAINS_PATH, gain_param_name, gains_from_params, shipped_gains
 from autopilot.param_schema import make_param_store
-from autopilot.params import ParamError
+from autopilot.parameters.store import ParamError
 from tools.experiments.feedback_noise import DEFAULT_FEEDBACK_NOISE, NoiseStream, rotate_body
 from tools.experiments.gain_vector import GainParametrisation, Structure
 from tools.experiments.noisy_pipeline import pid_twin

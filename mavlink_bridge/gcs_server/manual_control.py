@@ -4,7 +4,7 @@ Axes are int16 in [-1000, 1000]: ``x`` pitch stick (forward +), ``y`` roll stick
 (clockwise +), ``z`` throttle in [0, 1000] (PX4 and MAVSDK: 500 = centre). INT16_MAX marks an axis as
 unused (centred). Values outside the range are clamped. A message for another system never gets here: the
 GCS server drops it with the others not for this vehicle. The decoded :class:`ManualInput` goes to
-``vehicle.set_manual_input`` (POSCTL flies it; see ``autopilot.manual_control``).
+``vehicle.set_manual_input`` (POSCTL flies it; see ``autopilot.flight_tasks.position_control``).
 """
 
 from __future__ import annotations

@@ -26,7 +26,7 @@ from enum import Enum, IntEnum
 from typing import Protocol
 
 from autopilot.estimation.state import EstimatorStatus
-from autopilot.params import ParamStore
+from autopilot.parameters.store import ParamStore
 
 BATTERY_FULL_V = 16.8
 BATTERY_EMPTY_V = 14.0
@@ -116,7 +116,7 @@ class FenceCheck(Protocol):
 
 
 class FailsafeMonitor:
-    """Edge-triggered failsafe conditions, actions taken from parameters (see :mod:`autopilot.nav_params`)."""
+    """Edge-triggered failsafe conditions, actions taken from parameters (see :mod:`autopilot.parameters.nav_decls`)."""
 
     def __init__(self, params: ParamStore) -> None:
         self._params = params

@@ -15,9 +15,9 @@ from autopilot.control.airframe import Airframe
 from autopilot.control.cascade import GRAVITY_M_S2, CascadeController, SingleStep
 from autopilot.control.param_decls import gains_from_params, limits_from_params
 from autopilot.estimation import VehicleState
+from autopilot.flight_tasks.setpoints import NavTarget, Reference, SetpointGenerator, SetpointLimits, TargetKind
 from autopilot.navigation import ReferenceOverride
-from autopilot.params import ParamStore
-from autopilot.setpoints import NavTarget, Reference, SetpointGenerator, SetpointLimits, TargetKind
+from autopilot.parameters.store import ParamStore
 
 #: The parameters the setpoint generator reads.
 SETPOINT_PARAMS = ("MPC_ACC_HOR", "MPC_ACC_UP_AUTO", "MPC_ACC_DN_AUTO", "MPC_JERK_AUTO", "MPC_YAWRAUTO_MAX")

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 
 from autopilot.estimation import VehicleState
-from autopilot.params import ParamStore
+from autopilot.parameters.store import ParamStore
 
 
 class LandDetector:

@@ -23,14 +23,14 @@ from typing import Protocol
 
 import numpy as np
 
-from autopilot.commander import Commander
+from autopilot.commander.state_machine import Commander
 from autopilot.control.cascade import ControlSample
 from autopilot.estimation import EstimatorStatus, VehicleState
 from autopilot.estimation.report import apply_estimator_health, estimator_report
-from autopilot.failsafe import BatteryModel, FailsafeKind
-from autopilot.flight_control import FlightControl
+from autopilot.flight_control.controller import FlightControl
+from autopilot.flight_tasks.setpoints import NavTarget, Reference
 from autopilot.navigation import Navigator
-from autopilot.setpoints import NavTarget, Reference
+from autopilot.safety.failsafe import BatteryModel, FailsafeKind
 from mavlink_bridge.contract.frames import GeoPoint, Vec3
 from mavlink_bridge.contract.vehicle_api import (
     EstimatorReport,

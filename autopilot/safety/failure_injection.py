@@ -28,7 +28,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 from autopilot.estimation.state import FrameLike
-from autopilot.params import ParamStore
+from autopilot.parameters.store import ParamStore
 from mavlink_bridge.contract.mav_enums import FailureType, FailureUnit
 from mavlink_bridge.contract.vehicle_api import CommandRequest, CommandResult, Severity, StatusText
 from mavlink_bridge.contract.wire import (

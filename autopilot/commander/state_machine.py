@@ -11,7 +11,7 @@ does); ``gripper_release``. Modes:
 
 - AUTO_LOITER (HOLD): hold a point. POSCTL: fly the joystick (MANUAL_CONTROL, :meth:`set_manual_input`) as
   velocities about the heading while it keeps coming (``manual_fresh``, set by the runner); centred sticks or
-  no joystick: hold (see :mod:`autopilot.manual_control`).
+  no joystick: hold (see :mod:`autopilot.flight_tasks.position_control`).
 - AUTO_TAKEOFF: climb to the takeoff altitude above home at ``MPC_TKO_SPEED``, then HOLD.
 - AUTO_LAND: descend (``MPC_Z_VEL_MAX_DN``, then ``MPC_LAND_SPEED`` below ``MPC_LAND_ALT2``)
   until the land detector sees touchdown, then auto-disarm after ``COM_DISARM_LAND``. After a position-loss
@@ -42,11 +42,11 @@ from dataclasses import dataclass, replace
 from enum import Enum
 
 from autopilot.estimation import EstimatorStatus, VehicleState
-from autopilot.failsafe import FailsafeAction, FailsafeEvent, FailsafeKind
-from autopilot.land_detector import LandDetector
-from autopilot.manual_control import stick_demand
-from autopilot.params import ParamStore
-from autopilot.setpoints import NavTarget, TargetKind
+from autopilot.flight_tasks.position_control import stick_demand
+from autopilot.flight_tasks.setpoints import NavTarget, TargetKind
+from autopilot.parameters.store import ParamStore
+from autopilot.safety.failsafe import FailsafeAction, FailsafeEvent, FailsafeKind
+from autopilot.safety.land_detector import LandDetector
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame, ne_from_heading_frame
 from mavlink_bridge.contract.mav_enums import MavCmd
 from mavlink_bridge.contract.vehicle_api import (
@@ -649,7 +649,9 @@ class Commander:
                 vxy = self.speed_xy_m_s
                 return NavTarget(TargetKind.POSITION, self._hold_ned, math.nan, vxy, p("MPC_TKO_SPEED"), vxy)
         if mode is FlightMode.AUTO_LAND:
-            if self._land_blind:  # no horizontal position: brake and descend level (autopilot.setpoints DESCEND)
+            if (
+                self._land_blind
+            ):  # no horizontal position: brake and descend level (autopilot.flight_tasks.setpoints DESCEND)
                 return self._descend_target(state)
             return self._land_target(state)
         if mode is FlightMode.AUTO_RTL:

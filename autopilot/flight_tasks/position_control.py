@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from autopilot.params import ParamStore
+from autopilot.parameters.store import ParamStore
 from mavlink_bridge.contract.frames import ne_from_heading_frame
 from mavlink_bridge.contract.vehicle_api import ManualInput
 from mavlink_bridge.contract.wire import Vec3

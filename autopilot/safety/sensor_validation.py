@@ -18,7 +18,7 @@ import math
 from collections.abc import Sequence
 
 from autopilot.estimation.state import FrameLike
-from autopilot.failure_injection import InjectedFrame
+from autopilot.safety.failure_injection import InjectedFrame
 from mavlink_bridge.contract.vehicle_api import Severity, StatusText
 from mavlink_bridge.contract.wire import SensorSample
 

@@ -4,15 +4,15 @@ Declared once here; ``autopilot.param_schema`` aggregates them with the controll
 the mission's. The commander also reads the mission's ``MIS_CRUISE_SPD`` (cruise speed in
 every auto mode), ``MIS_ACC_RAD``/``MIS_ALT_ACC_RAD`` (acceptance) and ``MIS_RTL_ALT`` (RTL
 altitude), so each of those has one knob. Speeds and accelerations shape the setpoint generator
-(:mod:`autopilot.setpoints`); the ``LNDMC_*`` ones are the land detector of
-:mod:`autopilot.commander`; ``COM_*``/``NAV_DLL_*``/``BAT_*``/``GF_*`` are the failsafes of
-:mod:`autopilot.failsafe`; ``SYS_FAILURE_EN`` gates :mod:`autopilot.failure_injection`. Failsafe action
-values are :class:`autopilot.failsafe.FailsafeAction`.
+(:mod:`autopilot.flight_tasks.setpoints`); the ``LNDMC_*`` ones are the land detector of
+:mod:`autopilot.commander.state_machine`; ``COM_*``/``NAV_DLL_*``/``BAT_*``/``GF_*`` are the failsafes of
+:mod:`autopilot.safety.failsafe`; ``SYS_FAILURE_EN`` gates :mod:`autopilot.safety.failure_injection`. Failsafe action
+values are :class:`autopilot.safety.failsafe.FailsafeAction`.
 """
 
 from __future__ import annotations
 
-from autopilot.params import ParamSpec
+from autopilot.parameters.store import ParamSpec
 
 _ACTIONS = "0 none, 1 warn, 2 hold, 3 return, 4 land"
 
@@ -34,7 +34,7 @@ def nav_param_specs() -> list[ParamSpec]:
         ParamSpec("MPC_JERK_AUTO", 8.0, 1.0, 80.0, "m/s^3", "Jerk limit of the setpoint acceleration"),
         ParamSpec("MPC_YAWRAUTO_MAX", 45.0, 5.0, 360.0, "deg/s", "Yaw rate limit of the yaw setpoint"),
         ParamSpec("MPC_YAW_MODE", 0.0, 0.0, 1.0, "", "Yaw in auto modes: 0 face the target, 1 keep heading"),
-        # -- position mode from a joystick (MANUAL_CONTROL; autopilot.manual_control) --------------
+        # -- position mode from a joystick (MANUAL_CONTROL; autopilot.flight_tasks.position_control) --------------
         ParamSpec("MPC_VEL_MANUAL", 10.0, 0.5, 30.0, "m/s", "POSCTL: horizontal speed at full stick (capped)"),
         ParamSpec("MPC_HOLD_DZ", 0.1, 0.0, 0.5, "", "POSCTL: stick deadzone (fraction of full stick) of every axis"),
         ParamSpec("COM_RC_LOSS_T", 0.5, 0.1, 35.0, "s", "Joystick silence (wall clock) after which POSCTL holds"),
@@ -61,7 +61,7 @@ def nav_param_specs() -> list[ParamSpec]:
         ParamSpec("GF_ACTION", 1.0, 0.0, 4.0, "", f"Geofence breach action: {_ACTIONS}"),
         ParamSpec("GF_MAX_HOR_DIST", 0.0, 0.0, 100000.0, "m", "Max horizontal distance from home (0 off)"),
         ParamSpec("GF_MAX_VER_DIST", 0.0, 0.0, 10000.0, "m", "Max height above home (0 off)"),
-        # -- sensor failures (autopilot.failure_injection) and sensor-loss failsafes -------------
+        # -- sensor failures (autopilot.safety.failure_injection) and sensor-loss failsafes -------------
         ParamSpec("SYS_FAILURE_EN", 0.0, 0.0, 1.0, "", "1: accept MAV_CMD_INJECT_FAILURE (sensor/motor failures)"),
         ParamSpec("COM_POS_FS_DELAY", 5.0, 0.0, 120.0, "s", "GPS lost: dead-reckoning time before COM_POS_LOSS_ACT"),
         ParamSpec("COM_POS_LOSS_ACT", 1.0, 0.0, 1.0, "", "Position loss: 0 warn, 1 land (baro height, no xy control)"),
