@@ -6,7 +6,7 @@ layouts (ids, CRC extras, field order, struct formats) come from pymavlink's
 framing is done here with precompiled ``struct`` objects and a C-speed CRC (``fastcrc``, a
 dependency of pymavlink) because pymavlink's pure-Python CRC and parser cost ~25 µs / ~50 µs
 per frame, which would dominate the lockstep loop. Payloads are unpacked in place from the
-datagram (no copy unless MAVLink 2 truncated trailing zeros). ``tests/test_bridge_codec.py``
+datagram (no copy unless MAVLink 2 truncated trailing zeros). ``tests/mavlink_bridge/wire/test_bridge_codec.py``
 checks the bytes against pymavlink's.
 
 Units on the wire (what PX4's simulator_mavlink expects):

@@ -12,7 +12,7 @@ messages above (OBSTACLE_DISTANCE_3D in MAV_FRAME_BODY_FRD), each with a valid C
 datagram. For anything else (MAVLink 1, signatures, other messages, garbage, bad CRC, a truncated
 tail, more messages than ``VALUES_LEN`` has room for) it returns ``FALLBACK`` and the decoder runs its Python
 loop over the whole datagram, so counters and results are the same either way.
-``tests/test_bridge_frame_reader.py`` checks it against the Python decoders bit for bit.
+``tests/mavlink_bridge/wire/test_bridge_frame_reader.py`` checks it against the Python decoders bit for bit.
 
 Scaling is the same floating-point operations as the Python decoders (``x / 1e7``, ``x / 1000.0``,
 ``x * g`` with the same ``g``), so the results are identical, not just close.

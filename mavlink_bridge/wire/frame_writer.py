@@ -8,7 +8,7 @@ conversions follow the codec: round half to even, saturation at the wire range, 
 the course-over-ground rule. A finite value too large for a float32 field raises ``OverflowError`` as
 ``struct.pack`` does.
 
-``tests/test_sim_frame_writer.py`` decodes its datagrams with pymavlink (the oracle: CRCs, layouts, scaling)
+``tests/sim/test_sim_frame_writer.py`` decodes its datagrams with pymavlink (the oracle: CRCs, layouts, scaling)
 and checks NaN/inf, saturation and truncation.
 """
 

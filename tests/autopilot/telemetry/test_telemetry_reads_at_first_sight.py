@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import REPO_ROOT
 
 from autopilot.mission.files import load_mission_file
 from autopilot.telemetry import entities as ent
@@ -34,7 +35,7 @@ fence:
 
 
 def test_rtl_climbs_to_its_return_altitude_in_the_route() -> None:
-    plan = load_mission_file(Path(__file__).parent.parent / "missions" / "city_block_delivery.yaml")
+    plan = load_mission_file(REPO_ROOT / "missions" / "city_block_delivery.yaml")
     route = route_points_ned(plan.items, plan.home, rtl_alt_m=30.0)  # ... waypoint at 15 m, RTL, land
     last_wp, climb, home_high, home_low = route[-5], route[-4], route[-3], route[-2]  # route[-1]: the land item
     assert tuple(climb) == (*last_wp[:2], -30.0) and last_wp[2] == -15.0  # climbed in place first

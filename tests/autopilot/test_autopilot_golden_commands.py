@@ -9,7 +9,7 @@ into one SHA-256, compared with ``GOLDEN_SHA256`` recorded before the speed work
 
 Any behaviour change fails this test, including one of the simulator (closed loop: the frames depend
 on ``sim/``). If a change is *meant* to change behaviour, regenerate the value with
-``PYTHONPATH=. .venv/bin/python tests/test_autopilot_golden_commands.py`` and say why in the commit.
+``PYTHONPATH=. .venv/bin/python tests/autopilot/test_autopilot_golden_commands.py`` and say why in the commit.
 """
 
 from __future__ import annotations

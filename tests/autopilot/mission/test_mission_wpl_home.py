@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+from test_mission_executor import PointVehicle
+
 from autopilot.mission.executor import MissionExecutor
 from autopilot.mission.plan import is_wpl_home_line
 from autopilot.mission.validation import validate_mission
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
 from mavlink_bridge.contract.mav_enums import MavCmd, MavFrame
 from mavlink_bridge.contract.vehicle_api import MissionItem, MissionResult
-from tests.test_mission_executor import PointVehicle
 
 HOME = GeoPoint(30.2635, 120.1233, 12.0)
 

@@ -8,7 +8,7 @@ import pytest
 
 from mavlink_bridge.lockstep import LockstepClient, LockstepInterrupted, LockstepServer
 from mavlink_bridge.wire.link import LinkMode, LinkUrl, LinkUrlError, UdpLink, spin_allowed
-from tests.test_bridge_lockstep import make_frame
+from tests.mavlink_bridge.lockstep.test_bridge_lockstep import make_frame
 
 
 def test_url_forms() -> None:

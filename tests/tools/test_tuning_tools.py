@@ -9,13 +9,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import REPO_ROOT
 
 from autopilot.control.gains import CascadeGains
 from tools.experiments.gain_vector import GainParametrisation, Structure
 from tools.experiments.tune_config import TuneConfigError, load_tune_config, tune_config_from_dict
 from tools.experiments.tuner import tune, write_outputs
 
-CONFIG_DIR = Path(__file__).resolve().parent.parent / "tools" / "experiments"
+CONFIG_DIR = REPO_ROOT / "tools" / "experiments"
 BOUNDS = {"kp": (0.5, 60.0), "ki": (0.001, 5.0), "kd": (0.3, 30.0)}
 
 

@@ -6,6 +6,7 @@ import importlib.util
 from pathlib import Path
 
 import pytest
+from conftest import REPO_ROOT
 
 from autopilot.mission.files import load_mission_file
 from autopilot.mission.plan import items_match
@@ -13,7 +14,7 @@ from autopilot.mission.validation import validate_mission
 from mavlink_bridge.contract.mav_enums import GripperAction, MavCmd
 from mavlink_bridge.contract.vehicle_api import MissionResult
 
-MISSIONS = Path(__file__).resolve().parent.parent / "missions"
+MISSIONS = REPO_ROOT / "missions"
 FILES = sorted(p for p in MISSIONS.iterdir() if p.suffix in (".yaml", ".yml", ".waypoints", ".txt", ".plan"))
 HAVE_TRAJECTORIES = importlib.util.find_spec("autopilot.flight_tasks.trajectories") is not None
 
