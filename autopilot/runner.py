@@ -14,8 +14,9 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from autopilot.commander.inputs import CommandContext, CommanderInputs
 from autopilot.commander.script import CommandScript
-from autopilot.commander.state_machine import CommandContext, Commander, CommanderInputs
+from autopilot.commander.state_machine import Commander
 from autopilot.control.airframe import Airframe, load_airframe
 from autopilot.control.cascade import SingleStep
 from autopilot.estimation import Estimator, FrameLike, VehicleState, make_estimator
@@ -151,8 +152,7 @@ class Autopilot:
         self._texts.append(StatusText(severity, text))
 
     def update_context(self, **changes: object) -> CommandContext:
-        """The commander's context with ``changes`` (a new object only when something changed, which wakes the
-        slow loop)."""
+        """The commander's context with ``changes`` (a new object only on a change, which wakes the slow loop)."""
         context = self._context
         if any(getattr(context, name) != value for name, value in changes.items()):
             context = self._context = replace(context, **changes)  # type: ignore[arg-type]

@@ -5,7 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-from autopilot.commander.state_machine import Commander, CommanderInputs
+from autopilot.commander.inputs import CommanderInputs
+from autopilot.commander.state_machine import Commander
 from autopilot.estimation import VehicleState
 from autopilot.flight_tasks.setpoints import NavTarget, SetpointGenerator, SetpointLimits, TargetKind
 from autopilot.mission.param_decls import mission_param_specs

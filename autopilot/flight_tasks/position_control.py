@@ -14,12 +14,22 @@ disarms like any landing.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
+from autopilot.estimation import VehicleState
+from autopilot.flight_tasks.hold import HoldTask
+from autopilot.flight_tasks.setpoints import NavTarget
+from autopilot.flight_tasks.targets import velocity_target
 from autopilot.parameters.store import ParamStore
 from mavlink_bridge.contract.frames import ne_from_heading_frame
 from mavlink_bridge.contract.vehicle_api import ManualInput
 from mavlink_bridge.contract.wire import Vec3
+
+#: After the sticks let go, the vehicle holds where it is once slower than this on each axis (m/s) ...
+_STICK_STOPPED_M_S = 0.2
+#: ... or after braking this long (sim µs), whichever comes first.
+_STICK_BRAKE_MAX_US = 5_000_000
 
 
 @dataclass(frozen=True, slots=True)
@@ -56,3 +66,43 @@ def stick_demand(sticks: ManualInput, yaw_rad: float, params: ParamStore) -> Sti
     north, east = ne_from_heading_frame(forward * speed_xy, right * speed_xy, yaw_rad)
     vel = (north, east, -climb * (up if climb > 0.0 else down))
     return StickDemand(vel, turn * math.radians(p("MPC_YAWRAUTO_MAX")), speed_xy, up, down)
+
+
+class StickTask:
+    """POSCTL (PX4's ``FlightTaskManualPosition`` in spirit): the latest joystick input flown as a velocity."""
+
+    def __init__(self) -> None:
+        self.sticks: ManualInput | None = None
+        self._flying = False  # flying the sticks, or braking after them (not yet holding)
+        self._brake_since_us: int | None = None
+
+    def target(
+        self,
+        state: VehicleState,
+        fresh: bool,
+        params: ParamStore,
+        speeds: Callable[[], tuple[float, float, float]],
+        hold: HoldTask,
+    ) -> NavTarget | None:
+        """The sticks' velocity target while ``fresh``, or None to hold. When the sticks let go (centred, or stale)
+        the vehicle brakes to a stop (a zero velocity target within ``speeds()``) and then holds where it stopped
+        (``hold``), as PX4 does: no overshoot and return to a precomputed point."""
+        demand = None
+        if self.sticks is not None and fresh and state.valid:
+            demand = stick_demand(self.sticks, state.yaw_rad, params)
+        if demand is not None:
+            self._flying = True
+            self._brake_since_us = None
+            limits = (demand.speed_xy_m_s, demand.speed_up_m_s, demand.speed_down_m_s)
+            return velocity_target(demand.vel_ned_m_s, limits, yaw_rate_rad_s=demand.yaw_rate_rad_s)
+        if not self._flying:
+            return None
+        if self._brake_since_us is None:
+            self._brake_since_us = state.time_us
+        vn, ve, vd = state.vel_ned_m_s
+        slow = math.hypot(vn, ve) < _STICK_STOPPED_M_S and abs(vd) < _STICK_STOPPED_M_S
+        if slow or state.time_us - self._brake_since_us >= _STICK_BRAKE_MAX_US:
+            self._flying = False
+            hold.pos_ned_m, hold.yaw_rad = state.pos_ned_m, math.nan
+            return None
+        return velocity_target((0.0, 0.0, 0.0), speeds())

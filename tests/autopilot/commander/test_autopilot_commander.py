@@ -7,7 +7,7 @@ import math
 import pytest
 from autopilot_fakes import FRAME, KinematicLoop, command, make_commander, make_state, set_context, update
 
-from autopilot.commander.state_machine import (
+from autopilot.commander.commands import (
     FORCE_MAGIC,
 )
 from autopilot.flight_tasks.setpoints import TargetKind
@@ -108,12 +108,12 @@ def test_takeoff_altitude_frames_and_range() -> None:
     assert "AMSL" in commander.last_reason
     ok = commander.handle_command(command(MavCmd.NAV_TAKEOFF, *[0] * 6, 488.0 + 15.0))
     assert ok is CommandResult.ACCEPTED and commander.mode is FlightMode.AUTO_TAKEOFF
-    assert commander._takeoff_alt_rel_m == pytest.approx(15.0)
+    assert commander.takeoff.alt_rel_m == pytest.approx(15.0)
     rel = command(MavCmd.NAV_TAKEOFF, *[0] * 6, 12.0, is_int=True, frame=6)
     assert commander.handle_command(rel) is CommandResult.ACCEPTED
-    assert commander._takeoff_alt_rel_m == pytest.approx(12.0)
+    assert commander.takeoff.alt_rel_m == pytest.approx(12.0)
     assert commander.handle_command(command(MavCmd.NAV_TAKEOFF, *[0] * 6, math.nan)) is CommandResult.ACCEPTED
-    assert commander._takeoff_alt_rel_m == pytest.approx(commander.params.get("MIS_TAKEOFF_ALT"))
+    assert commander.takeoff.alt_rel_m == pytest.approx(commander.params.get("MIS_TAKEOFF_ALT"))
 
 
 def _takeoff(loop: KinematicLoop, alt_m: float = 10.0) -> None:

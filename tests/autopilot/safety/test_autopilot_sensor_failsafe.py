@@ -190,7 +190,7 @@ def test_blind_descent_touches_down_and_disarms_on_the_vertical_alone() -> None:
     modes = [m for _, m in commander.mode_history]
     assert modes[-2:] == [FlightMode.AUTO_LAND, FlightMode.AUTO_LOITER]  # disarm leaves LAND
     commander.request_mode(FlightMode.AUTO_LAND)
-    assert not commander._land_blind  # a later landing has its position control back
+    assert not commander.land.blind  # a later landing has its position control back
 
 
 def test_warn_and_cleared_gps_events_change_nothing_but_the_log() -> None:
