@@ -15,9 +15,9 @@ from typing import Protocol
 
 import numpy as np
 
+from autopilot.geofence.fence import Geofence
 from autopilot.mission.executor import MissionRoute, NavKind
 from autopilot.mission.executor import NavTarget as MissionTarget
-from autopilot.mission.fence import Geofence
 from autopilot.planner.mission_router import MissionRouter, RouteStatus, RouteStep
 from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import PlannerState

@@ -26,6 +26,8 @@ import numpy as np
 
 from autopilot.estimation import VehicleState
 from autopilot.flight_tasks.setpoints import NavTarget
+from autopilot.geofence.fence import Geofence
+from autopilot.geofence.planner_zones import planner_fence_zones
 from autopilot.mission.executor import (
     ActionKind,
     ExecutorConfig,
@@ -36,14 +38,12 @@ from autopilot.mission.executor import (
     VehicleSample,
 )
 from autopilot.mission.feasibility import FeasibilityLimits
-from autopilot.mission.fence import Geofence
 from autopilot.mission.uploads import UploadStore
 from autopilot.mission.validation import MissionLimits
 from autopilot.navigation.home_frame import HomeFrame
 from autopilot.navigation.leg_routing import LegRouting, RoutePlanner
 from autopilot.navigation.targets import face_along_path, mission_nav_target
 from autopilot.parameters.store import ParamStore
-from autopilot.planner.fence_zones import planner_fence_zones
 from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import AvoidancePlanner
 from autopilot.safety.failsafe import FailsafeEvent

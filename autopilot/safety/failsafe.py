@@ -110,7 +110,7 @@ class BatteryModel:
 
 
 class FenceCheck(Protocol):
-    """A geofence (``autopilot.mission.fence.Geofence``): positions are local NED about home."""
+    """A geofence (``autopilot.geofence.fence.Geofence``): positions are local NED about home."""
 
     def violates(self, pos_ned: Sequence[float], margin_m: float = 0.0) -> bool: ...
 

@@ -9,7 +9,7 @@ from collections.abc import Callable
 
 from mavlink_bridge.gcs_client.errors import GcsTimeoutError, ParamNotFoundError, ParamRefusedError
 from mavlink_bridge.gcs_client.session import GcsSession, Msg
-from mavlink_bridge.gcs_server.params import PARAM_TYPE_REAL32, decode_param_id
+from mavlink_bridge.wire.param_ids import PARAM_TYPE_REAL32, decode_param_id
 
 
 def _float32(value: float) -> float:

@@ -16,16 +16,7 @@ from dataclasses import dataclass
 from pymavlink.dialects.v20 import common as mavlink2
 
 from mavlink_bridge.contract.vehicle_api import Severity, VehicleInterface
-
-PARAM_TYPE_REAL32 = mavlink2.MAV_PARAM_TYPE_REAL32
-PARAM_ID_LEN = 16
-
-
-def decode_param_id(raw: str | bytes) -> str:
-    """The parameter name from a char[16] field (NUL padded, not necessarily terminated)."""
-    if isinstance(raw, bytes):
-        raw = raw.decode("ascii", errors="replace")
-    return raw.split("\x00", 1)[0].strip()
+from mavlink_bridge.wire.param_ids import PARAM_TYPE_REAL32, decode_param_id
 
 
 @dataclass(slots=True)

@@ -16,7 +16,7 @@ from autopilot_fakes import command
 from autopilot_loop import SimLoop
 from conftest import REPO_ROOT
 
-from autopilot.mission.fence import circle_fence_items, geofence_from_items
+from autopilot.geofence.fence import circle_fence_items, geofence_from_items
 from autopilot.mission.files import load_mission_file
 from autopilot.telemetry import RerunTelemetry
 from autopilot.telemetry import entities as ent

@@ -11,8 +11,8 @@ from autopilot_fakes import command
 from autopilot_loop import SimLoop
 
 from autopilot import launcher
+from autopilot.geofence.fence import circle_fence_items
 from autopilot.io_loop import Links, run_loop
-from autopilot.mission.fence import circle_fence_items
 from autopilot.runner import Autopilot, AutopilotConfig
 from autopilot.telemetry import entities as ent
 from autopilot.telemetry import make_listener

@@ -12,7 +12,7 @@ from autopilot_loop import SimLoop
 
 from autopilot.control.airframe import load_airframe
 from autopilot.control.param_decls import controller_param_specs, shipped_gains
-from autopilot.mission.fence import circle_fence_items, polygon_fence_items
+from autopilot.geofence.fence import circle_fence_items, polygon_fence_items
 from autopilot.param_schema import all_param_specs, make_param_store
 from autopilot.runner import Autopilot, AutopilotConfig
 from mavlink_bridge.contract.vehicle_api import CommandResult, MissionResult, MissionType

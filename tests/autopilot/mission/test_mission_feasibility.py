@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import math
 
+from autopilot.geofence.fence import circle_fence_items, geofence_from_items, polygon_fence_items
 from autopilot.mission.feasibility import FeasibilityLimits, check_feasibility, mission_legs
-from autopilot.mission.fence import circle_fence_items, geofence_from_items, polygon_fence_items
 from autopilot.mission.uploads import UploadStore
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
 from mavlink_bridge.contract.mav_enums import MavCmd, MavFrame

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from autopilot.mission.fence import geofence_from_items
+from autopilot.geofence.fence import geofence_from_items
 from autopilot.mission.files import MissionFileError, load_mission_file, save_mission_file
 from autopilot.mission.plan import items_match
 from mavlink_bridge.contract.frames import LocalNedFrame

@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from autopilot.mission.fence import CircleZone, Geofence, PolygonZone
+from autopilot.geofence.fence import CircleZone, Geofence, PolygonZone
 from autopilot.planner.mission_router import MissionRouter, RouteStatus
 from autopilot.planner.obstacle_map import ObstacleKind, TrackedObstacle
 from autopilot.planner.param_decls import PlannerParams

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from autopilot.mission.fence import CircleZone, Geofence, PolygonZone
+from autopilot.geofence.fence import CircleZone, Geofence, PolygonZone
 from autopilot.planner.obstacle_map import ObstacleKind, TrackedObstacle
 from autopilot.planner.route_graph import KnownWorld, ObstacleDisc, obstacle_discs
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 from autopilot_fakes import FRAME
 
-from autopilot.mission.fence import geofence_from_items
+from autopilot.geofence.fence import geofence_from_items
 from autopilot.parameters.nav_decls import nav_param_specs
 from autopilot.parameters.store import ParamStore
 from autopilot.safety.failsafe import (

@@ -2,7 +2,7 @@
 
 The planner (``autopilot.planner.geometry.FenceZone``) wants zones with ``violates(pos_ned)`` and
 ``segment_clear(a, b, margin_m)``, each checked on its own. The mission's
-:class:`autopilot.mission.fence.Geofence` has MAVLink semantics that single zones cannot express:
+:class:`autopilot.geofence.fence.Geofence` has MAVLink semantics that single zones cannot express:
 stay outside every exclusion zone and inside *all* inclusion zones of *at least one* inclusion
 group. So the whole fence is handed over as one zone (:class:`GeofenceZone`): a detour that
 enters an exclusion zone or leaves the inclusion fence is ruled out, and an inclusion fence is
@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from autopilot.mission.fence import Geofence
+from autopilot.geofence.fence import Geofence
 
 
 @dataclass(frozen=True, slots=True)

@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from autopilot.mission.fence import (
+from autopilot.geofence.fence import (
     CircleZone,
     FenceError,
     Geofence,
