@@ -30,8 +30,8 @@ Integers saturate at their wire range; a non-finite value becomes 0 (or "unknown
 MAVLink defines one, e.g. eph = UINT16_MAX). Decoding never raises: malformed, truncated
 or random bytes are counted in ``DecoderStats`` and dropped.
 
-Encoding (``Encoder``) and ``make_mavlink`` (GCS/API links) live here; decoding in ``codec_decode``,
-the framing both share (layouts, CRC, headers) in ``codec_framing``.
+Encoding (``Encoder``) and ``make_mavlink`` (GCS/API links) live here; decoding in ``wire.decode``,
+the framing both share (layouts, CRC, headers) in ``wire.framing``.
 """
 
 from __future__ import annotations
