@@ -197,8 +197,8 @@ def main(argv: list[str] | None = None) -> int:
             args.rerun,
             args.vehicle,
             args.rerun_world,
-            autopilot.parameters.store.get("CA_RSAFE_M"),
-            autopilot.parameters.store.get("MIS_RTL_ALT"),
+            autopilot.params.get("CA_RSAFE_M"),
+            autopilot.params.get("MIS_RTL_ALT"),
         )
         client = LockstepClient(
             urls["sim"],
