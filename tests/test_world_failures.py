@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 from autopilot_loop import SimLoop
 
-from autopilot.failure_injection import SUPPORTED_FAILURES
-from autopilot.scripted_commands import CommandScript, ScriptError, load_script, load_world_failures, merged
+from autopilot.commander.script import CommandScript, ScriptError, load_script, load_world_failures, merged
+from autopilot.safety.failure_injection import SUPPORTED_FAILURES
 from mavlink_bridge.contract.failure_schedule import INJECTIONS, ScheduledFailure
 from mavlink_bridge.contract.mav_enums import FailureType, FailureUnit
 from sim.world import WorldConfigError, load_world

@@ -12,7 +12,7 @@ A mission's or bare world's ``failures`` key lists failures at sim times::
 FAILURE_TYPE without their prefix, lower case; :data:`INJECTIONS` lists them); ``motor`` is the motor instance
 (1-4 in PX4 quad-x order, 0 = all; motor injections only, default 0). The simulator validates the key with the
 rest of the world; the autopilot, which owns failure injection, runs each entry as the ``inject_failure`` step of
-a ``--script`` at that sim time (:func:`autopilot.scripted_commands.failure_steps`).
+a ``--script`` at that sim time (:func:`autopilot.commander.script.failure_steps`).
 """
 
 from __future__ import annotations
