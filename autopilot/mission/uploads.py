@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 from autopilot.mission.feasibility import FeasibilityLimits, check_feasibility
 from autopilot.mission.fence import FenceError, GeoFence, Geofence, geo_fence_from_items
+from autopilot.mission.plan import DEFAULT_HOME_TOL, HomeTolerance
 from autopilot.mission.validation import MissionIssue, MissionLimits, check_mission
 from autopilot.mission.zone_check import zone_issue
 from autopilot.planner.route_graph import KnownWorld
@@ -47,6 +48,7 @@ class UploadStore:
         self.geo_fence = GeoFence()
         self.fence = Geofence()  # about home; empty until home is known
         self.home: GeoPoint | None = None
+        self.home_tol = DEFAULT_HOME_TOL  # how far a WPL home line may lie from home (the GPS accuracy at the fix)
         self.world: KnownWorld | None = None  # the fence inflated by the margin (route planning)
         self.mission_issue: str = ""  # why the accepted mission may not be flown (empty: it may)
         self.texts: list[UploadText] = []
@@ -90,7 +92,7 @@ class UploadStore:
         return MissionResult.ACCEPTED, ""
 
     def _upload_fence(self, items: Sequence[MissionItem]) -> tuple[MissionResult, str]:
-        issue = check_mission(items, self.home, self._mission_limits) if items else None
+        issue = check_mission(items, self.home, self._mission_limits, self.home_tol) if items else None
         if issue is not None:
             self._say(f"Fence refused: fence {issue.reason}", Severity.WARNING)
             return issue.result, f"fence {issue.reason}"
@@ -108,9 +110,9 @@ class UploadStore:
             self._recheck("with the new fence")
         return MissionResult.ACCEPTED, ""
 
-    def set_home(self, home: GeoPoint) -> None:
+    def set_home(self, home: GeoPoint, home_tol: HomeTolerance = DEFAULT_HOME_TOL) -> None:
         """Home is known (or moved): the fence is made local and the stored mission checked again."""
-        self.home = home
+        self.home, self.home_tol = home, home_tol
         self._localise()
         if self.mission:
             self._recheck("from home")
@@ -128,8 +130,8 @@ class UploadStore:
         home is known, what needs it."""
         issue = check_mission(items, None, self._mission_limits) or zone_issue(items, self.geo_fence)
         if issue is None and self.home is not None and items:
-            issue = check_mission(items, self.home, self._mission_limits) or check_feasibility(
-                items, self.home, self.fence, self._limits, self.world
+            issue = check_mission(items, self.home, self._mission_limits, self.home_tol) or check_feasibility(
+                items, self.home, self.fence, self._limits, self.world, self.home_tol
             )
         return issue
 
