@@ -47,13 +47,13 @@ class GcsMissions(GcsSession):
         resend()
         sent_last = count == 0
         retries = restarts = 0
-        doubted = False  # an error ACK arrived and the last message was sent again to confirm it
+        doubted: MissionResult | None = None  # an error ACK to confirm: the last message was sent again
         max_retries = max(1, round(self.timeout_s / self.retry_s))
         while True:
             msg = self._wait(
                 self._mission_reply_matcher(mtype, ("MISSION_REQUEST_INT", "MISSION_REQUEST")), self.retry_s
             )
-            if msg is None:
+            if msg is None and doubted is None:
                 retries += 1
                 if retries > max_retries:
                     self.mav.mission_ack_send(ts, tc, int(MissionResult.OPERATION_CANCELLED), mtype)
@@ -61,23 +61,25 @@ class GcsMissions(GcsSession):
                 resend()
                 continue
             retries = 0
-            if msg.get_type() == "MISSION_ACK":
-                result = _mission_result(msg.type)
-                if result is MissionResult.ACCEPTED:
-                    if sent_last:
-                        return
-                    continue  # a stale ACK of an earlier transfer
-                if not doubted:  # maybe a stray copy of an earlier transfer's ACK: ask again
-                    doubted = True
+            if msg is not None and msg.get_type() == "MISSION_ACK" and msg.type == int(MissionResult.ACCEPTED):
+                if sent_last:
+                    return
+                continue  # a stale ACK of an earlier transfer
+            if msg is None or msg.get_type() == "MISSION_ACK":
+                result = _mission_result(msg.type) if msg is not None else doubted
+                assert result is not None
+                if doubted is None:  # maybe a stray copy of an earlier transfer's ACK: ask again
+                    doubted = result
                     resend()
                     continue
+                # confirmed: repeated, or no request came back for the message sent again (PX4 stays silent)
                 if result is MissionResult.ERROR and restarts < UPLOAD_RESTARTS:
                     restarts += 1  # the vehicle has no upload of ours (it timed out): start again
-                    doubted, sent_last, resend = False, count == 0, send_count
+                    doubted, sent_last, resend = None, count == 0, send_count
                     resend()
                     continue
                 raise MissionUploadError(result, self._reason(serial, result.name))
-            doubted = False
+            doubted = None
             seq = int(msg.seq)
             if not 0 <= seq < count:
                 continue

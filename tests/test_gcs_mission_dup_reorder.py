@@ -18,7 +18,7 @@ from gcs_fakes import FakeVehicle, ServerHarness, waypoint
 
 from mavlink_bridge.contract.vehicle_api import MissionResult, MissionType
 from mavlink_bridge.gcs_client import GcsClient
-from mavlink_bridge.gcs_errors import MissionDownloadError
+from mavlink_bridge.gcs_errors import MissionDownloadError, MissionUploadError
 from mavlink_bridge.gcs_server import GcsServer
 from mavlink_bridge.lossy import LossProfile, LossyUdpProxy
 from mavlink_bridge.mission_items import item_from_msg
@@ -161,8 +161,17 @@ class ScriptedVehicle:
     """A raw MAVLink vehicle in a thread for the GCS side: holds ``items``, answers downloads and uploads, and sends
     the extra MISSION_ACKs ``strays`` names before answering: {("request", seq) or ("item", seq): [results]}."""
 
-    def __init__(self, gcs_port: int, items: list, strays: dict[tuple[str, int], list[MissionResult]]) -> None:
+    def __init__(
+        self,
+        gcs_port: int,
+        items: list,
+        strays: dict[tuple[str, int], list[MissionResult]],
+        *,
+        deaf_after: bool = False,
+    ) -> None:
         self.items, self.strays = list(items), strays
+        self.deaf_after = deaf_after  # after the scripted ACKs of an item, ignore every item (PX4 after a refusal)
+        self.deaf = False
         self.counts_seen = 0
         self.raw = mavutil.mavlink_connection(f"udpout:127.0.0.1:{gcs_port}", source_system=1, source_component=1)
         self._stop = threading.Event()
@@ -205,9 +214,10 @@ class ScriptedVehicle:
                 self.counts_seen += 1
                 upload, expected = [], msg.count
                 mav.mission_request_int_send(255, 0, 0, 0)
-            elif kind == "MISSION_ITEM_INT" and msg.seq == len(upload) < expected:
+            elif kind == "MISSION_ITEM_INT" and msg.seq == len(upload) < expected and not self.deaf:
                 if self._strays(("item", msg.seq)):
-                    continue  # scripted as "the vehicle forgot the upload": no request follows
+                    self.deaf = self.deaf_after
+                    continue  # scripted as "the vehicle forgot the upload" or refused it: no request follows
                 upload.append(item_from_msg(msg))
                 if len(upload) < expected:
                     mav.mission_request_int_send(255, 0, len(upload), 0)
@@ -247,3 +257,17 @@ def test_gcs_upload_restarts_when_the_vehicle_no_longer_knows_it() -> None:
         client.upload_mission(route)
         assert vehicle.counts_seen == 2
         assert vehicle.items == route
+
+
+def test_gcs_believes_an_error_ack_the_vehicle_does_not_follow_with_a_request() -> None:
+    """PX4 answers a repeated last item after a refusal with silence: the refusal stands (not a timeout)."""
+    route = _route(3, 0)
+    gcs_port = free_udp_port()
+    strays = {("item", 2): [MissionResult.INVALID_PARAM7]}
+    with (
+        ScriptedVehicle(gcs_port, [], strays, deaf_after=True) as vehicle,
+        _client(gcs_port) as client,
+        pytest.raises(MissionUploadError) as refused,
+    ):
+        client.upload_mission(route)
+    assert refused.value.result is MissionResult.INVALID_PARAM7 and vehicle.counts_seen == 1
