@@ -15,7 +15,7 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from autopilot.mission.fence import Geofence, zone_label
+from autopilot.geofence.fence import Geofence, zone_label
 from autopilot.mission.plan import (
     DEFAULT_HOME_TOL,
     HomeTolerance,

@@ -20,8 +20,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from autopilot.geofence.fence import FenceError, GeoFence, Geofence, geo_fence_from_items
 from autopilot.mission.feasibility import FeasibilityLimits, check_feasibility
-from autopilot.mission.fence import FenceError, GeoFence, Geofence, geo_fence_from_items
 from autopilot.mission.plan import DEFAULT_HOME_TOL, HomeTolerance
 from autopilot.mission.validation import MissionIssue, MissionLimits, check_mission
 from autopilot.mission.zone_check import zone_issue

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from autopilot.mission.fence import FenceZone, GeoFence, GeoZone
+from autopilot.geofence.fence import FenceZone, GeoFence, GeoZone
 from autopilot.mission.plan import uses_current_position
 from autopilot.mission.validation import MissionIssue
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
