@@ -161,8 +161,10 @@ class FleetServer:
             raise
         self.ports = [server.local_address[1] for server in self.servers]
         rate_hz = self.sim.obstacle_sensors[0].config.rate_hz
-        self._detection_period_us = round(1e6 / rate_hz)
-        self._next_detection_us = 0
+        self._detection_period_us = period_us = round(1e6 / rate_hz)
+        control_us = 1_000_000 // config.control_hz
+        # staggered over the period (vehicle i's first at i/n of it, on a control step): no step senses for all
+        self._next_detection_us = [(i * period_us // n) // control_us * control_us for i in range(n)]
         self.alive = np.zeros(n, dtype=bool)  # autopilot answering
         self.connected = np.zeros(n, dtype=bool)
         self.lost_at_s: list[float | None] = [None] * n
@@ -248,11 +250,11 @@ class FleetServer:
                 t_us = sim.t_us
                 self._heartbeat_due = self.receiver.heartbeat_due(sim.steps)
                 reports = self.receiver.reports(sim.steps, t_us, sim.pos_ned, sim.vel_ned, self.alive)
-                detect = t_us >= self._next_detection_us
-                if detect:
-                    self._next_detection_us += self._detection_period_us
                 live = np.flatnonzero(self.alive).tolist()
                 for i in live:
+                    detect = t_us >= self._next_detection_us[i]
+                    if detect:
+                        self._next_detection_us[i] += self._detection_period_us
                     self.servers[i].send_datagram(t_us, self._datagram(i, reports[i], detect))
                 if unrecorded:  # the state is unchanged until the answers: hash while the autopilots work
                     sim.record()

@@ -59,6 +59,7 @@ class ObstacleSensorConfig:
     ultrasonic_range_m: float = 6.0
     ultrasonic_half_angle_deg: float = 12.5
     ultrasonic_noise_m: float = 0.02
+    max_others: int = 6  # other vehicles (a fleet's) tracked at once: the nearest in view
 
 
 @njit(cache=True)
@@ -158,15 +159,27 @@ class ObstacleSensor:
         return pos - dist * grad / max(g, 1e-9)
 
     def _scene(
-        self, pos: np.ndarray, others: np.ndarray | None
+        self, pos: np.ndarray, r_ned_frd: np.ndarray, others: np.ndarray | None
     ) -> tuple[np.ndarray, np.ndarray, list[_Volume], list[int]]:
-        """The world's obstacles plus the ``others`` (rows ``north, east, down, radius, id``: other vehicles as
-        spheres) that may be in camera range: kinds, params, volumes and the id each is reported with."""
+        """The world's obstacles plus those of ``others`` (rows ``north, east, down, radius, id``: other vehicles as
+        spheres) that reach into the camera's range and field of view: kinds, params, volumes and report ids."""
         ids = list(range(len(self._volumes)))
         if others is None or not len(others):
             return self._kinds, self._params, self._volumes, ids
-        gap_m = np.linalg.norm(others[:, :3] - pos, axis=1) - others[:, 3]
-        near = others[gap_m <= self.config.camera_range_m]
+        radius = others[:, 3]
+        rel_frd = (others[:, :3] - pos) @ r_ned_frd  # each row: R^T (centre - pos)
+        x, y, z = rel_frd[:, 0], np.abs(rel_frd[:, 1]), np.abs(rel_frd[:, 2])
+        th, tv = self._tan_h, self._tan_v
+        in_view = (
+            (np.linalg.norm(rel_frd, axis=1) - radius <= self.config.camera_range_m)
+            & (x > -radius)
+            & ((y - th * x) <= radius * math.sqrt(1.0 + th * th))  # the sphere reaches past each side plane
+            & ((z - tv * x) <= radius * math.sqrt(1.0 + tv * tv))
+        )
+        near = others[in_view]
+        if len(near) > self.config.max_others:  # the nearest ones (a stereo tracker's object slots)
+            gap_m = np.linalg.norm(near[:, :3] - pos, axis=1) - near[:, 3]
+            near = near[np.sort(np.argsort(gap_m, kind="stable")[: self.config.max_others])]
         if not len(near):
             return self._kinds, self._params, self._volumes, ids
         spheres = np.zeros((len(near), OBSTACLE_PARAM_WIDTH))
@@ -185,10 +198,12 @@ class ObstacleSensor:
         vehicles see each other; ids after the world's obstacles)."""
         cfg = self.config
         pos = np.ascontiguousarray(pos_ned, dtype=np.float64)
-        kinds, params, volumes, ids = self._scene(pos, others)
-        if not volumes:
+        if not self._volumes and (others is None or not len(others)):
             return ()
         r_ned_frd = dcm_from_quat(np.asarray(q_ned_frd, float))
+        kinds, params, volumes, ids = self._scene(pos, r_ned_frd, others)
+        if not volumes:
+            return ()
         n_grid = len(self._grid_frd)
         n_rays = n_grid + len(volumes)
         dirs = self._dirs if n_rays == len(self._dirs) else np.empty((n_rays, 3))
@@ -196,8 +211,12 @@ class ObstacleSensor:
         np.matmul(self._grid_frd, r_ned_frd.T, out=dirs[:n_grid])
         # one extra ray per obstacle toward its true nearest point (when that point is in view)
         extra = np.zeros(len(volumes), bool)
+        n_static = len(self._volumes)
         for k in range(len(volumes)):
-            rel = self._nearest_on_obstacle(kinds[k], params[k], pos) - pos
+            if k < n_static:
+                rel = self._nearest_on_obstacle(kinds[k], params[k], pos) - pos
+            else:  # another vehicle: a sphere, whose nearest point is exact
+                rel = self._nearest_on_volume(volumes[k], pos) - pos
             rng = float(np.linalg.norm(rel))
             dirs[n_grid + k] = (1.0, 0.0, 0.0)
             if 1e-6 < rng <= cfg.camera_range_m and self._in_fov(r_ned_frd.T @ rel):

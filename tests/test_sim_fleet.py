@@ -169,9 +169,7 @@ def _run_fleet(path: Path, autopilots: list[dict], duration_s: float, **config: 
             listen_url="udpin:127.0.0.1:0",
             world_path=path,
             duration_s=duration_s,
-            start_timeout_s=10.0,
-            autopilot_timeout_s=0.5,
-            **config,
+            **{"start_timeout_s": 20.0, "autopilot_timeout_s": 10.0, **config},  # type: ignore[arg-type]
         )
     )
     pilots = [ScriptedAutopilot(addr, **kw) for addr, kw in zip(server.local_addresses, autopilots, strict=True)]
@@ -227,7 +225,7 @@ def test_same_world_and_seed_give_the_same_per_vehicle_hashes(tmp_path: Path) ->
 
 def test_a_dead_autopilot_loses_its_vehicle_and_the_others_keep_flying(tmp_path: Path) -> None:
     path = _write(tmp_path, FLEET_YAML)
-    summary, _ = _run_fleet(path, [{"motors": 0.8}, {"motors": 0.8, "stop_after": 250}], 4.0)
+    summary, _ = _run_fleet(path, [{"motors": 0.8}, {"motors": 0.8, "stop_after": 250}], 4.0, autopilot_timeout_s=2.0)
     alpha, bravo = summary.vehicles
     assert summary.end_reason == "COMPLETED" and summary.sim_time_s == pytest.approx(4.0)
     assert alpha.autopilot_lost_at_s is None and alpha.frames == 1000 and alpha.final_pos_ned_m[2] < -5.0
