@@ -12,9 +12,10 @@ autopilot is connected to the end). The breakdown says what bounds it, per contr
 - ``wall_us``: the measured wall time per step. ``wall - cpu_bound`` is what scheduling and transport add.
 
 ``fleet_rtf_n1_same_run`` is the single-vehicle scripted flight of ``lockstep_flight`` in the same run (same
-spin setting), the reference the fleet figures compare with. Targets (issue 23): N=4 >= 5x, N=8 >= 3x, N=32 >= 1x on the 2-core machine. Spinning for the peer's datagram is
-off for every process (``--lockstep-spin-us 0``): with more processes than cores a spinning waiter steals the
-core the one it waits for needs.
+spin setting), the reference the fleet figures compare with. Targets (issue 23): N=4 >= 5x, N=8 >= 3x,
+N=32 >= 1x on the 2-core machine. Spinning for the peer's datagram is off for every process
+(``--lockstep-spin-us 0``): with more processes than cores a spinning waiter steals the core the one it waits
+for needs.
 """
 
 from __future__ import annotations
@@ -87,16 +88,14 @@ def fly_fleet(n: int, duration_s: float, work: Path) -> dict[str, float]:
     script = work / "flight.yaml"
     script.write_text(FLIGHT_SCRIPT)
     base = _free_base(n)
-    sim = _popen(
-        ["sim", "--world", str(world), "--listen", f"udp:127.0.0.1:{base}", "--speed", "max"]
-        + ["--duration-s", str(duration_s), "--lockstep-spin-us", "0", "--log-dir", str(work)],
-        work / "sim.log",
-    )
+    sim_args = ["sim", "--world", str(world), "--listen", f"udp:127.0.0.1:{base}", "--speed", "max"]
+    sim_args += ["--duration-s", str(duration_s), "--lockstep-spin-us", "0", "--log-dir", str(work)]
+    sim = _popen(sim_args, work / "sim.log")
+    ap_args = ["--gcs", "off", "--api", "off", "--script", str(script), "--lockstep-spin-us", "0"]
+    ap_args += ["--sim-timeout-s", "60", "--connect-timeout-s", "600"]
     autopilots = [
         _popen(
-            ["autopilot", "--sim", f"udpout:127.0.0.1:{base + i}", "--gcs", "off", "--api", "off"]
-            + ["--script", str(script), "--sys-id", str(i + 1), "--lockstep-spin-us", "0"]
-            + ["--sim-timeout-s", "60", "--connect-timeout-s", "600"],
+            ["autopilot", "--sim", f"udpout:127.0.0.1:{base + i}", "--sys-id", str(i + 1), *ap_args],
             work / f"autopilot{i}.log",
         )
         for i in range(n)
