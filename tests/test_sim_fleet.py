@@ -215,6 +215,8 @@ def test_same_world_and_seed_give_the_same_per_vehicle_hashes(tmp_path: Path) ->
     runs = [_run_fleet(path, pilots, 1.0, seed=3)[0] for _ in range(2)]
     hashes = [[v.truth_sha256 for v in run.vehicles] for run in runs]
     assert hashes[0] == hashes[1] and hashes[0][0] != hashes[0][1]
+    lossy = _run_fleet(path, pilots, 1.0, seed=3, loss_fraction=0.1)[0]  # each link re-sends on its own
+    assert [v.truth_sha256 for v in lossy.vehicles] == hashes[0] and min(v.resends for v in lossy.vehicles) > 0
     other_seed = _run_fleet(path, pilots, 1.0, seed=4)[0]
     assert other_seed.vehicles[0].truth_sha256 != hashes[0][0]
     # a third vehicle shifts neither stream of the first two
