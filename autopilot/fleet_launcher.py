@@ -200,8 +200,13 @@ def _check(args: argparse.Namespace, plan: list[VehicleLinks], sim_cmd: list[str
     return None
 
 
-def run_fleet(args: argparse.Namespace, entries: list[dict[str, Any]]) -> int:
-    """Start, watch and stop the fleet's processes; the exit status (see ``autopilot.launcher``)."""
+def run_fleet(args: argparse.Namespace, entries: list[dict[str, Any]], spin_given: bool = False) -> int:
+    """Start, watch and stop the fleet's processes; the exit status (see ``autopilot.launcher``).
+
+    With more processes than cores and no ``--lockstep-spin-us`` given, nobody spins for the peer's datagram: a
+    spinning waiter would hold the core the process it waits for needs."""
+    if not spin_given and len(entries) + 1 > (os.cpu_count() or 1):
+        args.lockstep_spin_us = 0.0
     try:
         plan = plan_links(args, entries, args.vehicle or launcher.world_vehicle(args.world) or "x500")
         sim_cmd, ap_cmds = commands(args, plan)
@@ -260,4 +265,5 @@ def main(argv: list[str] | None = None) -> int:
     entries = fleet_entries(args.world)
     if not entries:
         return launcher.main(argv)
-    return run_fleet(args, entries)
+    spin_given = any(a.startswith("--lockstep-spin-us") for a in (sys.argv[1:] if argv is None else argv))
+    return run_fleet(args, entries, spin_given)

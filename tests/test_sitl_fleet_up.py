@@ -63,19 +63,23 @@ def test_one_gcs_port_sees_the_whole_fleet_and_a_killed_autopilot_leaves_the_oth
     up = subprocess.Popen(args, cwd=REPO_ROOT, env=dict(os.environ, PYTHONUNBUFFERED="1"), stdout=log, stderr=log)
     try:
         seen: dict[int, float] = {}
+        relayed = 0
         deadline = time.monotonic() + 120.0
         while len(seen) < 2 and time.monotonic() < deadline and up.poll() is None:
-            msg = gcs.recv_match(type="HEARTBEAT", blocking=True, timeout=1.0)
-            if msg is not None and msg.get_srcComponent() == 1:
+            msg = gcs.recv_match(type=["HEARTBEAT", "UTM_GLOBAL_POSITION", "ADSB_VEHICLE"], blocking=True, timeout=1.0)
+            if msg is not None and msg.get_type() != "HEARTBEAT":
+                relayed += 1
+            elif msg is not None and msg.get_srcComponent() == 1:
                 seen[msg.get_srcSystem()] = time.monotonic()
         assert sorted(seen) == [1, 2], (tmp_path / "up.log").read_text(errors="replace")
+        before = _sim_time_s(gcs, 1, 5.0)
+        assert relayed == 0  # received traffic reports are never re-broadcast (also checked in _sim_time_s)
         banner = (tmp_path / "up.log").read_text(errors="replace")
         assert f"alpha      sys id 1, x500: sim on 127.0.0.1:{14560 + block}" in banner
         assert (
             f"bravo      sys id 2, x500: sim on 127.0.0.1:{14561 + block}, GCS from 127.0.0.1:{18571 + block}" in banner
         )
         # kill bravo's autopilot: alpha's keeps being stepped (its sim time keeps growing on the GCS)
-        before = _sim_time_s(gcs, 1, 5.0)
         os.kill(_autopilot_pid(up.pid, "--sys-id", "2"), signal.SIGKILL)
         time.sleep(3.5)  # time waits for bravo for the simulator's 3 s autopilot timeout, then goes on without
         later = _sim_time_s(gcs, 1, 3.0)
@@ -100,7 +104,8 @@ def _sim_time_s(gcs: mavutil.mavfile, sys_id: int, window_s: float = 1.5) -> flo
     """The latest sim time system ``sys_id`` reported (ATTITUDE) in the next ``window_s`` (wall)."""
     latest, end = -1.0, time.monotonic() + window_s
     while time.monotonic() < end:
-        msg = gcs.recv_match(type="ATTITUDE", blocking=True, timeout=0.2)
+        msg = gcs.recv_match(type=["ATTITUDE", "UTM_GLOBAL_POSITION", "ADSB_VEHICLE"], blocking=True, timeout=0.2)
+        assert msg is None or msg.get_type() == "ATTITUDE", f"a traffic report re-broadcast on the GCS link: {msg}"
         if msg is not None and msg.get_srcSystem() == sys_id:
             latest = max(latest, msg.time_boot_ms / 1000.0)
     assert latest >= 0.0, f"no ATTITUDE from system {sys_id}"
