@@ -297,7 +297,8 @@ class FleetServer:
         for i, spec in enumerate(self.fleet.vehicles):
             code = int(sim.end_reason[i])
             if code == _RUNNING:
-                code = int(EndReason.AUTOPILOT_LOST if self.lost_at_s[i] is not None else end)
+                gone = self.lost_at_s[i] is not None or not self.connected[i]
+                code = int(EndReason.AUTOPILOT_LOST if gone else end)
             b, row = sim.rows[i]
             batch = sim.batches[b]
             clearance = float(batch.min_clearance_m[row])
