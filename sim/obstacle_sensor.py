@@ -222,7 +222,11 @@ class ObstacleSensor:
             if 1e-6 < rng <= cfg.camera_range_m and self._in_fov(r_ned_frd.T @ rel):
                 dirs[n_grid + k] = rel / rng
                 extra[k] = True
-        _march(kinds, params, pos, dirs, cfg.camera_range_m, hits)
+        if len(volumes) == n_static:
+            _march(kinds, params, pos, dirs, cfg.camera_range_m, hits)
+        else:  # other vehicles are seen by the ray toward each (small: the grid would rarely add one) and occlude
+            _march(self._kinds, self._params, pos, dirs[:n_grid], cfg.camera_range_m, hits[:n_grid])
+            _march(kinds, params, pos, dirs[n_grid:], cfg.camera_range_m, hits[n_grid:])
         seen = set(int(k) for k in hits[:n_grid, 1] if k >= 0)
         seen |= {k for k in range(len(volumes)) if extra[k] and int(hits[n_grid + k, 1]) == k}
         us_range = self._ultrasonic(kinds, params, pos, r_ned_frd)
