@@ -54,6 +54,8 @@ def run_loop(
             client.answer(autopilot.step(frame))  # type: ignore[attr-defined]
             autopilot.after_answer()  # while the sim integrates the next step
             steps += 1
+        elif should_stop():  # asked to stop while waiting: a stop, even if the sim went quiet meanwhile
+            break
         elif client.sim_lost:  # type: ignore[attr-defined]
             reason = AutopilotEndReason.SIM_LOST
             break
