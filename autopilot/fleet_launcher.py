@@ -42,8 +42,8 @@ from autopilot import launcher
 from autopilot.launcher import EXIT_USAGE, build_parser, stop_process
 from autopilot.preflight import InputFileError, check_autopilot_inputs
 from mavlink_bridge.contract.about import version_text
-from mavlink_bridge.link import LinkMode, LinkUrl, LinkUrlError, check_ports_free, resolve_url
 from mavlink_bridge.lockstep import DEFAULT_LISTEN_URL
+from mavlink_bridge.wire.link import LinkMode, LinkUrl, LinkUrlError, check_ports_free, resolve_url
 
 SIM_PORT = 14560
 GCS_LOCAL_PORT = 18570

@@ -25,12 +25,12 @@ from pathlib import Path
 
 import numpy as np
 
-from mavlink_bridge.answer_kernel import A_ARMED, A_GRIPPER_RELEASE, A_MOTORS
-from mavlink_bridge.codec import Encoder, Heartbeat
-from mavlink_bridge.frame_writer import FrameWriter
-from mavlink_bridge.link import LinkUrl
 from mavlink_bridge.lockstep import AutopilotLost, LockstepInterrupted, LockstepServer
-from mavlink_bridge.traffic_codec import MAV_COMP_ID_ADSB, MAV_TYPE_ADSB
+from mavlink_bridge.lockstep.answer_kernel import A_ARMED, A_GRIPPER_RELEASE, A_MOTORS
+from mavlink_bridge.wire.codec import Encoder, Heartbeat
+from mavlink_bridge.wire.frame_writer import FrameWriter
+from mavlink_bridge.wire.link import LinkUrl
+from mavlink_bridge.wire.traffic_codec import MAV_COMP_ID_ADSB, MAV_TYPE_ADSB
 from sim.end_reason import EndReason
 from sim.fleet import FleetSim
 from sim.fleet_world import FleetSpec, load_fleet
