@@ -130,10 +130,15 @@ def _startup_cpu_s(work: Path) -> float:
 
 
 def _single_flight(duration_s: float, work: Path) -> float | None:
-    """The single-vehicle reference RTF (two tries: on a loaded machine a pair's stop can race its sim-lost timer)."""
+    """The single-vehicle reference RTF. The autopilot's sim-lost timeout is 60 s: on a loaded machine the sim can
+    take longer than the default 3 s to exit, and the autopilot would end first (SIM_LOST) and miss the stop."""
     for attempt in range(2):
         try:
-            summary = fly(duration_s, work / f"single{attempt}", autopilot_args=("--lockstep-spin-us", "0"))
+            summary = fly(
+                duration_s,
+                work / f"single{attempt}",
+                autopilot_args=("--lockstep-spin-us", "0", "--sim-timeout-s", "60"),
+            )
         except SitlError as exc:
             print(
                 f"[fleet_lockstep] single-vehicle reference flight failed: {str(exc).splitlines()[0]}", file=sys.stderr
