@@ -2,8 +2,8 @@
 
 Every frame (250 Hz): [failures] -> [stale-data check] -> estimator -> setpoints -> [avoidance] -> cascade ->
 [motor failures] -> ActuatorCommand. At 50 Hz and after any command: failsafes (10 Hz), navigator, commander.
-The answer goes out *before* the bookkeeping (:meth:`Autopilot.after_answer`), while the simulator integrates.
-The runner only composes and steps the modules; ``docs/architecture.md`` says what each owns, reads and emits.
+The answer goes out *before* the bookkeeping (``after_answer``), while the sim integrates; docs/architecture.md:
+what each module owns, reads and emits. ``frame_traffic``: the traffic reports of this frame (SPEC §13).
 """
 
 from __future__ import annotations
@@ -36,6 +36,7 @@ from autopilot.safety.link_health import LinkHealth
 from autopilot.safety.sensor_validation import StaleSensorCheck
 from mavlink_bridge.contract.frames import GeoPoint, Vec3
 from mavlink_bridge.contract.mav_enums import MavCmd
+from mavlink_bridge.contract.traffic import TrafficReport
 from mavlink_bridge.contract.vehicle_api import (
     CommandRequest,
     CommandResult,
@@ -109,6 +110,7 @@ class Autopilot:
         self.frames = 0
         self.end_reason: AutopilotEndReason | None = None
         self.frame_detections: tuple[ObstacleDetection, ...] = ()
+        self.frame_traffic: tuple[TrafficReport, ...] = ()
         self._texts: list[StatusText] = []
         self._context = CommandContext()
         self._prev_time_us: int | None = None
@@ -193,7 +195,7 @@ class Autopilot:
             self._dt_s = (t_us - self._prev_time_us) * 1e-6
         self._prev_time_us = t_us
         self.frames += 1
-        self.frame_detections = getattr(frame, "detections", ())
+        self.frame_detections, self.frame_traffic = getattr(frame, "detections", ()), getattr(frame, "traffic", ())
         seen = self.sensor_check.apply(self.failures.apply_to_frame(frame), self.commander.in_air)
         self.estimator.set_landed(self.commander.landed_state is LandedState.ON_GROUND)
         state = self.estimator.update(seen)
@@ -343,10 +345,8 @@ class Autopilot:
     # ------------------------------------------------------------------ after the answer
     def drain_texts(self) -> list[StatusText]:
         """Events (commander, navigator, runner) since the last call."""
-        texts = self.commander.drain_texts()
-        texts += self.navigator.drain_texts()
-        texts += self.failures.drain_texts()
-        texts += self.sensor_check.drain_texts()
+        texts = self.commander.drain_texts() + self.navigator.drain_texts()
+        texts += [*self.failures.drain_texts(), *self.sensor_check.drain_texts()]
         if self._texts:
             texts += self._texts
             self._texts = []
@@ -405,9 +405,8 @@ class Autopilot:
             "wall_time_s": round(wall_time_s, 3),
             "frames": self.frames,
             "vehicle": self.airframe.name,
+            **({} if lockstep is None else {"lockstep": lockstep}),
         }
-        if lockstep is not None:
-            flight["lockstep"] = lockstep
         return report.summary(
             self.commander, self.navigator, self.battery, self.progress, self.tracking, self.truth_hash, flight
         )
