@@ -30,6 +30,7 @@ class Ship:
     avoidance: TrafficAvoidance | None = None
     texts: list[str] = field(default_factory=list)
     detour_steps: int = 0
+    start_s: float = 0.0  # it hovers where it is until then (staggered departures)
 
     @property
     def done(self) -> bool:
@@ -79,7 +80,8 @@ def fly(ships: list[Ship], manned: list[Manned] = (), *, action: TrafficAction =
             if k % 10 == i % 10:  # each receiver at 1 Hz, staggered
                 reports = [report(TrafficSource.UAV, o.system_id, o.pos, o.vel, t_us) for o in ships if o is not s]
                 reports += [report(TrafficSource.MANNED, m.icao, m.pos, m.vel, t_us) for m in manned]
-            route = () if s.done else (tuple(float(x) for x in s.goal),)
+            waiting = k * DT_S < s.start_s
+            route = () if s.done or waiting else (tuple(float(x) for x in s.goal),)
             own = OwnShip(t_us, tuple(map(float, s.pos)), tuple(map(float, s.vel)), route, s.cruise_m_s, s.system_id)
             decision = s.avoidance.update(own, reports, limits)
             s.texts += [t.text for t in decision.texts]
@@ -95,7 +97,7 @@ def fly(ships: list[Ship], manned: list[Manned] = (), *, action: TrafficAction =
                 s.pos = nxt[0] + nxt[1] * DT_S
                 s.vel = nxt[1]
                 continue
-            to_goal = s.goal - s.pos
+            to_goal = s.goal - s.pos if k * DT_S >= s.start_s else np.zeros(3)
             dist = float(np.linalg.norm(to_goal))
             speed = min(s.cruise_m_s, math.sqrt(2.0 * ACC_M_S2 * dist))
             want = to_goal / dist * speed if dist > 1e-6 else np.zeros(3)
@@ -111,3 +113,101 @@ def fly(ships: list[Ship], manned: list[Manned] = (), *, action: TrafficAction =
             for m in manned:
                 min_man = min(min_man, ratio(a.pos, m.pos, params.manned))
     return Outcome(min_uav, min_man, sum(s.done for s in ships), ships)
+
+
+# ---------------------------------------------------------------------- seeded encounter geometries
+def _ship(sid: int, start: tuple[float, float, float], goal: tuple[float, float, float], speed: float) -> Ship:
+    return Ship(sid, np.array(start, float), np.array(goal, float), speed)
+
+
+def head_on(rng: np.random.Generator) -> list[Ship]:
+    alt, lat, v1, v2 = -rng.uniform(15, 40), rng.uniform(-4, 4), rng.uniform(3, 7), rng.uniform(3, 7)
+    dz = rng.uniform(-2, 2)
+    return [_ship(1, (0, 0, alt), (240, 0, alt), v1), _ship(2, (240, lat, alt + dz), (0, lat, alt + dz), v2)]
+
+
+def crossing(rng: np.random.Generator) -> list[Ship]:
+    """Two legs through one point at a random angle, arriving there within a second or two of each other."""
+    alt, angle = -rng.uniform(15, 40), math.radians(rng.uniform(15, 165)) * rng.choice((-1, 1))
+    v1, v2 = rng.uniform(3, 7), rng.uniform(3, 7)
+    d1 = 120.0
+    d2 = v2 * (d1 / v1 + rng.uniform(-2, 2))
+    u = np.array((math.cos(angle), math.sin(angle), 0.0))
+    c = np.array((d1, 0.0, alt))
+    a = _ship(1, (0, 0, alt), (2 * d1, 0, alt), v1)
+    b = _ship(2, tuple(c - u * d2), tuple(c + u * d1), v2)
+    ids = rng.permutation([1, 2])
+    a.system_id, b.system_id = int(ids[0]), int(ids[1])
+    return [a, b]
+
+
+def overtaking(rng: np.random.Generator) -> list[Ship]:
+    alt, lat = -rng.uniform(15, 40), rng.uniform(-3, 3)
+    fast, slow = rng.uniform(6, 8), rng.uniform(2, 3)
+    a = _ship(1, (0, 0, alt), (260, 0, alt), fast)  # passes and flies on
+    b = _ship(2, (40, lat, alt), (200, lat, alt), slow)
+    if rng.random() < 0.5:
+        a.system_id, b.system_id = 2, 1
+    return [a, b]
+
+
+def vertical(rng: np.random.Generator) -> list[Ship]:
+    """One vehicle climbs (or descends) through the other's level as it passes."""
+    alt, v1 = -rng.uniform(20, 30), rng.uniform(3, 7)
+    x = 100.0 + rng.uniform(-5, 5)
+    t_pass = x / v1
+    climb = rng.choice((-1, 1))
+    vz = rng.uniform(1.0, 2.5)
+    start_z = alt + climb * vz * t_pass
+    a = _ship(1, (0, 0, alt), (200, 0, alt), v1)
+    b = _ship(2, (x, rng.uniform(-2, 2), start_z), (x, 0, alt - climb * 15), vz)
+    if rng.random() < 0.5:
+        a.system_id, b.system_id = 2, 1
+    return [a, b]
+
+
+def converging(rng: np.random.Generator, n: int) -> list[Ship]:
+    """``n`` vehicles from a ring toward drop points across it, 30-40 m around the centre, one level."""
+    alt = -rng.uniform(15, 30)
+    phase = rng.uniform(0, 2 * math.pi)
+    ships = []
+    for i in range(n):
+        a = phase + 2 * math.pi * i / n + rng.uniform(-0.2, 0.2)
+        r = rng.uniform(110, 150)
+        goal_a = phase + 2 * math.pi * ((i + n // 2) % n + 0.5) / n
+        gr = max(30.0, 20.0 / math.sin(math.pi / n))
+        start = (r * math.cos(a), r * math.sin(a), alt)
+        goal = (gr * math.cos(goal_a), gr * math.sin(goal_a), alt)
+        ships.append(_ship(i + 1, start, goal, rng.uniform(3, 6)))
+    return ships
+
+
+def depot_departures(rng: np.random.Generator, n: int) -> list[Ship]:
+    """``n`` vehicles leave one depot (hovering 15 m apart at one level) for drop points 150-200 m away in random
+    directions, 5-10 s apart, so that legs cross."""
+    alt = -rng.uniform(15, 30)
+    ships = []
+    for i in range(n):
+        start = (15.0 * (i % 3) - 15.0, 15.0 * (i // 3), alt)
+        a, r = rng.uniform(0, 2 * math.pi), rng.uniform(150, 200)
+        ship = _ship(i + 1, start, (r * math.cos(a), r * math.sin(a), alt), rng.uniform(3, 6))
+        ship.start_s = float(i * rng.uniform(5, 10))
+        ships.append(ship)
+    return ships
+
+
+def manned_crossing(rng: np.random.Generator) -> tuple[list[Ship], list[Manned]]:
+    """A UAV on a delivery leg while a helicopter crosses it at 40 m/s near its level, both reaching the crossing
+    point 35-45 s after the start (the helicopter first reported 1.4-1.8 km away)."""
+    alt = -rng.uniform(15, 40)
+    heading = rng.uniform(0, 2 * math.pi)
+    speed = rng.uniform(3, 6)
+    t_meet = rng.uniform(35, 45)
+    leg = speed * t_meet
+    u = np.array((math.cos(heading), math.sin(heading), 0.0))
+    ship = _ship(1, (0, 0, alt), tuple(2 * leg * u + (0, 0, alt)), speed)
+    cross = heading + rng.uniform(0.3, math.pi - 0.3) * rng.choice((-1, 1))
+    vel = 40.0 * np.array((math.cos(cross), math.sin(cross), 0.0))
+    meet = leg * u + np.array((0.0, 0.0, -40.0 + rng.uniform(-10, 10)))
+    heli = Manned(0xA1B2C3, meet - vel * (t_meet + rng.uniform(-3, 3)), vel)
+    return [ship], [heli]

@@ -42,6 +42,8 @@ _FAILSAFE = {TrafficAction.RETURN: FailsafeAction.RTL, TrafficAction.LAND: Fails
 REPLAN_US = 500_000
 #: Offsets are sized this much beyond the planning volume they are checked against (tracking slack).
 OFFSET_SLACK = 1.15
+#: A still track lower than this above home is on the ground (m).
+GROUND_AGL_M = 1.5
 #: How far the conflict window of the most urgent conflict is followed past the horizon (s).
 WINDOW_LOOKAHEAD_S = 600.0
 #: A refused-report reason is said at most once per this interval (µs).
@@ -159,11 +161,16 @@ class TrafficAvoidance:
         out: list[Conflict] = []
         advised: set[TrackKey] = set()
         for track in tracks:
+            if on_ground(track, own.t_us):
+                continue
             rel, rel_vel = _relative(own, track)
             volume = volume_for(p, track)
-            approach = predict_approach(rel, rel_vel, p.horizon_s, volume.grown(0.5 * p.margin))
+            # hysteresis: a conflict starts inside the volume grown by half the margin, ends outside the whole margin
+            grow = p.margin if track.key in self._conflicts else 0.5 * p.margin
+            approach = predict_approach(rel, rel_vel, p.horizon_s, volume.grown(grow))
             if approach.conflict:
                 out.append(Conflict(track, approach, role(self.system_id, track, own.vel_ned_m_s, rel), volume))
+                advised.add(track.key)
                 continue
             alert = predict_approach(rel, rel_vel, p.horizon_s, p.alert)
             if alert.conflict:
@@ -254,6 +261,13 @@ class TrafficAvoidance:
         must = [th for th in threats if role(self.system_id, th.track, own.vel_ned_m_s, _relative(own, th.track)[0])
                 is Role.GIVE_WAY]  # fmt: skip
         return resolver.choose(plans, window, threats, must)
+
+
+def on_ground(track: TrafficTrack, t_us: int) -> bool:
+    """A track standing on the ground at home level (a vehicle parked at the depot): not separated from (surface
+    traffic is the operator's business; home pads may be closer than the UAV volume)."""
+    n, e, d = track.vel_ned_m_s
+    return -track.position_at(t_us)[2] < GROUND_AGL_M and math.hypot(n, e) < 0.5 and abs(d) < 0.5
 
 
 def _relative(own: OwnShip, track: TrafficTrack) -> tuple[Vec3, Vec3]:

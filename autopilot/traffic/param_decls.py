@@ -40,7 +40,7 @@ def traffic_param_specs() -> tuple[ParamSpec, ...]:
         ParamSpec(
             "NAV_TRAFF_A_VER", 500.0, 5.0, 5000.0, "m", "Alert half-height: predicted CPA inside it is an advisory"
         ),
-        ParamSpec("NAV_TRAFF_COLL_T", 30.0, 3.0, 300.0, "s", "Look-ahead horizon of the closest-approach prediction"),
+        ParamSpec("NAV_TRAFF_COLL_T", 60.0, 3.0, 300.0, "s", "Look-ahead horizon of the closest-approach prediction"),
         ParamSpec("NAV_TRAFF_U_HOR", 10.0, 1.0, 1000.0, "m", "UAV separation: horizontal radius kept from other UAVs"),
         ParamSpec("NAV_TRAFF_U_VER", 5.0, 0.5, 500.0, "m", "UAV separation: vertical half-height kept from other UAVs"),
         ParamSpec("NAV_TRAFF_M_HOR", 150.0, 10.0, 5000.0, "m", "Manned separation: horizontal radius (NMAC 500 ft)"),
@@ -73,10 +73,10 @@ class TrafficParams:
 
     action: TrafficAction = TrafficAction.AVOID
     alert: SeparationVolume = SeparationVolume(500.0, 500.0)
-    horizon_s: float = 30.0
+    horizon_s: float = 60.0
     uav: SeparationVolume = SeparationVolume(10.0, 5.0)
     manned: SeparationVolume = SeparationVolume(150.0, 30.0)
-    margin: float = 0.3
+    margin: float = 0.2
     max_age_s: float = 5.0
 
     @classmethod

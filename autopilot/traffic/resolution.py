@@ -19,7 +19,7 @@ import bisect
 import itertools
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum
 
 import numpy as np
@@ -98,6 +98,7 @@ class Resolution:
     hold_at_end: bool
     min_ratio: float
     refused: tuple[str, ...] = field(default=(), compare=False)
+    offset_ned_m: Vec3 = (0.0, 0.0, 0.0)  # the offset held from the route (zero for a stop or the route)
 
     @property
     def safe(self) -> bool:
@@ -277,7 +278,9 @@ class Resolver:
             head = head[:-1]  # too short a leg to cruise: brake from the previous point
         if len(head) < 2:
             return fit_detour(np.array(pts), np.array(self.own.vel_ned_m_s), np.zeros(3), lim.v_max_m_s, lim.a_max_m_s2)
-        fit = fit_detour(np.array(head), np.array(self.own.vel_ned_m_s), direction * speed, lim.v_max_m_s, lim.a_max_m_s2)
+        fit = fit_detour(
+            np.array(head), np.array(self.own.vel_ned_m_s), direction * speed, lim.v_max_m_s, lim.a_max_m_s2
+        )
         stop = brake_path(fit.end_ned, direction * speed, lim.a_max_m_s2)
         ctrl = np.concatenate((fit.ctrl_ned, stop.ctrl_ned))
         ctrl.setflags(write=False)
@@ -316,9 +319,9 @@ class Resolver:
                     continue
             ratio = predicted_min_ratio(traj, self.times, own.t_us, threats, hold)
             must = predicted_min_ratio(traj, self.times, own.t_us, must_clear, hold) if must_clear else math.inf
-            res = Resolution(maneuver, size, path, own.t_us, hold, ratio)
+            res = Resolution(maneuver, size, path, own.t_us, hold, ratio, (), delta)
             if ratio >= 1.0:
-                return Resolution(maneuver, size, path, own.t_us, hold, ratio, tuple(refused))
+                return replace(res, refused=tuple(refused))
             results.append((res, must))
         if not results:
             stop = self.stop()
@@ -326,8 +329,6 @@ class Resolver:
             return Resolution(Maneuver.STOP, 0.0, stop, own.t_us, True, ratio, tuple(refused))
         for res, must in results:
             if must >= 1.0:
-                return Resolution(res.maneuver, res.offset_m, res.path, res.start_us, res.hold_at_end, res.min_ratio,
-                                  tuple(refused))  # fmt: skip
+                return replace(res, refused=tuple(refused))
         best = max(results, key=lambda rm: rm[0].min_ratio)[0]
-        return Resolution(best.maneuver, best.offset_m, best.path, best.start_us, best.hold_at_end, best.min_ratio,
-                          tuple(refused))  # fmt: skip
+        return replace(best, refused=tuple(refused))
