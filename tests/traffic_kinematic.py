@@ -63,8 +63,15 @@ class Outcome:
     ships: list[Ship]
 
 
-def fly(ships: list[Ship], manned: list[Manned] = (), *, action: TrafficAction = TrafficAction.AVOID,
-        duration_s: float = 120.0, limits: AvoidLimits | None = None, params: TrafficParams | None = None) -> Outcome:  # fmt: skip
+def fly(
+    ships: list[Ship],
+    manned: list[Manned] = (),
+    *,
+    action: TrafficAction = TrafficAction.AVOID,
+    duration_s: float = 120.0,
+    limits: AvoidLimits | None = None,
+    params: TrafficParams | None = None,
+) -> Outcome:
     """Fly everyone for ``duration_s``; the smallest separation ratios (>= 1: separation kept) and completions."""
     params = params or TrafficParams(action=action)
     limits = limits or AvoidLimits(down_max_m=-2.0, down_min_m=-120.0)

@@ -111,6 +111,11 @@ class TrafficAvoidance:
     def set_home(self, home: GeoPoint) -> None:
         self.table.set_home(home)
 
+    @property
+    def busy(self) -> bool:
+        """Tracks are held or a detour is flown (else a step without reports changes nothing)."""
+        return bool(self.table.tracks) or self.resolution is not None or bool(self._conflicts)
+
     # ------------------------------------------------------------------ the step
     def update(self, own: OwnShip, reports: Iterable[object], limits: AvoidLimits, can_avoid: bool = True,
                airborne: bool = True) -> TrafficDecision:  # fmt: skip

@@ -3,14 +3,16 @@
 A resolution is one of a few maneuvers, tried in the order the rules of :mod:`autopilot.traffic.rules` prefer:
 an offset of the route to the right of the encounter (or left), a climb or a descent, a stop, or a move aside
 and hold when the vehicle is hovering. An offset detour is a C1 cubic Bézier chain (:func:`fit_detour`, the
-planner's hodograph-bounded fit) through ``own position -> route(t1) + offset -> route(t2) + offset -> route(t3)``,
-where ``t1`` is as soon as the offset can be reached, ``t2`` past the conflict window, the route the mission's, flown at cruise speed; it rejoins
-the route before the mission target, so every item is still reached. Each candidate is *predicted*: the vehicle
-along the curve (then the route) against every track moving straight on, sampled over NAV_TRAFF_COLL_T, scored
-by the smallest separation ratio to the volumes grown by NAV_TRAFF_MARGIN (the moving obstacle is the track's
-separation volume swept over the horizon). A candidate that leaves the altitude limits, crosses a fence or
-enters a known obstacle's safety sphere is refused with its reason. The first candidate keeping separation
-wins; if none does, the one keeping the most.
+planner's hodograph-bounded fit) through ``own position -> route(t1) + offset -> route(t2) + offset -> route(t3)``:
+``t1`` is as soon as the offset can be reached, ``t2`` past the conflict window (the route is the mission's,
+flown at cruise speed); it rejoins the route before the mission target (so every item is still reached), or, when
+the window outlasts the leg, waits beside the target until clear. Each candidate is *predicted*: the vehicle
+along the curve (then the route) against every track moving straight on, sampled over NAV_TRAFF_COLL_T (longer
+when the conflict window is), scored by the smallest separation ratio to the volumes grown by NAV_TRAFF_MARGIN:
+the moving obstacle is the track's separation volume swept along its course. A candidate that leaves the
+altitude limits, crosses a fence or enters a known obstacle's safety sphere is refused with its reason. The
+first candidate keeping separation wins; else the first keeping it from traffic with right of way; else the
+one keeping the most.
 """
 
 from __future__ import annotations
