@@ -31,6 +31,7 @@ class Ship:
     texts: list[str] = field(default_factory=list)
     detour_steps: int = 0
     start_s: float = 0.0  # it hovers where it is until then (staggered departures)
+    offsets: dict[int, np.ndarray] = field(default_factory=dict)  # step -> the offset of the detour flown then
 
     @property
     def done(self) -> bool:
@@ -93,6 +94,8 @@ def fly(
             decision = s.avoidance.update(own, reports, limits)
             s.texts += [t.text for t in decision.texts]
             sp = decision.setpoint(t_us)
+            if decision.resolution is not None:
+                s.offsets[k] = np.array(decision.resolution.offset_ned_m)
             if sp is not None:
                 s._next = (np.array(sp[0]), np.array(sp[1]))  # type: ignore[attr-defined]
                 s.detour_steps += 1

@@ -29,7 +29,7 @@ from autopilot.traffic.resolution import (
     Threat,
     predicted_min_ratio,
 )
-from autopilot.traffic.rules import LAST_RESORT_S, Role, climbs, right_of_encounter, role
+from autopilot.traffic.rules import LAST_RESORT_S, Role, climbs, lateral_sense, role
 from autopilot.traffic.tracks import TrackKey, TrackTable, TrafficTrack
 from mavlink_bridge.contract.frames import GeoPoint, Vec3
 from mavlink_bridge.contract.traffic import TrafficSource
@@ -245,22 +245,22 @@ class TrafficAvoidance:
             approach = replace(approach, loss_out_s=min(whole.loss_out_s, 2.0 * p.horizon_s))
         t = approach.t_cpa_s
         miss = (rel[0] + rel_vel[0] * t, rel[1] + rel_vel[1] * t)
-        n = right_of_encounter(rel, rel_vel, self.system_id, track.target_id)
+        n = lateral_sense(miss, rel, rel_vel, self.system_id, track.target_id)
         along = miss[0] * n[0] + miss[1] * n[1]
         hor_m, ver_m = plan_volume.hor_m * OFFSET_SLACK, plan_volume.ver_m * OFFSET_SLACK
-        right = max(hor_m + along, 1.0)
-        left = max(hor_m - along, 1.0)
+        near, far = max(hor_m + along, 1.0), max(hor_m - along, 1.0)  # the preferred side, then across
         ver = rel[2] + rel_vel[2] * t  # other below own > 0 (NED down)
         up, down = max(ver_m - ver, 1.0), max(ver_m + ver, 1.0)
         first_up = climbs(self.system_id, track, ver, up, down)
         v1 = (Maneuver.CLIMB, up, (0.0, 0.0, -up)) if first_up else (Maneuver.DESCEND, down, (0.0, 0.0, down))
         v2 = (Maneuver.DESCEND, down, (0.0, 0.0, down)) if first_up else (Maneuver.CLIMB, up, (0.0, 0.0, -up))
-        r = (Maneuver.RIGHT, right, (n[0] * right, n[1] * right, 0.0))
-        lft = (Maneuver.LEFT, left, (-n[0] * left, -n[1] * left, 0.0))
+        right_first = _is_right_of(own.vel_ned_m_s, rel, n)
+        side1 = (Maneuver.RIGHT if right_first else Maneuver.LEFT, near, (n[0] * near, n[1] * near, 0.0))
+        side2 = (Maneuver.LEFT if right_first else Maneuver.RIGHT, far, (-n[0] * far, -n[1] * far, 0.0))
         route = (Maneuver.ROUTE, 0.0, (0.0, 0.0, 0.0))
         stop = (Maneuver.STOP, 0.0, (0.0, 0.0, 0.0))
         manned = track.source is TrafficSource.MANNED
-        plans = [route, v1, stop, r, v2, lft] if manned else [route, r, v1, stop, lft, v2]
+        plans = [route, v1, stop, side1, v2, side2] if manned else [route, side1, v1, stop, side2, v2]
         window = (approach.loss_in_s, approach.loss_out_s)
         threats = self._threats(tracks, p.margin)
         must = [th for th in threats if role(self.system_id, th.track, own.vel_ned_m_s, _relative(own, th.track)[0])
@@ -273,6 +273,14 @@ def on_ground(track: TrafficTrack, t_us: int) -> bool:
     traffic is the operator's business; home pads may be closer than the UAV volume)."""
     n, e, d = track.vel_ned_m_s
     return -track.position_at(t_us)[2] < GROUND_AGL_M and math.hypot(n, e) < 0.5 and abs(d) < 0.5
+
+
+def _is_right_of(own_vel_ned_m_s: Vec3, rel_pos_ned_m: Vec3, direction_ne: tuple[float, float]) -> bool:
+    """Whether ``direction_ne`` points right of the vehicle's course (or, hovering, of the line to the other)."""
+    fn, fe = own_vel_ned_m_s[0], own_vel_ned_m_s[1]
+    if math.hypot(fn, fe) < 0.5:
+        fn, fe = rel_pos_ned_m[0], rel_pos_ned_m[1]
+    return fn * direction_ne[1] - fe * direction_ne[0] >= 0.0
 
 
 def _relative(own: OwnShip, track: TrafficTrack) -> tuple[Vec3, Vec3]:

@@ -4,11 +4,13 @@
   gives way (one total order both agree on whatever each measures), and in a head-on encounter both give way
   (ICAO rules of the air). The stand-on vehicle keeps its route unless the conflict is still there
   ``LAST_RESORT_S`` before the loss of separation; then it resolves too, with the same rules.
-- Which way (:func:`right_of_encounter`, :func:`climbs`): horizontally, to the right of the vehicle's velocity
-  *relative to the other* (``v_own − v_other``). The other vehicle's relative velocity is the exact opposite, so
-  its "right" is the opposite world direction: the two displacements add, never cancel (no mirroring). With no
-  relative motion, away from the other (again opposite directions). Vertically, the lower system id climbs and
-  the higher descends (opposite again). ``docs/traffic.md`` gives the argument in full.
+- Which way (:func:`lateral_sense`, :func:`climbs`): away from where the other will be at the closest approach
+  (widen the predicted miss: once one vehicle has moved, the other, seeing the grown miss, moves the same way
+  apart, never back across). When the miss is too small to have a side (a collision course), to the right of the
+  vehicle's velocity *relative to the other* (``v_own − v_other``): the other vehicle's relative velocity is the
+  exact opposite, so its "right" is the opposite world direction (ICAO: both turn right). Vertically likewise:
+  away from the other's level, and on one level the lower system id climbs, the higher descends. In every case
+  the two displacements are opposite and add up, never cancel (no mirroring); ``docs/traffic.md`` argues it.
 """
 
 from __future__ import annotations
@@ -27,6 +29,9 @@ HEAD_ON_DEG = 150.0
 HEAD_ON_CONE_DEG = 30.0
 #: Below this horizontal speed (m/s) a velocity has no direction.
 MIN_SPEED_M_S = 0.5
+#: A predicted miss smaller than this has no side: horizontal (m) and vertical (m).
+MISS_DEADBAND_M = 2.0
+VER_DEADBAND_M = 1.0
 
 
 class Role(Enum):
@@ -73,9 +78,22 @@ def right_of_encounter(
     return (0.0, 1.0) if own_system_id < other_id else (0.0, -1.0)
 
 
+def lateral_sense(miss_ne_m: tuple[float, float], rel_pos_ned_m: Vec3, rel_vel_ned_m_s: Vec3, own_system_id: int,
+                  other_id: int) -> tuple[float, float]:  # fmt: skip
+    """Unit horizontal direction to move: away from the other's predicted position at the closest approach
+    (``miss_ne_m``, other − own), or :func:`right_of_encounter` when the miss is inside the deadband."""
+    miss = math.hypot(*miss_ne_m)
+    if miss >= MISS_DEADBAND_M:
+        return (-miss_ne_m[0] / miss, -miss_ne_m[1] / miss)
+    return right_of_encounter(rel_pos_ned_m, rel_vel_ned_m_s, own_system_id, other_id)
+
+
 def climbs(own_system_id: int, track: TrafficTrack, ver_cpa_m: float, up_m: float, down_m: float) -> bool:
-    """The vertical sense: between UAVs the lower system id climbs; from manned traffic the sense needing the
-    smaller altitude change (``up_m``/``down_m``)."""
-    if track.source is TrafficSource.UAV:
-        return own_system_id < track.target_id
-    return up_m <= down_m
+    """The vertical sense. From manned traffic: the sense needing the smaller altitude change (``up_m``/``down_m``).
+    From a UAV: away from its level at the closest approach (``ver_cpa_m``, other − own, NED down: > 0 when it is
+    below); on one level (deadband) the lower system id climbs."""
+    if track.source is TrafficSource.MANNED:
+        return up_m <= down_m
+    if abs(ver_cpa_m) >= VER_DEADBAND_M:
+        return ver_cpa_m > 0.0
+    return own_system_id < track.target_id
