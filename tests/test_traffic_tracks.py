@@ -5,10 +5,9 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import numpy as np
 import pytest
 from traffic_kinematic import FRAME, HOME, report
-
-import numpy as np
 
 from autopilot.traffic.tracks import TrackTable
 from mavlink_bridge.contract.frames import GeoPoint
