@@ -221,3 +221,46 @@ def manned_crossing(rng: np.random.Generator) -> tuple[list[Ship], list[Manned]]
     meet = leg * u + np.array((0.0, 0.0, -40.0 + rng.uniform(-10, 10)))
     heli = Manned(0xA1B2C3, meet - vel * (t_meet + rng.uniform(-3, 3)), vel)
     return [ship], [heli]
+
+
+# ---------------------------------------------------------------------- the encounter table (docs/traffic.md)
+def encounter_table(seeds: int, action: TrafficAction) -> list[tuple[str, int, float, int, int, int]]:
+    """Per geometry: (name, encounters, worst separation ratio, losses of separation, missions completed, total)."""
+    pair_kinds = {"head-on": head_on, "crossing": crossing, "overtaking": overtaking, "vertical": vertical}
+    groups: list[tuple[str, list[tuple[list[Ship], list[Manned]]], float]] = []
+    for name, make in pair_kinds.items():
+        groups.append((name, [(make(np.random.default_rng(s)), []) for s in range(seeds)], 130.0))
+    for n in (3, 4, 6):
+        cases = [(converging(np.random.default_rng(s), n), []) for s in range(max(seeds // 2, 1))]
+        groups.append((f"converging x{n}", cases, 130.0))
+    for n in (4, 8):
+        cases = [(depot_departures(np.random.default_rng(s), n), []) for s in range(max(seeds // 4, 1))]
+        groups.append((f"depot departures x{n}", cases, 170.0))
+    groups.append(("manned crossing", [manned_crossing(np.random.default_rng(s)) for s in range(seeds)], 150.0))
+    rows = []
+    for name, cases, duration_s in groups:
+        worst, lost, done, total = math.inf, 0, 0, 0
+        for ships, manned in cases:
+            out = fly(ships, manned, action=action, duration_s=duration_s)
+            ratio = out.min_manned_ratio if manned else out.min_uav_ratio
+            worst, lost = min(worst, ratio), lost + (ratio < 1.0)
+            done, total = done + out.completed, total + len(ships)
+        rows.append((name, len(cases), worst, lost, done, total))
+    return rows
+
+
+def main() -> None:
+    import argparse  # noqa: PLC0415
+
+    parser = argparse.ArgumentParser(description="traffic encounters in the kinematic closed loop (docs/traffic.md)")
+    parser.add_argument("--seeds", type=int, default=20, help="encounters per two-vehicle geometry")
+    args = parser.parse_args()
+    print("| geometry | encounters | NAV_TRAFF_AVOID | worst separation ratio | losses of separation | completed |")
+    print("|---|---|---|---|---|---|")
+    for action in (TrafficAction.AVOID, TrafficAction.WARN):
+        for name, n, worst, lost, done, total in encounter_table(args.seeds, action):
+            print(f"| {name} | {n} | {action.value} ({action.name.lower()}) | {worst:.2f} | {lost} | {done}/{total} |")
+
+
+if __name__ == "__main__":
+    main()
