@@ -4,6 +4,7 @@ straight to its goal with an acceleration limit), plus scripted straight-flying 
 
 from __future__ import annotations
 
+import argparse
 import math
 from dataclasses import dataclass, field
 
@@ -250,8 +251,6 @@ def encounter_table(seeds: int, action: TrafficAction) -> list[tuple[str, int, f
 
 
 def main() -> None:
-    import argparse  # noqa: PLC0415
-
     parser = argparse.ArgumentParser(description="traffic encounters in the kinematic closed loop (docs/traffic.md)")
     parser.add_argument("--seeds", type=int, default=20, help="encounters per two-vehicle geometry")
     args = parser.parse_args()
