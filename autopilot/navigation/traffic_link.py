@@ -28,6 +28,9 @@ from autopilot.traffic import AvoidLimits, OwnShip, TrafficAvoidance, TrafficDec
 from mavlink_bridge.contract.frames import Vec3
 from mavlink_bridge.contract.vehicle_api import FlightMode, StatusText
 
+#: Without a new report, traffic avoidance is re-run at most this often (µs of sim time).
+UPDATE_PERIOD_US = 200_000
+
 
 class StepOutput(Protocol):
     """What :meth:`TrafficLink.step` reads of the navigator's step output (a frozen NavOutput)."""
@@ -63,6 +66,7 @@ class TrafficLink:
         self._pending: list[object] = []
         self._param_version = params.version
         self._frame: HomeFrame | None = None
+        self._last_update_us = -UPDATE_PERIOD_US
 
     def receive(self, reports: Iterable[object]) -> None:
         """Reports received since the last step (any number; checked at the next step)."""
@@ -76,8 +80,9 @@ class TrafficLink:
     def step(self, nav: NavigatorLike, state: VehicleState, mode: FlightMode, landed: bool, out: O) -> O:
         """:meth:`update` with the navigator's home frame, fence, tracked obstacles and its step's output ``out``
         (a NavOutput: its mission target and the route after it); a traffic failsafe rides along in ``out``."""
-        if not self.busy:
-            return out
+        if not self.busy or (not self._pending and state.time_us - self._last_update_us < UPDATE_PERIOD_US):
+            return out  # predictions are straight lines: between reports, 5 Hz re-checks them (the detour is timed)
+        self._last_update_us = state.time_us
         target = out.mission_target
         after = nav.route_after_target() if target is not None else None
         obstacles = getattr(nav.planner_output, "obstacles", ())

@@ -137,7 +137,7 @@ class TrafficAvoidance:
             self.resolution = None
             self.decision = TrafficDecision(t_us, p.action, tracks, texts=tuple(texts), rejected=tuple(rejected))
             return self.decision
-        conflicts = self._detect(own, tracks, texts)
+        conflicts = self._detect(own, tracks, texts) if airborne else []  # on the ground: tracks only
         failsafe = None
         new = [c for c in conflicts if c.track.key not in self._conflicts]
         for c in new:
