@@ -135,6 +135,8 @@ class RouteLine:
         seg = np.linalg.norm(np.diff(self.points, axis=0), axis=1) if len(pts) > 1 else np.zeros(0)
         self.cum = [0.0, *itertools.accumulate(seg.tolist())]
         self.length_m = self.cum[-1]
+        at_target = not points or math.dist(pts[0], points[0]) <= 1e-6
+        self.target_s_m = 0.0 if at_target else self.cum[1]  # arclength of the first point (the mission target)
 
     def at(self, s_m: float) -> Vec3:
         s = min(max(s_m, 0.0), self.length_m)
@@ -245,16 +247,16 @@ class Resolver:
         shift = lambda p: (p[0] + delta[0], p[1] + delta[1], p[2] + delta[2])  # noqa: E731
         end_vel: Vec3 = (0.0, 0.0, 0.0)
         s_rejoin: float | None = self.cruise * (t2 + ramp_s)
+        target_s = route.target_s_m  # the detour rejoins before the mission target, so the target is reached
+        a, b = shift(route.at(min(self.cruise * t1, target_s))), shift(route.at(min(self.cruise * t2, target_s)))
         if route.length_m <= 0.0:  # hovering: move aside and hold
             points, s_rejoin = [own.pos_home_ned_m, shift(own.pos_home_ned_m)], None
-        elif s_rejoin is not None and s_rejoin < route.length_m:  # offset over the window, then back on the route
-            points = [own.pos_home_ned_m, shift(route.at(self.cruise * t1)), shift(route.at(self.cruise * t2))]
-            points.append(route.at(s_rejoin))
+        elif s_rejoin is not None and s_rejoin < target_s:  # offset over the window, then back on the route
+            points = [own.pos_home_ned_m, a, b, route.at(s_rejoin)]
             d = route.direction(s_rejoin)
             end_vel = (d[0] * self.cruise, d[1] * self.cruise, d[2] * self.cruise)
-        else:  # the window outlasts the route to the target: wait beside it until clear
-            points = [own.pos_home_ned_m, shift(route.at(self.cruise * t1)), shift(route.at(self.cruise * t2))]
-            s_rejoin = None
+        else:  # the window outlasts the leg to the target: wait beside it until clear
+            points, s_rejoin = [own.pos_home_ned_m, a, b], None
         pts = [points[0]]
         for p in points[1:]:
             if math.dist(pts[-1], p) >= MIN_VIA_SPACING_M:
