@@ -224,7 +224,7 @@ def manned_crossing(rng: np.random.Generator) -> tuple[list[Ship], list[Manned]]
     return [ship], [heli]
 
 
-# ---------------------------------------------------------------------- the encounter table (docs/traffic.md)
+# ---------------------------------------------------------------------- the encounter table (docs/traffic_avoidance.md)
 def encounter_table(seeds: int, action: TrafficAction) -> list[tuple[str, int, float, int, int, int]]:
     """Per geometry: (name, encounters, worst separation ratio, losses of separation, missions completed, total)."""
     pair_kinds = {"head-on": head_on, "crossing": crossing, "overtaking": overtaking, "vertical": vertical}
@@ -251,7 +251,9 @@ def encounter_table(seeds: int, action: TrafficAction) -> list[tuple[str, int, f
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description="traffic encounters in the kinematic closed loop (docs/traffic.md)")
+    parser = argparse.ArgumentParser(
+        description="traffic encounters in the kinematic closed loop (docs/traffic_avoidance.md)"
+    )
     parser.add_argument("--seeds", type=int, default=20, help="encounters per two-vehicle geometry")
     args = parser.parse_args()
     print("| geometry | encounters | NAV_TRAFF_AVOID | worst separation ratio | losses of separation | completed |")

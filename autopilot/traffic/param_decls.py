@@ -3,7 +3,7 @@
 PX4 (``navigator_params.yaml``): NAV_TRAFF_AVOID 0 disabled, 1 warn only, 2 return, 3 land, 4 position hold
 (PX4's 5 is flight termination, which quadsitl does not have: here 5 is *avoid*, the default);
 NAV_TRAFF_A_HOR / NAV_TRAFF_A_VER the alert volume and NAV_TRAFF_COLL_T the time-to-collision horizon.
-The separation volumes per traffic class are quadsitl's (``docs/traffic.md``).
+The separation volumes per traffic class are quadsitl's (``docs/traffic_avoidance.md``).
 """
 
 from __future__ import annotations

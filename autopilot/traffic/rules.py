@@ -10,7 +10,7 @@
   vehicle's velocity *relative to the other* (``v_own − v_other``): the other vehicle's relative velocity is the
   exact opposite, so its "right" is the opposite world direction (ICAO: both turn right). Vertically likewise:
   away from the other's level, and on one level the lower system id climbs, the higher descends. In every case
-  the two displacements are opposite and add up, never cancel (no mirroring); ``docs/traffic.md`` argues it.
+  the two displacements are opposite and add up, never cancel (no mirroring); ``docs/traffic_avoidance.md`` argues it.
 """
 
 from __future__ import annotations
