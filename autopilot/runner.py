@@ -92,8 +92,7 @@ class Autopilot:
         if planner is None and self.config.avoidance:
             planner = AvoidancePlanner(PlannerParams.from_store(self.params))
         self.commander = Commander(self.params)
-        land_speed = self.commander.mission_land_speed_m_s
-        self.navigator = Navigator(self.params, planner, land_speed, self.config.system_id)  # type: ignore[arg-type]
+        self.navigator = Navigator(self.params, planner, self.commander.mission_land_speed_m_s, self.config.system_id)  # type: ignore[arg-type]
         self.script = script
         self.links = LinkHealth(self.config.speed_factor, wall_clock)
         self.failures = FailureInjector(self.params)  # what the estimator sees and the motors get (SYS_FAILURE_EN)
