@@ -103,6 +103,7 @@ def test_detour_respects_the_fence() -> None:
     res = decision.resolution
     assert res is not None and res.maneuver is not Maneuver.RIGHT
     assert any("crosses the fence" in why for why in res.refused)
+    assert any(t.text.endswith("(turn right: crosses the fence)") for t in decision.texts), decision.texts
     samples = res.path.sample(0.5)  # type: ignore[union-attr]
     assert all(math.hypot(p[0] - 100.0, p[1] - 25.0) > 15.0 for p in samples)
 

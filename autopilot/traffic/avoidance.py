@@ -223,7 +223,8 @@ class TrafficAvoidance:
         verb = primary.role.value if primary.role is Role.GIVE_WAY else "last resort"
         severity = Severity.NOTICE if res.safe else Severity.WARNING
         kept = "" if res.safe else f" (keeps only {res.min_ratio:.0%} of the planned separation)"
-        texts.append(StatusText(severity, f"Traffic: {verb} to {primary.track.name}: {res.describe()}{kept}"))
+        refused = f" ({'; '.join(res.refused)})" if res.refused else ""
+        texts.append(StatusText(severity, f"Traffic: {verb} to {primary.track.name}: {res.describe()}{kept}{refused}"))
 
     def _reported_since_plan(self, tracks: tuple[TrafficTrack, ...]) -> bool:
         return any(self._last_report_us.get(t.key) != t.t_us for t in tracks)
