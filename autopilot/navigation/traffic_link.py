@@ -18,12 +18,12 @@ from typing import Protocol, TypeVar
 import numpy as np
 
 from autopilot.estimation import VehicleState
-from autopilot.failsafe import FailsafeEvent
-from autopilot.fence_zones import planner_fence_zones
-from autopilot.mission.fence import Geofence
+from autopilot.flight_tasks.setpoints import NavTarget, TargetKind
+from autopilot.geofence.fence import Geofence
+from autopilot.geofence.planner_zones import planner_fence_zones
 from autopilot.navigation.home_frame import HomeFrame
-from autopilot.params import ParamStore
-from autopilot.setpoints import NavTarget, TargetKind
+from autopilot.parameters.store import ParamStore
+from autopilot.safety.failsafe import FailsafeEvent
 from autopilot.traffic import AvoidLimits, OwnShip, TrafficAvoidance, TrafficDecision, TrafficParams
 from mavlink_bridge.contract.frames import Vec3
 from mavlink_bridge.contract.vehicle_api import FlightMode, StatusText

@@ -17,7 +17,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from autopilot.failsafe import FailsafeAction, FailsafeEvent, FailsafeKind
+from autopilot.safety.failsafe import FailsafeAction, FailsafeEvent, FailsafeKind
 from autopilot.traffic.cpa import Approach, predict_approach
 from autopilot.traffic.param_decls import SeparationVolume, TrafficAction, TrafficParams
 from autopilot.traffic.resolution import (

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import IntEnum
 
-from autopilot.params import ParamSpec, ParamStore
+from autopilot.parameters.store import ParamSpec, ParamStore
 
 
 class TrafficAction(IntEnum):
