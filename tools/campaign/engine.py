@@ -135,7 +135,8 @@ class TaskEngine:
                 n_workers=self._workers or default_workers(),
                 threads_per_worker=1,
                 processes=True,
-                dashboard_address=None,
+                dashboard_address=":0",  # its HTTP routes on a free port (never a clash on 8787) ...
+                scheduler_kwargs={"dashboard": False},  # ... and no dashboard (it needs bokeh)
                 silence_logs=logging.ERROR,
                 env=dict(WORKER_ENV),
             )
