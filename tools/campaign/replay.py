@@ -15,6 +15,8 @@ from typing import Any
 
 from tools.campaign.cases import Case, CaseFiles
 from tools.campaign.results import read_rows
+from tools.campaign.runner import CAMPAIGN_COPY
+from tools.campaign.spec import PassRule, pass_rules_of
 from tools.campaign.task import CasePayload, run_case
 
 
@@ -31,7 +33,9 @@ class ReplayResult:
     text: str
 
 
-def payload_from_row(r: dict[str, Any], case_dir: Path, mode: str, rerun: str | None) -> CasePayload:
+def payload_from_row(
+    r: dict[str, Any], case_dir: Path, mode: str, rerun: str | None, pass_if: tuple[PassRule, ...] = ()
+) -> CasePayload:
     """The payload that flies the row's case again (its files, seed and run options from the row)."""
     overrides = tuple((k[len("vary.") :], v) for k, v in r.items() if k.startswith("vary."))
     case = Case(int(r["case_id"]), int(r["sim_seed"]), r["base"], r["vehicle"], r["params"], r["failures"], overrides)
@@ -42,7 +46,7 @@ def payload_from_row(r: dict[str, Any], case_dir: Path, mode: str, rerun: str | 
         estimator=r["estimator"],
         sim_time_s=float(r["sim_time_planned_s"]),
         deadline_s=max(600.0, 3.0 * float(r["deadline_s"])),
-        pass_if=(),
+        pass_if=pass_if,
         case=case,
         files=CaseFiles(r["world_yaml"], r["params_yaml"], r["script_yaml"]),
         case_dir=str(case_dir.resolve()),
@@ -61,7 +65,9 @@ def replay_case(out_dir: Path, case_id: int, *, mode: str | None = None) -> Repl
     r = rows[case_id]
     case_dir = out_dir / "replay" / f"case-{case_id:06d}"
     recording = case_dir / "flight.rrd"
-    replayed = run_case(payload_from_row(r, case_dir, mode or r["mode"], f"save:{recording.resolve()}"))
+    copy = out_dir / CAMPAIGN_COPY
+    rules = pass_rules_of(copy.read_text(), copy) if copy.is_file() else ()
+    replayed = run_case(payload_from_row(r, case_dir, mode or r["mode"], f"save:{recording.resolve()}", rules))
     matched = bool(r["truth_hash"]) and replayed["truth_hash"] == r["truth_hash"]
     (case_dir / "replay.json").write_text(json.dumps({k: replayed[k] for k in _SHOWN} | {"matched": matched}, indent=1))
     lines = [f"case {case_id} ({replayed['mode']}, seed {r['sim_seed']}, vehicle {r['vehicle']})"]

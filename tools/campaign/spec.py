@@ -140,6 +140,15 @@ def load_campaign(path: str | Path) -> CampaignSpec:
     return _Checker(src, p).spec()
 
 
+def pass_rules_of(campaign_text: str, path: str | Path) -> tuple[PassRule, ...]:
+    """The ``pass_if`` rules of a campaign file's text (a results folder's copy: replay judges with them)."""
+    from mavlink_bridge.contract.source_lines import parse_yaml
+
+    src = parse_yaml(campaign_text, path)
+    raw = src.data.get("pass_if", DEFAULT_PASS_IF) if isinstance(src.data, dict) else DEFAULT_PASS_IF
+    return tuple(_Checker(src, Path(path)).pass_if(raw))
+
+
 class _Checker:
     def __init__(self, src: YamlSource, path: Path) -> None:
         self.src, self.path = src, path
