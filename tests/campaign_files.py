@@ -20,7 +20,7 @@ world:
   payload_kg: 0.0
 """
 
-#: Case 1 of seed 3 draws the motor failure (a GROUND_IMPACT, so a failing case), case 0 none.
+#: Seed 3: case 0 draws the motor failure (a GROUND_IMPACT: a failing case), cases 1-3 none, 4 and 5 the failure.
 CAMPAIGN = """\
 name: hop-test
 base: hop.yaml

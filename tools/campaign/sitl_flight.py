@@ -28,6 +28,8 @@ REPO_ROOT = Path(__file__).resolve().parent.parent.parent
 #: Wall seconds the autopilot may take to answer its GCS link (imports and the cached numba kernels).
 STARTUP_S = 120.0
 FLIGHT_FILE = "flight.json"
+#: ``quadsitl sim``'s status when the vehicle ended the run (collision, ground impact): the summary says why.
+SIM_EXIT_VEHICLE_ENDED = 4
 
 
 def _watch_parent() -> None:
@@ -134,7 +136,7 @@ def fly(case_dir: Path, rerun: str | None = None) -> dict[str, Any]:
         ap_rc = _stop(ap)
         if gcs is not None:
             gcs.close()
-    if not error and sim_rc not in (0, None):
+    if not error and sim_rc not in (0, SIM_EXIT_VEHICLE_ENDED, None):  # a crash is a flight, not an error
         error = f"sim exited {sim_rc}: {_tail(case_dir / 'sim.log')}"
     sim_summary = _read(case_dir / "sim_summary.json")
     if not error and not sim_summary:
