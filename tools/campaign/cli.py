@@ -17,18 +17,22 @@ import json
 import sys
 from pathlib import Path
 
+from mavlink_bridge.contract.about import version_text
+
 EXIT_OK = 0
 EXIT_FAILED_CASES = 1
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
 
 
-def _run_parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
+    """The parser of ``quadsitl campaign FILE.yaml ...`` (``replay`` has its own)."""
     p = argparse.ArgumentParser(
         prog="quadsitl campaign",
         description="Fly many seeded variations of a mission on Dask distributed; one results table and a report.",
         epilog="Replay a case: quadsitl campaign replay DIR CASE. Schema and cluster recipes: docs/campaigns.md",
     )
+    p.add_argument("--version", action="version", version=version_text("quadsitl campaign"))
     p.add_argument("campaign", type=Path, help="campaign file (YAML)")
     p.add_argument("--out", type=Path, required=True, help="output folder (results.parquet, summary.json, report.md)")
     where = p.add_mutually_exclusive_group()
@@ -44,6 +48,7 @@ def _replay_parser() -> argparse.ArgumentParser:
         prog="quadsitl campaign replay",
         description="Re-fly one case of a campaign from its results row, with a Rerun recording; check its truth hash.",
     )
+    p.add_argument("--version", action="version", version=version_text("quadsitl campaign replay"))
     p.add_argument("dir", type=Path, help="the campaign's output folder")
     p.add_argument("case", type=int, help="case id")
     p.add_argument("--mode", choices=("sitl", "inproc"), default=None, help="default: the mode the case ran in")
@@ -54,7 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else list(argv)
     if args[:1] == ["replay"]:
         return replay(_replay_parser().parse_args(args[1:]))
-    return run(_run_parser().parse_args(args))
+    return run(build_parser().parse_args(args))
 
 
 def run(args: argparse.Namespace) -> int:
