@@ -27,7 +27,7 @@ on_result=None, on_error="raise", worker_setup=None) -> list``
   out of memory) is re-run on another worker by Dask itself, up to ``distributed.scheduler.allowed-failures``
   (3) deaths; only the tasks that were running on that worker are lost and re-run.
 - ``on_error="raise"``: the first task that still fails raises :class:`TaskFailedError` naming its index
-  (the other tasks are cancelled, the cluster is closed). ``on_error="return"``: its slot in the result list
+  (the other tasks are cancelled; ``run_tasks`` closes its cluster). ``on_error="return"``: its slot in the result list
   (and the ``on_result`` call) holds a :class:`TaskFailure` instead, and the run goes on.
 - ``worker_setup`` (optional, top-level picklable callable of no argument) runs once in every worker, including
   workers that join or are restarted later (a Dask ``WorkerPlugin``): warm numba kernels there.
@@ -35,7 +35,8 @@ on_result=None, on_error="raise", worker_setup=None) -> list``
 - Ctrl-C (KeyboardInterrupt) cancels the queued tasks, closes the client and the embedded cluster and is
   re-raised; every ``on_result`` already called stays done.
 - Determinism is the task's job: derive any randomness from the payload (``numpy.random.default_rng([index,
-  seed])``), never from the worker or the order. Workers get ``PYTHONHASHSEED=0`` and ``OMP_NUM_THREADS=1``.
+  seed])``), never from the worker or the order. Embedded workers get ``PYTHONHASHSEED=0`` and
+  ``OMP_NUM_THREADS=1`` (start ``dask worker`` processes with them if a task depends on set order or threads).
 
 For several batches in a row (an optimiser's iterations) open the cluster once::
 
@@ -125,8 +126,6 @@ class TaskEngine:
         """Connect to the scheduler, or start the embedded LocalCluster (processes, one thread each)."""
         if self.client is not None:
             return
-        for name, value in WORKER_ENV.items():
-            os.environ.setdefault(name, value)
         if self._scheduler:
             self.client = Client(self._scheduler, timeout="30s")
             self.client.wait_for_workers(1, timeout=60)
