@@ -6,7 +6,8 @@
     quadsitl campaign replay DIR CASE [--mode sitl|inproc]
 
 Exit status of a run: 0 every case passed, 1 the campaign finished with cases that did not pass, 2 a refused
-campaign file or output folder, 130 interrupted (Ctrl-C; what was done is written, ``--resume`` completes it).
+campaign file or output folder, 130 interrupted (Ctrl-C or SIGTERM; what was done is written, ``--resume``
+completes it).
 Replay: 0 the truth hash matched the row's, 1 it did not, 2 no such case.
 """
 
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
 from pathlib import Path
 
@@ -69,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         print("quadsitl campaign: --workers must be >= 1", file=sys.stderr)
         return EXIT_USAGE
+    previous = signal.signal(signal.SIGTERM, _interrupt)  # a CI cancel or a kill: stop as cleanly as Ctrl-C
     try:
         spec = load_campaign(args.campaign)
         outcome = run_campaign(
@@ -82,6 +85,8 @@ def run(args: argparse.Namespace) -> int:
     except (CampaignFileError, CampaignDirError) as exc:
         print(f"quadsitl campaign: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     summary_path = args.out / "summary.json"
     summary = json.loads(summary_path.read_text()) if summary_path.is_file() else {}
     done = summary.get("cases_done", 0)
@@ -97,6 +102,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"interrupted: resume with  quadsitl campaign {args.campaign} --out {args.out} --resume", file=sys.stderr)
         return EXIT_INTERRUPTED
     return EXIT_OK if summary and summary["passed"] == spec.cases else EXIT_FAILED_CASES
+
+
+def _interrupt(signum: int, _frame: object) -> None:
+    raise KeyboardInterrupt(f"signal {signum}")
 
 
 def replay(args: argparse.Namespace) -> int:
