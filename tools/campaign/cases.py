@@ -82,12 +82,28 @@ def _base_vehicle(base: str) -> str:
     return vehicle if isinstance(vehicle, str) else "x500"
 
 
-def with_override(base: Path, dotted: str, value: Any, doc: dict | None = None) -> dict:
-    """A copy of the mission document (``doc`` or ``base`` read) with ``dotted`` set to ``value``; integer
-    segments index lists (``mission.1.waypoint.alt_m``); a missing last key is added, a missing parent refused."""
-    out = yaml.safe_load(base.read_text()) if doc is None else json.loads(json.dumps(doc))
+@functools.lru_cache(maxsize=16)
+def _base_json(base: Path) -> str:
+    return json.dumps(yaml.safe_load(base.read_text()))
+
+
+def base_doc(base: Path) -> Any:
+    """A fresh copy of the parsed mission file (parsed once per file)."""
+    return json.loads(_base_json(base))
+
+
+def with_override(base: Path, dotted: str, value: Any) -> dict:
+    """A copy of the mission document ``base`` with ``dotted`` set to ``value`` (see :func:`set_path`)."""
+    doc = base_doc(base)
+    set_path(doc, dotted, value, base)
+    return doc
+
+
+def set_path(doc: Any, dotted: str, value: Any, base: Path) -> None:
+    """Set ``dotted`` in the mission document ``doc`` (read from ``base``): integer segments index lists
+    (``mission.1.waypoint.alt_m``); a missing last key is added, a missing parent refused."""
     parts = dotted.split(".")
-    node: Any = out
+    node: Any = doc
     for depth, part in enumerate(parts[:-1]):
         nxt = _child(node, part)
         if nxt is None:
@@ -104,7 +120,6 @@ def with_override(base: Path, dotted: str, value: Any, doc: dict | None = None) 
         node[last] = value
     else:
         raise CaseInputError(f"{dotted}: {'.'.join(parts[:-1])} is not a mapping in {base}")
-    return out
 
 
 def _child(node: Any, part: str) -> Any:
@@ -158,6 +173,11 @@ def check_failures(value: Any) -> None:
 
 def resolved_params(params_file: str | None, vehicle: str) -> dict[str, float]:
     """Every parameter the file sets away from its default, as the autopilot would load it."""
+    return dict(_resolved_params(params_file, vehicle))
+
+
+@functools.lru_cache(maxsize=64)
+def _resolved_params(params_file: str | None, vehicle: str) -> tuple[tuple[str, float], ...]:
     from autopilot.control import load_airframe
     from autopilot.param_schema import make_param_store
     from autopilot.params import ParamError
@@ -168,16 +188,15 @@ def resolved_params(params_file: str | None, vehicle: str) -> dict[str, float]:
     except (ParamError, OSError, ValueError) as exc:
         raise CaseInputError(f"params: {exc}") from None
     default = make_param_store(None, payload_nominal_kg=payload).values()
-    return {name: value for name, value in store.values().items() if value != default.get(name)}
+    return tuple((name, value) for name, value in store.values().items() if value != default.get(name))
 
 
 def materialise(spec: CampaignSpec, case: Case) -> CaseFiles:
     """The world, parameter and script files case ``case`` flies with (see the module docstring)."""
     base = Path(case.base)
-    doc: dict | None = None
+    doc = base_doc(base)
     for dotted, value in case.overrides:
-        doc = with_override(base, dotted, value, doc)
-    doc = yaml.safe_load(base.read_text()) if doc is None else doc
+        set_path(doc, dotted, value, base)
     doc["vehicle"] = case.vehicle
     failures = case.failures
     in_world = world_files_take_failures()

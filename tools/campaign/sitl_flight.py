@@ -82,6 +82,22 @@ def _tail(path: Path, n: int = 4) -> str:
         return ""
 
 
+def _wait_for_autopilot(gcs: Any, ap: subprocess.Popen[bytes], case_dir: Path) -> None:
+    """Until the autopilot's GCS link is heard; an autopilot that exits (a refused input) ends the wait at once."""
+    from mavlink_bridge.gcs_errors import GcsTimeoutError
+
+    deadline = time.monotonic() + STARTUP_S
+    while True:
+        try:
+            gcs.wait_heartbeat(1.0)
+            return
+        except GcsTimeoutError:
+            if ap.poll() is not None:
+                raise RuntimeError(f"autopilot exited {ap.returncode}: {_tail(case_dir / 'autopilot.log')}") from None
+            if time.monotonic() > deadline:
+                raise
+
+
 def fly(case_dir: Path, rerun: str | None = None) -> dict[str, Any]:
     """Fly the case in ``case_dir`` (``case.json`` + the files of :func:`tools.campaign.cases.write_case_files`)."""
     from autopilot.mission.files import load_mission_file
@@ -115,7 +131,7 @@ def fly(case_dir: Path, rerun: str | None = None) -> dict[str, Any]:
         ap = _start(ap_args, case_dir / "autopilot.log")
         plan = load_mission_file(world)
         gcs = GcsClient(f"udpin:127.0.0.1:{gcs_target}", timeout_s=20.0)
-        gcs.wait_heartbeat(STARTUP_S)
+        _wait_for_autopilot(gcs, ap, case_dir)
         gcs.upload_mission(plan.fence, MissionType.FENCE)  # first: the mission is checked against it
         gcs.upload_mission(plan.items, MissionType.MISSION)
         serial = gcs.statustext_serial
