@@ -65,6 +65,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
+    from tools.campaign.engine import SchedulerError
     from tools.campaign.runner import CampaignDirError, run_campaign
     from tools.campaign.spec import CampaignFileError, load_campaign
 
@@ -82,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
             resume=args.resume,
             progress=not args.no_progress,
         )
-    except (CampaignFileError, CampaignDirError) as exc:
+    except (CampaignFileError, CampaignDirError, SchedulerError) as exc:
         print(f"quadsitl campaign: {exc}", file=sys.stderr)
         return EXIT_USAGE
     finally:

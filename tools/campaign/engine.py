@@ -18,7 +18,8 @@ on_result=None, on_error="raise", worker_setup=None) -> list``
 - ``workers=None`` starts an embedded ``LocalCluster`` with one single-threaded worker process per core
   (``os.cpu_count()``); ``workers=N`` starts N. ``workers=1`` still goes through Dask (one code path).
   ``scheduler="tcp://HOST:PORT"`` uses a running cluster (``dask scheduler`` / ``dask worker``) instead; its
-  workers must be able to import ``fn``'s module (install quadsitl on them, same versions).
+  workers must be able to import ``fn``'s module (install quadsitl on them, same versions). An unreachable
+  scheduler, or one with no worker after 60 s, raises :class:`SchedulerError`.
 - Submission is bounded: at most ``2 x workers`` tasks are in the scheduler at a time, so a 100 000-task list
   costs no scheduler memory and Ctrl-C loses at most the running tasks.
 - ``on_result(index, result)`` (optional) is called in the caller's process as each task finishes, in
@@ -79,6 +80,10 @@ class TaskFailedError(RuntimeError):
         self.error = error
 
 
+class SchedulerError(RuntimeError):
+    """The ``scheduler`` address cannot be reached, or no worker joined it in time."""
+
+
 class _SetupPlugin(WorkerPlugin):
     """Runs a setup callable once in every worker, present or future."""
 
@@ -127,8 +132,20 @@ class TaskEngine:
         if self.client is not None:
             return
         if self._scheduler:
-            self.client = Client(self._scheduler, timeout="30s")
-            self.client.wait_for_workers(1, timeout=60)
+            address = self._scheduler
+            try:
+                self.client = Client(address, timeout="30s")
+            except (OSError, TimeoutError, ValueError) as exc:
+                raise SchedulerError(
+                    f"no Dask scheduler at {address} ({exc}); fix: start one (dask scheduler) or check the address"
+                ) from None
+            try:
+                self.client.wait_for_workers(1, timeout=60)
+            except TimeoutError:
+                self.close()
+                raise SchedulerError(
+                    f"the scheduler at {address} has no worker after 60 s; fix: start some (dask worker {address})"
+                ) from None
         else:
             self._cluster = LocalCluster(
                 n_workers=self._workers or default_workers(),

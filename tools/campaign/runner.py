@@ -87,8 +87,10 @@ def prepare_dir(spec: CampaignSpec, out_dir: Path, resume: bool) -> set[int]:
                 f"({copy}) or use another --out"
             )
         return done
-    if done or copy.is_file():
+    if done:
         raise CampaignDirError(f"{out_dir}: already holds campaign results; fix: add --resume or use another --out")
+    if copy.is_file() and copy.read_text() != spec.text:
+        raise CampaignDirError(f"{out_dir}: holds another campaign file ({copy}); fix: use another --out")
     out_dir.mkdir(parents=True, exist_ok=True)
     copy.write_text(spec.text)
     return done
