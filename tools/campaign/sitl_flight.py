@@ -32,9 +32,9 @@ FLIGHT_FILE = "flight.json"
 SIM_EXIT_VEHICLE_ENDED = 4
 
 
-def _watch_parent() -> None:
-    """Kill this process group when the process that started us is gone (a killed Dask worker)."""
-    parent = os.getppid()
+def _watch_parent(parent: int) -> None:
+    """Kill this process group when ``parent`` (the Dask worker that started us) is gone. Its pid is passed in,
+    not read here: a worker killed while this interpreter was still importing would already be replaced."""
 
     def watch() -> None:
         while True:
@@ -170,8 +170,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m tools.campaign.sitl_flight", description=__doc__.split("\n")[0])
     parser.add_argument("case_dir", type=Path)
     parser.add_argument("--rerun", default=None, help="autopilot --rerun (e.g. save:PATH.rrd)")
+    parser.add_argument("--parent-pid", type=int, default=None, help="kill the flight when this process is gone")
     args = parser.parse_args(argv)
-    _watch_parent()
+    _watch_parent(args.parent_pid if args.parent_pid is not None else os.getppid())
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # run the finally blocks: children stopped
     t0 = time.monotonic()
     result = fly(args.case_dir, args.rerun)

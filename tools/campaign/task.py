@@ -93,7 +93,7 @@ def _fly_sitl(case_dir: Path, deadline_s: float, rerun: str | None) -> dict[str,
     from tools.campaign.sitl_flight import FLIGHT_FILE, REPO_ROOT
 
     (case_dir / FLIGHT_FILE).unlink(missing_ok=True)
-    cmd = [sys.executable, "-m", "tools.campaign.sitl_flight", str(case_dir)]
+    cmd = [sys.executable, "-m", "tools.campaign.sitl_flight", str(case_dir), "--parent-pid", str(os.getpid())]
     if rerun:
         cmd += ["--rerun", rerun]
     env = dict(
