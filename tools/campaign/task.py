@@ -11,6 +11,7 @@ bad flight: a crash, a refused input or a dead process is an ``error`` row with 
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import math
 import os
@@ -50,9 +51,18 @@ class CasePayload:
     rerun: str | None = None  # replay: autopilot --rerun save:PATH
 
 
+@functools.cache
 def versions() -> str:
-    """The versions a row was flown with (numpy's streams and numba's kernels are tied to them)."""
+    """The versions a row was flown with (numpy's streams and numba's kernels are tied to them), with the git
+    commit of the code when it runs from a checkout."""
     import importlib.metadata as md
+
+    root = Path(__file__).resolve().parent.parent.parent
+    try:
+        head = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                              timeout=10, check=False).stdout.strip()  # fmt: skip
+    except (OSError, subprocess.TimeoutExpired):
+        head = ""
 
     out = []
     for name in ("quadsitl", "numpy", "numba", "scipy", "pymavlink"):
@@ -60,7 +70,7 @@ def versions() -> str:
             out.append(f"{name} {md.version(name)}")
         except md.PackageNotFoundError:
             out.append(f"{name} -")
-    return ", ".join([*out, f"python {sys.version.split()[0]}"])
+    return ", ".join([*out, f"python {sys.version.split()[0]}", *([f"git {head}"] if head else [])])
 
 
 def run_case(payload: CasePayload) -> dict[str, Any]:
