@@ -180,7 +180,7 @@ def resolved_params(params_file: str | None, vehicle: str) -> dict[str, float]:
 def _resolved_params(params_file: str | None, vehicle: str) -> tuple[tuple[str, float], ...]:
     from autopilot.control import load_airframe
     from autopilot.param_schema import make_param_store
-    from autopilot.params import ParamError
+    from autopilot.parameters.store import ParamError
 
     payload = load_airframe(vehicle).payload_nominal_kg
     try:

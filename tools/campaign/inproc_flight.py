@@ -24,17 +24,24 @@ from typing import Any
 
 import numpy as np
 
+from autopilot.commander.script import CommandScript, load_script
 from autopilot.mission.files import load_mission_file
 from autopilot.runner import Autopilot, AutopilotConfig
-from autopilot.scripted_commands import CommandScript, load_script
 from autopilot.vehicle_adapter import VehicleAdapter
-from mavlink_bridge.answer_kernel import A_ARMED, A_GRIPPER_RELEASE, A_MOTORS, ANSWER_OK, AnswerWriter, read_answer
-from mavlink_bridge.codec import Decoder
 from mavlink_bridge.contract.vehicle_api import MissionItem, MissionResult, MissionType
 from mavlink_bridge.contract.wire import GpsSample, GroundTruth, ObstacleDetection, SensorSample
-from mavlink_bridge.frame_writer import FrameWriter
 from mavlink_bridge.lockstep import LockstepFrame
-from mavlink_bridge.mission_items import xy_from_int, xy_to_int
+from mavlink_bridge.lockstep.answer_kernel import (
+    A_ARMED,
+    A_GRIPPER_RELEASE,
+    A_MOTORS,
+    ANSWER_OK,
+    AnswerWriter,
+    read_answer,
+)
+from mavlink_bridge.wire.codec import Decoder
+from mavlink_bridge.wire.frame_writer import FrameWriter
+from mavlink_bridge.wire.mission_items import xy_from_int, xy_to_int
 from sim.end_reason import EndReason
 from sim.frame_kernel import SensorValues
 from sim.obstacle_sensor import ObstacleSensor

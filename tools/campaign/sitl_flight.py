@@ -3,7 +3,7 @@
 The campaign task starts this supervisor in a new session (its own process group) and kills the group at the
 case's deadline. It starts the autopilot (``python -m autopilot``, script + resolved params of the case, a
 GCS link on free loopback ports), uploads the fence and the mission through the bundled ground-station client
-(``mavlink_bridge.gcs_client.GcsClient``) *before* the simulator exists, then starts the simulator
+(``mavlink_bridge.gcs_client.client.GcsClient``) *before* the simulator exists, then starts the simulator
 (``python -m sim --speed max --duration-s SIM_TIME``): the lockstep begins with the mission on board, arm and
 mission start come from the script at fixed sim times, and the simulator ends the flight at exactly
 ``sim_time_s``, so the whole flight (and its truth hash) is a function of the case's files alone. The ground
@@ -84,7 +84,7 @@ def _tail(path: Path, n: int = 4) -> str:
 
 def _wait_for_autopilot(gcs: Any, ap: subprocess.Popen[bytes], case_dir: Path) -> None:
     """Until the autopilot's GCS link is heard; an autopilot that exits (a refused input) ends the wait at once."""
-    from mavlink_bridge.gcs_errors import GcsTimeoutError
+    from mavlink_bridge.gcs_client.errors import GcsTimeoutError
 
     deadline = time.monotonic() + STARTUP_S
     while True:
@@ -102,7 +102,7 @@ def fly(case_dir: Path, rerun: str | None = None) -> dict[str, Any]:
     """Fly the case in ``case_dir`` (``case.json`` + the files of :func:`tools.campaign.cases.write_case_files`)."""
     from autopilot.mission.files import load_mission_file
     from mavlink_bridge.contract.vehicle_api import MissionType
-    from mavlink_bridge.gcs_client import GcsClient
+    from mavlink_bridge.gcs_client.client import GcsClient
 
     case = json.loads((case_dir / "case.json").read_text())
     world = case_dir / "world.yaml"

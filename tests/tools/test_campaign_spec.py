@@ -94,7 +94,7 @@ def test_pass_rules() -> None:
 
 
 def test_shipped_campaigns_load() -> None:
-    root = Path(__file__).resolve().parent.parent
+    root = Path(__file__).resolve().parents[2]
     files = sorted((root / "missions" / "campaigns").glob("*.yaml"))
     assert len(files) >= 2
     for path in files:
