@@ -23,7 +23,7 @@ from tools.benchmarks import BenchResult
 REPO_ROOT = Path(__file__).resolve().parent.parent.parent
 CAMPAIGN = REPO_ROOT / "missions" / "campaigns" / "delivery_wind_payload.yaml"
 SPEEDUP_TARGET = 1.7
-FULL_CASES = 16
+FULL_CASES = 12
 QUICK_CASES = 4
 
 
