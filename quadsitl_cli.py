@@ -3,7 +3,8 @@
 ``sim`` and ``autopilot`` never import each other, so this dispatcher imports
 the chosen side only by name: ``quadsitl sim`` runs ``sim.cli``, ``quadsitl autopilot``
 runs ``autopilot.cli`` and ``quadsitl up`` runs ``autopilot.fleet_launcher`` (``autopilot.launcher`` for a
-one-vehicle world), which starts them as separate processes.
+one-vehicle world), which starts them as separate processes; ``quadsitl campaign`` runs ``tools.campaign.cli``
+(many flights on Dask).
 """
 
 from __future__ import annotations
@@ -20,11 +21,12 @@ _COMMANDS = {
         "autopilot.fleet_launcher",
         "start the simulator and the autopilot (one per vehicle of a fleet world); Ctrl-C stops all",
     ),
+    "campaign": ("tools.campaign.cli", "fly many seeded flights on Dask; results table, report, replay"),
 }
 
 
 def _usage() -> str:
-    lines = ["usage: quadsitl {sim,autopilot,up} [options]   (quadsitl CMD --help for options)", ""]
+    lines = ["usage: quadsitl {sim,autopilot,up,campaign} [options]   (quadsitl CMD --help for options)", ""]
     lines += [f"  {name:<10} {help_text}" for name, (_, help_text) in _COMMANDS.items()]
     lines += ["", "  --version  print the version", "", "Start here: quadsitl up --world missions/delivery.yaml"]
     return "\n".join(lines)
