@@ -3,8 +3,7 @@
 Every frame (250 Hz): [failures] -> [stale-data check] -> estimator -> setpoints -> [avoidance] -> cascade ->
 [motor failures] -> ActuatorCommand. At 50 Hz and after any command: failsafes (10 Hz), navigator, commander.
 The answer goes out *before* the bookkeeping (``after_answer``), while the sim integrates; docs/architecture.md:
-what each module owns, reads and emits. ``frame_traffic``: the traffic reports of this frame (SPEC §13).
-"""
+what each module owns, reads and emits; ``frame_traffic``: this frame's traffic reports (SPEC §13)."""
 
 from __future__ import annotations
 
@@ -197,7 +196,7 @@ class Autopilot:
         self._prev_time_us = t_us
         self.frames += 1
         self.frame_detections, self.frame_traffic = getattr(frame, "detections", ()), getattr(frame, "traffic", ())
-        self.navigator.traffic.receive(self.frame_traffic)  # TrafficReports received with this frame
+        self.navigator.traffic.receive(self.frame_traffic)
         seen = self.sensor_check.apply(self.failures.apply_to_frame(frame), self.commander.in_air)
         self.estimator.set_landed(self.commander.landed_state is LandedState.ON_GROUND)
         state = self.estimator.update(seen)
