@@ -140,6 +140,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out-dir", default=None, help="default runs/fleet-<timestamp>")
     parser.add_argument("--timeout-s", type=float, default=900.0, help="wall-clock limit for the flight")
     parser.add_argument("--rerun", default=None, help="override --rerun (default save:<out-dir>/flight.rrd)")
+    parser.add_argument("--params", default=None, help="every autopilot's --params FILE (e.g. NAV_TRAFF_AVOID: 1)")
     args = parser.parse_args(argv)
 
     world = Path(args.world)
@@ -165,6 +166,8 @@ def main(argv: list[str] | None = None) -> int:
         sys.executable, "-m", "quadsitl_cli", "up", "--world", str(world), "--seed", str(args.seed),
         "--speed", args.speed, "--instance", str(block), "--log-dir", str(out_dir), "--rerun", rerun, "--api", "off",
     ]  # fmt: skip
+    if args.params:
+        up_cmd += ["--params", args.params]
     gcs_cmd = [
         sys.executable, "-m", "tools.gcs", "--instance", str(block), "fly", str(world), "--stagger-s",
         str(args.stagger_s), "--summary", str(out_dir / "gcs_summary.json"), "--timeout-s", str(args.timeout_s),
