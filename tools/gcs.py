@@ -439,6 +439,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--stagger-s", type=float, default=0.0, help="fleet world: sim seconds between two vehicles' take-offs"
     )
+    p.add_argument(
+        "--stall-s", type=float, default=120.0, help="fleet world: sim seconds without progress that fail a vehicle"
+    )
     p.set_defaults(run=cmd_fly)
     p = sub.add_parser("param", help="get, set or list parameters")
     psub = p.add_subparsers(dest="param_cmd", required=True)

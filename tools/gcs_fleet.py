@@ -4,7 +4,9 @@ Over the one GCS port every vehicle sends to (PX4: 14550+N), vehicle i of the wo
 i+1. The ground station waits to hear every vehicle, uploads each its own fence and mission (the ``vehicles:``
 entry's, about the world's home), then arms and starts them, vehicle 0 first and each next one ``--stagger-s``
 seconds of sim time later (0: all together), shows one progress bar per vehicle and waits until each has landed
-and disarmed. A vehicle whose telemetry stops (its autopilot died) fails; the others fly on.
+and disarmed. A vehicle whose telemetry stops (its autopilot died) fails, and so does one whose flight makes no
+progress (no item reached, no change of landed state or arming) for ``--stall-s`` of sim time (default 120: a
+crashed vehicle, which the simulator freezes); the others fly on.
 
 The summary (``--summary PATH``) holds one :class:`tools.gcs.FlySummary` per vehicle and the closest approach of
 two vehicles' centres the ground station saw in their GLOBAL_POSITION_INT (estimated positions; the simulator's
@@ -58,6 +60,8 @@ class _Vehicle:
     done: bool = False
     t_done: float = 0.0
     status: VehicleStatus | None = None
+    progress: tuple[int, int, bool] = (-1, -1, False)  # (items reached, landed state, armed) last seen changing
+    progress_at_sim_s: float | None = None
     samples: list[tuple[float, float, float]] = field(default_factory=list)
 
 
@@ -134,7 +138,7 @@ def _follow(vehicles: list[_Vehicle], link: FleetLink, args: argparse.Namespace,
                     if first_start_s is not None and now_s is not None and now_s >= first_start_s + i * args.stagger_s:
                         _start(v, args)
                 else:
-                    _judge(v, link, deadline)
+                    _judge(v, link, args.stall_s)
                 if status.lat_deg is not None and status.home is not None and status.alt_rel_m is not None:
                     v.samples.append((status.lat_deg, status.lon_deg or 0.0, status.home.alt_amsl_m + status.alt_rel_m))
                     del v.samples[:-1]  # the latest only: separation is sampled pairwise below
@@ -160,9 +164,14 @@ def _start(v: _Vehicle, args: argparse.Namespace) -> None:
         v.reason, v.done = f"start failed: {exc}", True
 
 
-def _judge(v: _Vehicle, link: FleetLink, deadline: float) -> None:
-    """Done when landed and disarmed (mission complete or not), or when the vehicle went silent."""
+def _judge(v: _Vehicle, link: FleetLink, stall_s: float) -> None:
+    """Done when landed and disarmed (mission complete or not), when the vehicle went silent, or when its flight
+    made no progress (item reached, landed state, arming) for ``stall_s`` of sim time (e.g. it crashed into
+    another: the simulator freezes a crashed vehicle and keeps serving its autopilot)."""
     status = v.client.telemetry()
+    progress = (len(status.items_reached), int(status.landed_state), status.armed)
+    if progress != v.progress or v.progress_at_sim_s is None:
+        v.progress, v.progress_at_sim_s = progress, status.sim_time_s
     v.seen_armed = v.seen_armed or status.armed
     total = len(v.plan.items)
     landed_disarmed = not status.armed and status.landed_state is LandedState.ON_GROUND
@@ -175,6 +184,8 @@ def _judge(v: _Vehicle, link: FleetLink, deadline: float) -> None:
         v.done = True
     elif time.monotonic() - link.last_heard_s.get(v.sys_id, -math.inf) > LOST_AFTER_S:
         v.reason, v.done = f"no telemetry from the vehicle for {LOST_AFTER_S:g} s (its autopilot is gone?)", True
+    elif status.sim_time_s is not None and status.sim_time_s - (v.progress_at_sim_s or 0.0) > stall_s:
+        v.reason, v.done = f"no mission progress for {stall_s:g} s of sim time (crashed or stuck?)", True
     if v.done:
         v.t_done = time.monotonic()
 

@@ -140,6 +140,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out-dir", default=None, help="default runs/fleet-<timestamp>")
     parser.add_argument("--timeout-s", type=float, default=900.0, help="wall-clock limit for the flight")
     parser.add_argument("--rerun", default=None, help="override --rerun (default save:<out-dir>/flight.rrd)")
+    parser.add_argument("--stall-s", type=float, default=120.0, help="sim s without progress that fail a vehicle")
+    parser.add_argument("--block-from", type=int, default=0, help="search a free --instance block from here")
     parser.add_argument("--params", default=None, help="every autopilot's --params FILE (e.g. NAV_TRAFF_AVOID: 1)")
     args = parser.parse_args(argv)
 
@@ -157,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
     out_dir = Path(args.out_dir or Path("runs") / datetime.now().strftime("fleet-%Y%m%d-%H%M%S"))
     rerun = args.rerun or f"save:{out_dir / 'flight.rrd'}"
     try:
-        block = free_block(len(plans))
+        block = free_block(len(plans), start=args.block_from)
     except RuntimeError as exc:
         print(f"run_fleet: error: {exc}", file=sys.stderr)
         return EXIT_SITL_DIED
@@ -170,7 +172,8 @@ def main(argv: list[str] | None = None) -> int:
         up_cmd += ["--params", args.params]
     gcs_cmd = [
         sys.executable, "-m", "tools.gcs", "--instance", str(block), "fly", str(world), "--stagger-s",
-        str(args.stagger_s), "--summary", str(out_dir / "gcs_summary.json"), "--timeout-s", str(args.timeout_s),
+        str(args.stagger_s), "--stall-s", str(args.stall_s), "--summary", str(out_dir / "gcs_summary.json"),
+        "--timeout-s", str(args.timeout_s),
     ]  # fmt: skip
     print(f"[run-fleet] {world}: {len(plans)} vehicles -> {out_dir} (instance block {block})", flush=True)
     t0 = time.monotonic()
