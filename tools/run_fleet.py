@@ -5,8 +5,8 @@ Starts ``quadsitl up --world W`` (``--speed max``) on a free ``--instance`` bloc
 and starts them ``--stagger-s`` sim seconds apart and waits until every one has landed), stops every process and
 prints one row per vehicle. Everything lands in ``runs/fleet-<timestamp>/`` (or ``--out-dir``): ``sim_summary.json``
 (the simulator's truth: contacts, closest approaches), ``<name>/autopilot_summary.json``, ``gcs_summary.json``,
-``summary.json``, ``up.log`` and the recording (``--rerun``, default ``save:<out-dir>/flight.rrd``: the
-simulator's world view in ``flight.rrd`` and each autopilot's plots in ``flight_<name>.rrd``, docs/traffic.md).
+``summary.json``, ``up.log`` and the recordings (``--rerun``, default ``save:<out-dir>/flight.rrd``: each autopilot
+writes ``flight_<name>.rrd``, about its own home; docs/traffic.md).
 
 Exit status: 0 every vehicle flew its mission and landed with no contact, 1 a flight failed, 2 bad arguments,
 3 the SITL processes died or the wall-clock limit was hit.
