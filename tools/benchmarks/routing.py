@@ -8,7 +8,9 @@ reason* (counted, never flown). The others are flown in-process with the autopil
 :class:`MissionRouter` (route on the known world: fences, and tracked obstacles after a HOLD), the reactive
 :class:`AvoidancePlanner` (Bézier detours for what is newly sensed) and the sim's :class:`ObstacleSensor`,
 glued as :func:`fly_mission` does (the navigator's route logic), on the point-mass follower of
-:mod:`tools.benchmarks._planner_follower`.
+:mod:`tools.benchmarks._planner_follower`. The worlds are drawn in order from one seeded generator, then flown
+one task per world on the campaign engine (:func:`tools.campaign.engine.run_tasks`, ``--workers`` /
+``--scheduler`` of ``tools.bench``): results in world order, the same numbers whatever the number of workers.
 
 Worlds are flyable by construction where it matters: an obstacle is only added when the route still exists
 with every obstacle known (inflated by R_safe + 1 m), so a world that ends stuck is the planners' failure.
@@ -42,6 +44,7 @@ from sim.obstacle_sensor import ObstacleSensor
 from sim.world import Box, Cylinder, Sphere, WindConfig, World, empty_world
 from tools.benchmarks import BenchResult
 from tools.benchmarks._planner_follower import ACCEPT_RADIUS_M, KD_VEL, KP_POS, VEHICLE_ACC_MAX_M_S2
+from tools.campaign.engine import run_tasks
 
 #: Seed of the benchmark's world sequence (world i is the i-th of it, flown with sensor seed i).
 WORLD_SEED = 20261123
@@ -308,11 +311,26 @@ def benchmark_worlds(n: int, params: PlannerParams) -> list[RoutingWorld]:
     return [random_world(rng, params) for _ in range(n)]
 
 
-def run(quick: bool) -> list[BenchResult]:
-    """Monte Carlo over seeded worlds (FULL_WORLDS, or QUICK_WORLDS with ``quick``)."""
+def fly_world(case: tuple[RoutingWorld, PlannerParams, int]) -> MissionFlight:
+    """One Monte Carlo case on the campaign engine: ``(world, planner params, sensor seed)`` -> its flight."""
+    rw, params, seed = case
+    return fly_mission(rw, params, seed=seed)
+
+
+def monte_carlo(
+    n: int, params: PlannerParams, *, workers: int | None = None, scheduler: str | None = None
+) -> list[MissionFlight]:
+    """The first ``n`` benchmark worlds flown on the campaign engine (world i with sensor seed i), in world order:
+    the same flights whatever the number of workers."""
+    cases = [(rw, params, i) for i, rw in enumerate(benchmark_worlds(n, params))]
+    return run_tasks(fly_world, cases, workers=workers, scheduler=scheduler, key="routing-world")
+
+
+def run(quick: bool, *, workers: int | None = None, scheduler: str | None = None) -> list[BenchResult]:
+    """Monte Carlo over seeded worlds (FULL_WORLDS, or QUICK_WORLDS with ``quick``) on the campaign engine."""
     params = PlannerParams()
     n = QUICK_WORLDS if quick else FULL_WORLDS
-    flights = [fly_mission(rw, params, seed=i) for i, rw in enumerate(benchmark_worlds(n, params))]
+    flights = monte_carlo(n, params, workers=workers, scheduler=scheduler)
     flown = [f for f in flights if not f.refused]
     done = [f for f in flown if f.completed]
     local_ms = np.array([t for f in flown for t in f.local_plan_s]) * 1e3
