@@ -37,3 +37,22 @@ def test_estimator_monte_carlo_gives_the_same_numbers_on_one_and_two_workers() -
     values = {r.key: r.value for r in one}
     assert values["ekf_mc_flights"] == 3.0
     assert np.isfinite(values["ekf_mc_pos_horiz_rms_m"])  # the flights were airborne and compared with the truth
+
+
+def test_es_tune_is_the_same_in_process_and_on_one_or_two_engine_workers() -> None:
+    from dataclasses import replace
+
+    from tools.campaign.engine import TaskEngine
+    from tools.experiments.noisy_pipeline import noisy_config
+    from tools.experiments.tuner import engine_rollouts, tune
+
+    cfg = noisy_config("attitude", "x500")  # noisy feedback on two seeds, three step experiments
+    cfg = replace(cfg, experiments=tuple(replace(e, duration_s=0.2) for e in cfg.experiments))
+    cfg = cfg.with_budget(iterations=1, restarts=1)
+    here = tune(cfg)
+    for workers in (1, 2):
+        with TaskEngine(workers=workers) as engine:
+            there = tune(cfg, rollouts=engine_rollouts(engine))
+        assert np.array_equal(there.result.j_history, here.result.j_history)
+        assert np.array_equal(there.result.k_best, here.result.k_best)
+        assert there.result.n_evaluations == here.result.n_evaluations
