@@ -46,6 +46,7 @@ from autopilot.navigation.targets import face_along_path, mission_nav_target
 from autopilot.params import ParamStore
 from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import AvoidancePlanner
+from autopilot.planner.reachability import unreachable_reason
 from autopilot.setpoints import NavTarget
 from mavlink_bridge.contract.frames import Vec3
 from mavlink_bridge.contract.mav_enums import MissionState
@@ -341,26 +342,28 @@ class Navigator:
         goal = frame.home_from_origin(target.pos_ned_m)
         route = self._mission_route()
         nxt: Sequence[float] | np.ndarray | None = None
+        items = None  # which route points are mission items (None: all)
         routed = self.routing.active
         if routed:  # the via points, the target, the later legs around the fence
-            nxt = self.routing.ahead()
+            nxt, items = self.routing.ahead(), self.routing.ahead_items()
         elif route is not None:
             nxt = route.pos_ned_m[1:] if len(route.seqs) > 1 else None
         else:
             out = self._last_output
             if out is not None and out.target is not None and out.target.next_pos_ned_m is not None:
                 nxt = out.target.next_pos_ned_m
-        result = planner.update(state.time_us, pos, state.vel_ned_m_s, state.q_ned_frd, detections, goal, nxt)
+        result = planner.update(state.time_us, pos, state.vel_ned_m_s, state.q_ned_frd, detections, goal, nxt,
+                                route_items=items)  # fmt: skip
         self.planner_output = result
         k = int(getattr(result, "rejoin_route_index", 0))
-        if k > 0 and routed:  # the detour rejoins past via points (dropped) and maybe items (skipped now)
-            seq = self.routing.rejoin(k)
-            if seq is not None:
-                assert self.executor is not None
-                self.executor.skip_to(seq, state.time_us)
-        elif route is not None and 0 < k < len(route.seqs):  # the detour rejoins past waypoints: skip them now
+        rejoined = self.routing.rejoin(k) if k > 0 and routed else None  # via points dropped, maybe items skipped
+        if rejoined is None and not routed and route is not None and 0 < k < len(route.seqs):
+            rejoined = (route.seqs[k], route.seqs[:k], route.pos_ned_m[:k])  # past waypoints: skip them now
+        if rejoined is not None:
             assert self.executor is not None
-            self.executor.skip_to(route.seqs[k], state.time_us)
+            for seq, pos_ned_m in zip(rejoined[1], rejoined[2], strict=True):
+                self._bypass_reason[seq] = self._unreachable(pos_ned_m) or "a detour rejoined the route past it"
+            self.executor.skip_to(rejoined[0], state.time_us)
         for decision in getattr(result, "decisions", ()):
             self._say(str(decision.text), Severity.NOTICE)
         setpoint = getattr(result, "setpoint", None)
@@ -406,6 +409,12 @@ class Navigator:
         assert self.executor is not None
         if seq < 0 or not self.executor.skip_to(seq, time_us):
             return False
-        self._bypass_reason[route.seqs[0]] = "it lies inside an obstacle's safety volume"
+        self._bypass_reason[route.seqs[0]] = self._unreachable(route.pos_ned_m[0])
         self._say(f"Skipped to item {seq}: item {route.seqs[0]} lies inside an obstacle's safety volume")
         return True
+
+    def _unreachable(self, pos_ned_m: np.ndarray) -> str:
+        """Why a mission point cannot be reached safely on the planner's latest map ("" when it can)."""
+        p = PlannerParams.from_store(self.params)
+        obstacles, fence = getattr(self.planner_output, "obstacles", ()), planner_fence_zones(self.geofence)
+        return unreachable_reason(pos_ned_m, obstacles, p.r_safe_m, fence, p.fence_margin_m)

@@ -71,6 +71,7 @@ class AvoidancePlanner:
         self._unchecked: set[int] = set()  # obstacles changed since the active detour was last checked
         self._rejoin_wp: tuple[float, float, float] | None = None  # waypoint the last detour resumes toward
         self._searches = 0  # detour searches run (plan_detour calls)
+        self._route_items: tuple[bool, ...] | None = None  # this update's route rows that are mission items
 
     @property
     def state(self) -> PlannerState:
@@ -112,6 +113,7 @@ class AvoidancePlanner:
             alt_ceiling_m=min(self._alt_ceiling_m, p.ceiling_m),
             fences=self._fences,
             cruise_m_s=min(p.cruise_m_s, p.v_max_m_s),
+            fence_margin_m=p.fence_margin_m,
         )
 
     def _clear(self, state: PlannerState) -> None:
@@ -129,6 +131,7 @@ class AvoidancePlanner:
         detections: Iterable[ObstacleDetection],
         route_target_ned: Sequence[float],
         route_next_ned: Sequence[float] | np.ndarray | None = None,
+        route_items: Sequence[bool] | np.ndarray | None = None,
     ) -> PlannerOutput:
         """One planner step at sim time ``time_us`` with the vehicle state and this step's detections.
 
@@ -139,7 +142,9 @@ class AvoidancePlanner:
         benchmark passes two look-ahead lengths; with sparse delivery legs the next waypoint is enough,
         dense expanded patterns need many). A rejoin point past the route's last waypoint is clamped to
         it. The detour may rejoin past some of them: ``PlannerOutput.rejoin_route_index`` says how many
-        to skip.
+        to skip. ``route_items`` flags which of those points are mission items (None: all of them; via
+        points around the fence are not): a detour rejoins *at* a reachable item, never past it, so only
+        unreachable ones (inside a safety volume or the fence margin) are ever skipped.
         """
         pos = np.asarray(pos_ned, float)
         vel = np.asarray(vel_ned, float)
@@ -149,7 +154,11 @@ class AvoidancePlanner:
         if route_next_ned is not None:
             route = np.vstack((route, np.asarray(route_next_ned, float).reshape(-1, 3)))
         full_route = route
-        route = route[self._route_skip(route) :]
+        skip = self._route_skip(route)
+        route = route[skip:]
+        self._route_items = (
+            None if route_items is None else tuple(bool(f) for f in route_items)[skip : skip + len(route)]
+        )
         decisions: list[AvoidanceDecision] = []
         threat: Threat | None = None
         searches = self._searches
@@ -306,7 +315,7 @@ class AvoidancePlanner:
     ) -> None:
         self._last_try_us = time_us
         self._searches += 1
-        result = plan_detour(pos, vel, route, threat.obstacle, self.map.arrays, self.limits())
+        result = plan_detour(pos, vel, route, threat.obstacle, self.map.arrays, self.limits(), self._route_items)
         distance = float(threat.obstacle.signed_distance(pos[None, :])[0])
         if result.plan is not None:
             self._state, self._plan, self._path = PlannerState.DETOUR, result.plan, result.plan.path
