@@ -121,5 +121,6 @@ def test_waypoint_inside_an_obstacle_safety_volume_is_never_targeted() -> None:
     assert any("Skipped to item 3" in t for t in loop.texts), loop.texts
     reason = "Bypassed item 2: it lies inside obstacle 7's safety volume (0.5 m inside it, CA_RSAFE_M"
     assert any(t.startswith(reason) for t in loop.texts), loop.texts
+    assert loop.ap.summary(0.0)["bypass_reasons"]["2"].startswith(reason.removeprefix("Bypassed item 2: "))
     assert all(math.dist(r[0][:2], (8.0, 14.0)) > 1e-3 for r in planner.routes)  # never handed as target
     assert float(np.min(np.hypot(track[:, 0] - 8.0, track[:, 1] - 14.0))) > 4.0

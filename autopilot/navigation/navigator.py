@@ -119,7 +119,7 @@ class Navigator:
         self._nav_faces = False  # the cached mission target's yaw is the per-step heading along the path
         self._param_version = 0
         self._detections: Sequence[ObstacleDetection] = ()
-        self._bypass_reason: dict[int, str] = {}
+        self.bypass_reasons: dict[int, str] = {}  # why each bypassed item could not be reached (the latest)
         self.apply_planner_params()
         self.apply_altitude_limits()
         self.apply_upload_limits()
@@ -284,7 +284,7 @@ class Navigator:
             self._say(f"Reached item {seq}")
         for seq in out.bypassed:
             self.bypassed_seqs.append(seq)
-            why = self._bypass_reason.pop(seq, "a detour rejoined the route past it")
+            why = self.bypass_reasons.setdefault(seq, "a detour rejoined the route past it")
             self._say(f"Bypassed item {seq}: {why}", Severity.WARNING)
         gripper = None
         for action in out.actions:
@@ -362,7 +362,7 @@ class Navigator:
         if rejoined is not None:
             assert self.executor is not None
             for seq, pos_ned_m in zip(rejoined[1], rejoined[2], strict=True):
-                self._bypass_reason[seq] = self._unreachable(pos_ned_m) or "a detour rejoined the route past it"
+                self.bypass_reasons[seq] = self._unreachable(pos_ned_m) or "a detour rejoined the route past it"
             self.executor.skip_to(rejoined[0], state.time_us)
         for decision in getattr(result, "decisions", ()):
             self._say(str(decision.text), Severity.NOTICE)
@@ -409,7 +409,7 @@ class Navigator:
         assert self.executor is not None
         if seq < 0 or not self.executor.skip_to(seq, time_us):
             return False
-        self._bypass_reason[route.seqs[0]] = self._unreachable(route.pos_ned_m[0])
+        self.bypass_reasons[route.seqs[0]] = self._unreachable(route.pos_ned_m[0])
         self._say(f"Skipped to item {seq}: item {route.seqs[0]} lies inside an obstacle's safety volume")
         return True
 

@@ -408,13 +408,11 @@ class _Search:
         self.pos_np, self.vel_np = pos, vel
         self.pos: V3 = (float(pos[0]), float(pos[1]), float(pos[2]))
         self.route = _Route([self.pos] + [(float(p[0]), float(p[1]), float(p[2])) for p in route])
-        # the route rows a detour rejoins at instead of passing: mission items outside every safety volume and
-        # the fence margin (via points around the fence may be passed)
-        flags = [True] * len(route) if items is None else [bool(f) for f in items][: len(route)]
-        self.reachable = [
-            f and not unreachable_reason(route[k], arrays, limits.r_safe_m, limits.fences, limits.fence_margin_m)
-            for k, f in enumerate(flags)
-        ]
+        # the route rows a detour rejoins at instead of passing: mission items (via points around the fence may be
+        # passed), checked for reachability only when a rejoin point lies past them (``_reachable_before``)
+        self.route_np = route
+        self.items = [True] * len(route) if items is None else [bool(f) for f in items][: len(route)]
+        self._reachable: dict[int, bool] = {}
         self.arrays, self.limits = arrays, limits
         self.rows = arrays.rows
         # an obstacle the vehicle is already nearer than R_safe must not get nearer (cf. check_path)
@@ -500,12 +498,17 @@ class _Search:
 
         Items within ``_AT_WAYPOINT_M`` of the vehicle along the route count as where it is, not ahead.
         """
-        cum = self.route.cum
-        for k, reachable in enumerate(self.reachable):
+        cum, lim = self.route.cum, self.limits
+        for k, item in enumerate(self.items):
             s_k = cum[k + 1]
             if s_k >= s_rejoin - 1e-6:
                 return None
-            if reachable and s_k >= _AT_WAYPOINT_M:
+            if not item or s_k < _AT_WAYPOINT_M:
+                continue
+            if k not in self._reachable:  # outside every safety volume and the fence margin
+                why = unreachable_reason(self.route_np[k], self.arrays, lim.r_safe_m, lim.fences, lim.fence_margin_m)
+                self._reachable[k] = not why
+            if self._reachable[k]:
                 return s_k
         return None
 
