@@ -231,6 +231,7 @@ class _Level:
     blockers: set[int]  # obstacles (not members) that block a candidate: merging one may open it
     bound_m: float  # least cost of a candidate so blocked (a merge cannot be cheaper than that side was)
     stop: bool = False  # the detour ends at a waypoint at rest
+    prefix_index: int = -1  # the last route row the detour passes through before leaving the route (-1: none)
 
 
 _SIDES = (DetourSide.LEFT, DetourSide.RIGHT, DetourSide.OVER, DetourSide.UNDER)
@@ -429,7 +430,9 @@ class _Search:
         lim = self.limits
         rho = volume.radius_m + lim.r_safe_m + lim.margin_m
         planar = volume.kind is ObstacleKind.COLUMN
-        s_rejoin = self.route.first_pass(volume.center_ned, planar, rho) + rho + lim.rejoin_m
+        s_pass = self.route.first_pass(volume.center_ned, planar, rho)
+        s_rejoin = s_pass + rho + lim.rejoin_m
+        prefix, s_start, prefix_index = self._prefix(s_pass)
         blocked_by = -1
         for _ in range(_MAX_REJOIN_PUSHES + 1):
             continuation, blocked_by = self._handoff(s_rejoin)
@@ -439,7 +442,7 @@ class _Search:
             sub = _Route(continuation)
             s_rejoin += sub.first_pass(volume.center_ned, planar, rho) + rho + lim.rejoin_m
         stop = False
-        s_waypoint = self._reachable_before(s_rejoin)
+        s_waypoint = self._reachable_before(s_rejoin, s_start)
         if s_waypoint is not None:  # rejoin at the waypoint, never past it (at rest if the route after it is blocked)
             s_rejoin = s_waypoint
             continuation, blocked_by = self._handoff(s_rejoin)
@@ -448,14 +451,20 @@ class _Search:
                 continuation = continuation[:1]
             blocked_by = -1
         rejoin, route_dir, seg = self.route.at(s_rejoin)
-        hx, hy = rejoin[0] - self.pos[0], rejoin[1] - self.pos[1]
+        start = prefix[-1]
+        hx, hy = rejoin[0] - start[0], rejoin[1] - start[1]
         h = math.hypot(hx, hy)
         if h < 1e-9:
             hx, hy = route_dir[0], route_dir[1]
             h = math.hypot(hx, hy)
         e1 = (hx / h, hy / h, 0.0) if h > 1e-9 else (1.0, 0.0, 0.0)
-        cands = [_build_candidate(side, index, self.pos, rejoin, volume, e1, rho, lim) for side in _SIDES]
-        lvl = _Level(volume, members, rejoin, route_dir, seg, continuation, cands, set(), math.inf, stop)
+        cands = [_build_candidate(side, index, start, rejoin, volume, e1, rho, lim) for side in _SIDES]
+        if len(prefix) > 1:  # along the route through the reachable items before the obstacle, then around it
+            for cand in cands:
+                if cand.via:
+                    cand.via = prefix[:-1] + cand.via
+                    cand.cost_m += s_start
+        lvl = _Level(volume, members, rejoin, route_dir, seg, continuation, cands, set(), math.inf, stop, prefix_index)
         for cand in cands:
             if cand.status is not None:
                 continue
@@ -493,22 +502,45 @@ class _Search:
             return continuation, _FENCE_AFTER
         return continuation, -1
 
-    def _reachable_before(self, s_rejoin: float) -> float | None:
-        """Arc length of the first reachable route item a rejoin at ``s_rejoin`` would pass (None: none).
+    def _is_reachable(self, k: int) -> bool:
+        """Route row ``k`` lies outside every safety volume and the fence margin (cached per search)."""
+        if k not in self._reachable:
+            lim = self.limits
+            why = unreachable_reason(self.route_np[k], self.arrays, lim.r_safe_m, lim.fences, lim.fence_margin_m)
+            self._reachable[k] = not why
+        return self._reachable[k]
 
-        Items within ``_AT_WAYPOINT_M`` of the vehicle along the route count as where it is, not ahead.
-        """
-        cum, lim = self.route.cum, self.limits
+    def _prefix(self, s_pass: float) -> tuple[list[V3], float, int]:
+        """The route from the vehicle through the reachable items before the volume's first pass (at ``s_pass``),
+        up to the first unreachable one or the first whose leg is not clear: the detour follows it and leaves the
+        route at its end. Returns the polyline (the vehicle alone when there is no such item), its arc length and
+        the route row of its last item (-1: none)."""
+        cum = self.route.cum
+        s_end, k_end = 0.0, -1
+        for k, item in enumerate(self.items):
+            s_k = cum[k + 1]
+            if s_k >= s_pass:
+                break
+            if not item or s_k < _AT_WAYPOINT_M:
+                continue
+            if not self._is_reachable(k):
+                break
+            if _polyline_blocker(self.route.stretch(s_end, s_k - s_end), self.rows, self.need) >= 0:
+                break  # the route to it is not clear: leave it before
+            s_end, k_end = s_k, k
+        if k_end < 0:
+            return [self.pos], 0.0, -1
+        return self.route.stretch(0.0, s_end), s_end, k_end
+
+    def _reachable_before(self, s_rejoin: float, s_after: float) -> float | None:
+        """Arc length of the first reachable route item past ``s_after`` that a rejoin at ``s_rejoin`` would pass
+        (None: none). Items within ``_AT_WAYPOINT_M`` of the vehicle along the route count as where it is."""
+        cum = self.route.cum
         for k, item in enumerate(self.items):
             s_k = cum[k + 1]
             if s_k >= s_rejoin - 1e-6:
                 return None
-            if not item or s_k < _AT_WAYPOINT_M:
-                continue
-            if k not in self._reachable:  # outside every safety volume and the fence margin
-                why = unreachable_reason(self.route_np[k], self.arrays, lim.r_safe_m, lim.fences, lim.fence_margin_m)
-                self._reachable[k] = not why
-            if self._reachable[k]:
+            if item and s_k > max(s_after + 1e-6, _AT_WAYPOINT_M) and self._is_reachable(k):
                 return s_k
         return None
 
@@ -552,6 +584,7 @@ class _Search:
             continuation,
             times,
             lvl.stop,
+            lvl.prefix_index,
         )
 
 

@@ -66,7 +66,9 @@ class DetourPlan:
     rejoins: once the detour is flown, the route resumes toward it (the waypoints before it were
     bypassed). ``continuation_ned`` is the route after the rejoin point that was checked clear.
     ``stops_at_rejoin``: the detour ends at a reachable waypoint at rest (the route after it was not clear
-    for the stopping distance), so the next leg starts from a hover.
+    for the stopping distance), so the next leg starts from a hover. ``prefix_route_index``: the detour first
+    follows the route through its points up to this one (reachable items before the obstacle; -1: none), which
+    the vehicle reaches on the way and which are therefore not bypassed.
     """
 
     side: DetourSide
@@ -81,6 +83,7 @@ class DetourPlan:
     continuation_ned: np.ndarray = field(default_factory=lambda: np.empty((0, 3)))
     sample_times_s: np.ndarray = field(default_factory=lambda: np.empty(0))  # time of each sample on the path
     stops_at_rejoin: bool = False
+    prefix_route_index: int = -1
 
 
 @dataclass(frozen=True, slots=True)

@@ -70,6 +70,7 @@ class AvoidancePlanner:
         self._last_try_us = -(10**18)
         self._unchecked: set[int] = set()  # obstacles changed since the active detour was last checked
         self._rejoin_wp: tuple[float, float, float] | None = None  # waypoint the last detour resumes toward
+        self._passes: list[tuple[float, float, float]] = []  # route points the last detour flies through first
         self._searches = 0  # detour searches run (plan_detour calls)
         self._route_items: tuple[bool, ...] | None = None  # this update's route rows that are mission items
 
@@ -204,7 +205,11 @@ class AvoidancePlanner:
         wp = self._rejoin_wp
         if wp is None:
             return 0
-        for i, row in enumerate(route.tolist()):
+        rows = route.tolist()
+        head = rows[0]
+        if any(abs(head[0] - p[0]) + abs(head[1] - p[1]) + abs(head[2] - p[2]) < 1e-6 for p in self._passes):
+            return 0  # the caller's target is one the detour flies through: reached on the way, nothing skipped yet
+        for i, row in enumerate(rows):
             if abs(row[0] - wp[0]) + abs(row[1] - wp[1]) + abs(row[2] - wp[2]) < 1e-6:
                 if i == 0:
                     self._rejoin_wp = None  # the caller's target is the rejoined leg's end: consumed
@@ -322,6 +327,8 @@ class AvoidancePlanner:
             self._t0_us = time_us
             wp = route[result.plan.rejoin_route_index]
             self._rejoin_wp = (float(wp[0]), float(wp[1]), float(wp[2]))
+            passes = route[: result.plan.prefix_route_index + 1].tolist()
+            self._passes = [(p[0], p[1], p[2]) for p in passes]
             side = result.plan.side
         else:
             if self._state is not PlannerState.HOLD:
