@@ -160,3 +160,25 @@ def test_hand_off_ray_past_a_corner_is_clear() -> None:
         ray = np.array(end_pos) + np.linspace(0.0, 1.0, 50)[:, None] * (np.array(end_vel) / speed * reach_m)
         assert _clearance(ray, obstacles) >= LIMITS.r_safe_m
     assert _clearance(plan.samples_ned, obstacles) >= LIMITS.r_safe_m
+
+
+def test_detour_flies_through_the_reachable_items_before_the_obstacle() -> None:
+    """A dense route (items every 4 m) runs into a sphere: the detour follows the route through the items whose
+    legs are clear, leaves it after the last of them, and rejoins at the first reachable item past the sphere;
+    the planner reports nothing skipped while the caller's target is one it flies through."""
+    center = np.array([30.0, 0.3, -10.0])
+    items = np.array([(4.0 * k, 0.0, -10.0) for k in range(1, 16)])  # 4 .. 60 m north
+    planner = AvoidancePlanner(PlannerParams())
+    out = planner.update(0, POS, VEL, Q_NORTH, [_sphere_detection(0, 1, POS, center, 2.0)], items[0], items[1:])
+    plan = out.detour
+    assert out.state is PlannerState.DETOUR and plan is not None
+    obs = _sphere(center, 2.0)
+    clear = [bool(obs.signed_distance(p[None, :])[0] >= PlannerParams().r_safe_m) for p in items]
+    assert plan.prefix_route_index >= 3 and all(clear[: plan.prefix_route_index + 1])
+    for p in items[: plan.prefix_route_index + 1]:  # flown through: on the curve
+        assert float(np.min(np.linalg.norm(plan.samples_ned - p, axis=1))) < 0.3
+    rejoined = items[plan.rejoin_route_index]
+    np.testing.assert_allclose(plan.rejoin_ned, rejoined, atol=1e-9)  # at an item, never between two
+    assert all(not c for c in clear[plan.prefix_route_index + 1 : plan.rejoin_route_index])  # skipped: unreachable
+    assert out.rejoin_route_index == 0  # the target (items[0]) is flown through: nothing skipped yet
+    assert _clearance(plan.samples_ned, (obs,)) >= PlannerParams().r_safe_m
