@@ -9,8 +9,16 @@ plane the shortest path from the vehicle to the rejoin point around the safety c
 The rejoin point lies ``ρ + rejoin_m`` along the route past the route's *first* pass by the
 obstacle (progress along a self-crossing route is monotone: a later pass of the same place is not
 where the vehicle is). The route after the rejoin point, for the vehicle's stopping distance plus
-``CONTINUATION_S`` of flight, must clear every obstacle by R_safe too: a detour must not hand the
-vehicle back to the route where it cannot brake or turn before the next safety volume.
+``CONTINUATION_S`` of flight, must clear every obstacle by R_safe too, and so must the straight ray along
+the route's direction there (a corner just past the rejoin point cannot be turned at speed), both inside the
+fence: a detour must not hand the vehicle back to the route where it cannot brake or turn before the next
+safety volume.
+
+Reachable mission items are never skipped (SPEC §7, issue 22; :mod:`.reachability`): the detour follows the
+route through the reachable items before the obstacle whose legs are clear, leaves it after the last of them,
+and rejoins *at* the first reachable item past the obstacle when the plain rejoin point lies beyond it
+(arriving at cruise speed, or at rest when the route after the item is not clear). Only unreachable items
+(inside a safety volume or the fence margin) and via points around the fence are passed.
 
 One search (:func:`plan_detour`), in plain Python until a curve is fitted (numpy's per-call overhead
 dominates on a handful of points):
@@ -409,8 +417,8 @@ class _Search:
         self.pos_np, self.vel_np = pos, vel
         self.pos: V3 = (float(pos[0]), float(pos[1]), float(pos[2]))
         self.route = _Route([self.pos] + [(float(p[0]), float(p[1]), float(p[2])) for p in route])
-        # the route rows a detour rejoins at instead of passing: mission items (via points around the fence may be
-        # passed), checked for reachability only when a rejoin point lies past them (``_reachable_before``)
+        # the route rows a detour flies through or rejoins at instead of passing: mission items (via points around
+        # the fence may be passed), checked for reachability only when a detour would pass them
         self.route_np = route
         self.items = [True] * len(route) if items is None else [bool(f) for f in items][: len(route)]
         self._reachable: dict[int, bool] = {}
@@ -607,10 +615,11 @@ def plan_detour(
     (module docstring). The reports are those of the chosen candidate's merge level (the last level
     built when none passes).
 
-    A detour never rejoins past a reachable mission item (``route_items`` flags the rows of ``route_ned``
-    that are items, None: all; reachable: :func:`~autopilot.planner.reachability.unreachable_reason` is
-    empty): it ends at the first one it would pass, along the route at speed, or at rest when the route
-    after it is not clear for the stopping distance plus ``CONTINUATION_S``.
+    A detour never passes a reachable mission item (``route_items`` flags the rows of ``route_ned`` that are
+    items, None: all; reachable: :func:`~autopilot.planner.reachability.unreachable_reason` is empty): it
+    flies through those before the obstacle (``DetourPlan.prefix_route_index``) and ends at the first one past
+    it, along the route at speed, or at rest when the route after it is not clear for the stopping distance
+    plus ``CONTINUATION_S``.
     """
     search = _Search(
         np.asarray(pos_ned, float),
