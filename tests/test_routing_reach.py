@@ -57,14 +57,20 @@ def test_waypoint_inside_a_safety_volume_is_bypassed_with_the_reason() -> None:
     assert flight.collisions == 0 and flight.min_clearance_m >= FLOOR_M
 
 
-#: The benchmark's world generator state just before world 478 (``benchmark_worlds``: 478 worlds drawn first),
-#: so the test builds that one world without drawing the 478 before it.
-_STATE_478 = {
-    "bit_generator": "PCG64",
-    "state": {"state": 170499240748970181925220388836084413180, "inc": 209522357492818607662160294580516993191},
-    "has_uint32": 0,
-    "uinteger": 1446294865,
-}
+_INC = 209522357492818607662160294580516993191
+
+
+def _benchmark_world(state: int, uinteger: int) -> RoutingWorld:
+    """One world of the benchmark's sequence from the generator state just before it (``benchmark_worlds`` draws
+    the worlds before it first: seconds the test does not need to spend)."""
+    rng = np.random.default_rng(WORLD_SEED)
+    rng.bit_generator.state = {
+        "bit_generator": "PCG64",
+        "state": {"state": state, "inc": _INC},
+        "has_uint32": 0,
+        "uinteger": uinteger,
+    }
+    return random_world(rng, PARAMS)
 
 
 def test_routing_world_478_keeps_the_clearance_floor() -> None:
@@ -72,11 +78,20 @@ def test_routing_world_478_keeps_the_clearance_floor() -> None:
     route turns 40°; the vehicle, at 4.9 m/s along the old leg, could not turn there, the threat check then found a
     sphere 4.6 m ahead on its velocity ray with no detour within the dynamic limits, and the braking path stopped
     1.48 m from it. The hand-off check now covers that ray, so the detour rejoins where the vehicle can go on."""
-    rng = np.random.default_rng(WORLD_SEED)
-    rng.bit_generator.state = _STATE_478
-    rw = random_world(rng, PARAMS)
+    rw = _benchmark_world(170499240748970181925220388836084413180, 1446294865)
     np.testing.assert_allclose(rw.waypoints_ned[1], (-26.781, -37.061, -8.236), atol=1e-3)  # the same world
     flight = fly_mission(rw, PARAMS, seed=478)
     assert flight.completed and flight.collisions == 0 and flight.fence_breaches == 0, _log(flight.texts)
     assert flight.min_clearance_m >= FLOOR_M, flight.min_clearance_m
     assert flight.items_bypassed_reachable == 0, _log(flight.texts)
+
+
+def test_routing_world_269_abandoned_detour_skips_nothing() -> None:
+    """World 269: a detour that was to fly through item 1 and rejoin at item 2 (past three via points around an
+    exclusion circle) was abandoned for a HOLD; its rejoin point must not be consumed later, or the via points are
+    dropped once item 1 is reached and the leg to item 2 runs straight through the circle."""
+    rw = _benchmark_world(316569828285083744955638917682570744203, 230225369)
+    np.testing.assert_allclose(rw.waypoints_ned[1], (4.415, -42.167, -10.182), atol=1e-3)  # the same world
+    flight = fly_mission(rw, PARAMS, seed=269)
+    assert flight.completed and flight.fence_breaches == 0 and flight.collisions == 0, _log(flight.texts)
+    assert flight.items_bypassed == 0 and flight.min_clearance_m >= FLOOR_M, _log(flight.texts)

@@ -331,6 +331,8 @@ class AvoidancePlanner:
             self._passes = [(p[0], p[1], p[2]) for p in passes]
             side = result.plan.side
         else:
+            # an abandoned detour rejoins nowhere: the items it would have flown through or past stay the caller's
+            self._rejoin_wp, self._passes = None, []
             if self._state is not PlannerState.HOLD:
                 self._path = brake_path(pos, vel, self.params.a_max_m_s2)
                 self._t0_us = time_us
