@@ -30,19 +30,19 @@ import time
 from pathlib import Path
 from types import FrameType
 
+from autopilot.commander.script import CommandScript, ScriptError, load_script
 from autopilot.control.airframe import AirframeError
 from autopilot.estimation import DEFAULT_ESTIMATOR, ESTIMATORS
 from autopilot.io_loop import Links, run_loop
-from autopilot.params import ParamError
-from autopilot.reporting import AutopilotEndReason
+from autopilot.parameters.store import ParamError
+from autopilot.reporting.report import AutopilotEndReason
 from autopilot.runner import Autopilot, AutopilotConfig
-from autopilot.scripted_commands import CommandScript, ScriptError, load_script
 from autopilot.vehicle_adapter import VehicleAdapter
 from mavlink_bridge.contract.about import version_text
-from mavlink_bridge.gcs_server import GcsServer
-from mavlink_bridge.link import LinkUrlError, resolve_url
+from mavlink_bridge.gcs_server.server import GcsServer
 from mavlink_bridge.lockstep import LockstepClient, add_spin_option
-from mavlink_bridge.signing import SigningKeyError, signing_key_from_text
+from mavlink_bridge.wire.link import LinkUrlError, resolve_url
+from mavlink_bridge.wire.signing import SigningKeyError, signing_key_from_text
 
 EXIT_OK = 0
 EXIT_ERROR = 1

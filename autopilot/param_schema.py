@@ -15,8 +15,8 @@ from pathlib import Path
 from autopilot.control.gains import GAINS_FILE_FORMAT, CascadeGains
 from autopilot.control.param_decls import controller_param_specs, params_from_gains
 from autopilot.mission.param_decls import mission_param_specs
-from autopilot.nav_params import nav_param_specs
-from autopilot.params import ParamError, ParamSpec, ParamStore
+from autopilot.parameters.nav_decls import nav_param_specs
+from autopilot.parameters.store import ParamError, ParamSpec, ParamStore
 from autopilot.planner.param_decls import planner_param_specs
 
 #: Upper bound of ``PLD_MASS_KG`` (kg).

@@ -14,25 +14,26 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from autopilot import reporting
-from autopilot.commander import CommandContext, Commander, CommanderInputs
+from autopilot.commander.inputs import CommandContext, CommanderInputs
+from autopilot.commander.script import CommandScript
+from autopilot.commander.state_machine import Commander
 from autopilot.control.airframe import Airframe, load_airframe
 from autopilot.control.cascade import SingleStep
 from autopilot.estimation import Estimator, FrameLike, VehicleState, make_estimator
-from autopilot.failsafe import BatteryModel, FailsafeInputs, FailsafeMonitor, SensorFailsafe
-from autopilot.failure_injection import FailureInjector
-from autopilot.flight_control import FlightControl
-from autopilot.link_health import LinkHealth
+from autopilot.flight_control.controller import FlightControl
+from autopilot.flight_tasks.setpoints import NavTarget, TargetKind
 from autopilot.navigation import HomeFrame, Navigator
 from autopilot.param_binding import autopilot_bindings
 from autopilot.param_schema import make_param_store
-from autopilot.params import ParamStore
+from autopilot.parameters.store import ParamStore
 from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import AvoidancePlanner
-from autopilot.reporting import AutopilotEndReason, MissionProgress, StepListener, StepRecord, Tracking, TruthHash
-from autopilot.scripted_commands import CommandScript
-from autopilot.sensor_validation import StaleSensorCheck
-from autopilot.setpoints import NavTarget, TargetKind
+from autopilot.reporting import report
+from autopilot.reporting.report import AutopilotEndReason, MissionProgress, StepListener, StepRecord
+from autopilot.safety.failsafe import BatteryModel, FailsafeInputs, FailsafeMonitor, SensorFailsafe
+from autopilot.safety.failure_injection import FailureInjector
+from autopilot.safety.link_health import LinkHealth
+from autopilot.safety.sensor_validation import StaleSensorCheck
 from mavlink_bridge.contract.frames import GeoPoint, Vec3
 from mavlink_bridge.contract.mav_enums import MavCmd
 from mavlink_bridge.contract.vehicle_api import (
@@ -102,8 +103,8 @@ class Autopilot:
         self.sensor_failsafe = SensorFailsafe(self.params)
         self.battery = BatteryModel(self.params.get("BAT_HOVER_ENDUR"))
         self.state: VehicleState | None = None
-        self.tracking = Tracking()
-        self.truth_hash = TruthHash()
+        self.tracking = report.Tracking()
+        self.truth_hash = report.TruthHash()
         self.progress = MissionProgress()
         self.frames = 0
         self.end_reason: AutopilotEndReason | None = None
@@ -151,8 +152,7 @@ class Autopilot:
         self._texts.append(StatusText(severity, text))
 
     def update_context(self, **changes: object) -> CommandContext:
-        """The commander's context with ``changes`` (a new object only when something changed, which wakes the
-        slow loop)."""
+        """The commander's context with ``changes`` (a new object only on a change, which wakes the slow loop)."""
         context = self._context
         if any(getattr(context, name) != value for name, value in changes.items()):
             context = self._context = replace(context, **changes)  # type: ignore[arg-type]
@@ -389,7 +389,7 @@ class Autopilot:
         self.after_answer()
         if self.state is None:
             return None
-        snap = reporting.snapshot(
+        snap = report.snapshot(
             self.state, self.commander, self.navigator, self.control, self.battery, self.progress, self.estimator.origin
         )
         failed = self.failures.unhealthy_bits  # a failed motor clears the motor-outputs bit
@@ -408,7 +408,7 @@ class Autopilot:
         }
         if lockstep is not None:
             flight["lockstep"] = lockstep
-        return reporting.summary(
+        return report.summary(
             self.commander, self.navigator, self.battery, self.progress, self.tracking, self.truth_hash, flight
         )
 
@@ -417,4 +417,4 @@ class Autopilot:
         if not self.config.log_dir:
             return None
         summary = self.summary(wall_time_s, lockstep)
-        return reporting.write_json(Path(self.config.log_dir) / "autopilot_summary.json", summary)
+        return report.write_json(Path(self.config.log_dir) / "autopilot_summary.json", summary)

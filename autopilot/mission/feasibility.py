@@ -15,7 +15,7 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from autopilot.mission.fence import Geofence, zone_label
+from autopilot.geofence.fence import Geofence, zone_label
 from autopilot.mission.plan import alt_rel_home_m, is_wpl_home_line, item_position_ned, uses_current_position
 from autopilot.mission.validation import MissionIssue
 from autopilot.planner.route_graph import KnownWorld

@@ -16,8 +16,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from autopilot.geofence.fence import FenceError, GeoFence, Geofence, geo_fence_from_items
 from autopilot.mission.feasibility import FeasibilityLimits, check_feasibility
-from autopilot.mission.fence import FenceError, GeoFence, Geofence, geo_fence_from_items
 from autopilot.mission.validation import MissionLimits, check_mission
 from autopilot.planner.route_graph import KnownWorld
 from mavlink_bridge.contract.frames import GeoPoint

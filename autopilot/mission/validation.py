@@ -12,10 +12,10 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from autopilot.mission.fence import FenceError, geo_fence_from_items
+from autopilot.geofence.fence import FenceError, geo_fence_from_items
 from autopilot.mission.param_decls import MISSION_PARAM_DEFAULTS
 from autopilot.mission.plan import alt_rel_home_m, is_wpl_home_line, uses_current_position
-from autopilot.params import ParamStore
+from autopilot.parameters.store import ParamStore
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
 from mavlink_bridge.contract.mav_enums import (
     AMSL_FRAMES,

@@ -15,13 +15,13 @@ from typing import Protocol
 
 import numpy as np
 
-from autopilot.failsafe import FailsafeAction, FailsafeEvent, FailsafeKind
+from autopilot.geofence.fence import Geofence
 from autopilot.mission.executor import MissionRoute, NavKind
 from autopilot.mission.executor import NavTarget as MissionTarget
-from autopilot.mission.fence import Geofence
 from autopilot.planner.mission_router import MissionRouter, RouteStatus, RouteStep
 from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import PlannerState
+from autopilot.safety.failsafe import FailsafeAction, FailsafeEvent, FailsafeKind
 from mavlink_bridge.contract.frames import Vec3
 from mavlink_bridge.contract.vehicle_api import Severity
 from mavlink_bridge.contract.wire import ObstacleDetection

@@ -25,8 +25,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from autopilot.estimation import VehicleState
-from autopilot.failsafe import FailsafeEvent
-from autopilot.fence_zones import planner_fence_zones
+from autopilot.flight_tasks.setpoints import NavTarget
+from autopilot.geofence.fence import Geofence
+from autopilot.geofence.planner_zones import planner_fence_zones
 from autopilot.mission.executor import (
     ActionKind,
     ExecutorConfig,
@@ -37,17 +38,16 @@ from autopilot.mission.executor import (
     VehicleSample,
 )
 from autopilot.mission.feasibility import FeasibilityLimits
-from autopilot.mission.fence import Geofence
 from autopilot.mission.uploads import UploadStore
 from autopilot.mission.validation import MissionLimits
 from autopilot.navigation.home_frame import HomeFrame
 from autopilot.navigation.leg_routing import LegRouting, RoutePlanner
 from autopilot.navigation.targets import face_along_path, mission_nav_target
-from autopilot.params import ParamStore
+from autopilot.parameters.store import ParamStore
 from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import AvoidancePlanner
 from autopilot.planner.reachability import unreachable_reason
-from autopilot.setpoints import NavTarget
+from autopilot.safety.failsafe import FailsafeEvent
 from mavlink_bridge.contract.frames import Vec3
 from mavlink_bridge.contract.mav_enums import MissionState
 from mavlink_bridge.contract.vehicle_api import (

@@ -25,7 +25,7 @@ from enum import Enum
 
 import numpy as np
 
-from autopilot.mission.fence import Geofence
+from autopilot.geofence.fence import Geofence
 from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import PlannerState
 from autopilot.planner.route_graph import KnownWorld, RouteResult, obstacle_discs

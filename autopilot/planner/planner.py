@@ -194,7 +194,7 @@ class AvoidancePlanner:
 
         Nothing to do: no detection this step, no tracked obstacle (so nothing to forget, no threat, clearance
         inf), no detour or braking path, no pending rejoin. ``update`` then changes no state and returns this
-        (``tests/test_planner_idle.py`` checks they are equal), so the runner skips building the route.
+        (``test_planner_idle.py`` checks they are equal), so the runner skips building the route.
         """
         if detections or self._path is not None or self._rejoin_wp is not None or not self.map.empty:
             return None

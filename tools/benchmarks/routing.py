@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from autopilot.estimation import VehicleState
-from autopilot.mission.fence import CircleZone, Geofence, PolygonZone, circle_fence_items, polygon_fence_items
+from autopilot.geofence.fence import CircleZone, Geofence, PolygonZone, circle_fence_items, polygon_fence_items
 from autopilot.navigation import HomeFrame, Navigator
 from autopilot.param_schema import make_param_store
 from autopilot.planner.param_decls import PlannerParams
