@@ -8,7 +8,8 @@ PX4's navigator in spirit: it owns what the vehicle is asked to fly in AUTO_MISS
   :class:`AvoidancePlanner` and the route glue between them (the route handed to the planner, waypoints a
   detour bypassed or that lie inside an obstacle's safety volume skipped, the nose along the path).
 - Routes (issue 13): uploads accepted before home is known and checked once it is (:class:`UploadStore`);
-  legs routed around the fence and known obstacles (:class:`LegRouting`); bypassed items reported as such.
+  legs routed around the fence and known obstacles (:class:`LegRouting`); bypassed items reported as such;
+  the commander's AUTO_RTL leg home routed the same way (:class:`ReturnRouting`, issue 22).
 - Emits: one :class:`NavOutput` per step (the commander's mission target, items reached, gripper actions)
   and, while avoiding, a :class:`ReferenceOverride` for the setpoint generator; status texts.
 
@@ -42,6 +43,7 @@ from autopilot.mission.uploads import UploadStore
 from autopilot.mission.validation import MissionLimits
 from autopilot.navigation.home_frame import HomeFrame
 from autopilot.navigation.leg_routing import LegRouting, RoutePlanner
+from autopilot.navigation.return_routing import ReturnRouting
 from autopilot.navigation.targets import face_along_path, mission_nav_target
 from autopilot.parameters.store import ParamStore
 from autopilot.planner.param_decls import PlannerParams
@@ -70,7 +72,7 @@ ROUTE_MAX_POINTS = 64
 class NavOutput:
     """What the navigator asks for at one step (targets about the estimator origin)."""
 
-    mission_target: NavTarget | None  # None: the mission flies nothing now (or the mode is not AUTO_MISSION)
+    mission_target: NavTarget | None  # None: the mission flies nothing now; in AUTO_RTL the return's routed point
     reached: tuple[int, ...] = ()  # items reached at this step
     gripper_release: bool | None = None  # a DO_GRIPPER action at this step: True release, False grab
     bypassed: tuple[int, ...] = ()  # items flown around (a detour rejoined past them), never reached
@@ -106,6 +108,7 @@ class Navigator:
         self.uploads = UploadStore()
         self.geofence = Geofence()  # the uploaded FENCE about home (empty until home is known)
         self.routing = LegRouting(PlannerParams.from_store(params))
+        self.returns = ReturnRouting(self.routing)
         self.executor: MissionExecutor | None = None
         self.bypassed_seqs: list[int] = []
         self.frame: HomeFrame | None = None  # home about the origin (before arming: the origin itself)
@@ -238,6 +241,7 @@ class Navigator:
         """Entering AUTO_MISSION starts (or resumes) the mission; leaving it pauses the mission."""
         executor = self.executor
         self.routing.reset()
+        self.returns.reset()
         if executor is None:
             return
         if mode is FlightMode.AUTO_MISSION and executor.state is not MissionState.ACTIVE:
@@ -262,10 +266,15 @@ class Navigator:
         mode: FlightMode,
         landed: bool,
         detections: Sequence[ObstacleDetection],
+        return_goal_ned_m: Vec3 | None = None,
     ) -> NavOutput:
-        """The mission's target at this step (AUTO_MISSION only), with skips past obstacles' safety volumes."""
+        """The mission's target at this step (AUTO_MISSION), with skips past obstacles' safety volumes; in AUTO_RTL
+        the routed point toward ``return_goal_ned_m`` (the commander's point above home, about the origin)."""
         executor, frame = self.executor, self.frame
         self._detections = detections
+        if mode is FlightMode.AUTO_RTL and frame is not None:
+            nav_target, failsafe = self.returns.target(state, frame, return_goal_ned_m, self.planner_output, self._say)
+            return NavOutput(nav_target, failsafe=failsafe) if nav_target is not None else _NOTHING
         if executor is None or frame is None or mode is not FlightMode.AUTO_MISSION:
             return _NOTHING
         pos = frame.home_from_origin(state.pos_ned_m)
@@ -321,12 +330,9 @@ class Navigator:
         return self.routing.path_home_ned_m
 
     def avoid(self, state: VehicleState, target: NavTarget) -> ReferenceOverride | None:
-        """Let the avoidance planner override the reference (AUTO_MISSION, POSITION target).
-
-        The planner gets the mission route from the target on (``MissionExecutor.route_ahead``, two
-        CA_LOOKAHEAD_M lengths); waypoints a detour bypassed (``rejoin_route_index``) are skipped in the
-        executor (reported reached, DO items still run).
-        """
+        """Let the avoidance planner override the reference (a POSITION target of AUTO_MISSION or an RTL's return):
+        it gets the route from the target on (routed via points, ``MissionExecutor.route_ahead``); waypoints a
+        detour bypassed (``rejoin_route_index``) are skipped in the executor (reported reached)."""
         planner, frame = self.planner, self.frame
         if planner is None or frame is None:
             return None
