@@ -72,6 +72,7 @@ class ReturnRouting:
         )
         if routed is not self._routed or self._nav is None:
             self._routed = routed
-            pos = goal_origin_ned_m if routed is goal else frame.origin_from_home(routed.pos_ned_m)
+            n, e, _ = routed.pos_ned_m  # a via point at the return altitude (the router interpolates from the start)
+            pos = goal_origin_ned_m if routed is goal else frame.origin_from_home((n, e, goal_home[2]))
             self._nav = NavTarget(TargetKind.POSITION, pos)
         return self._nav, failsafe
