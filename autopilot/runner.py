@@ -313,7 +313,7 @@ class Autopilot:
             return fc.idle(state, target, commander.armed, self._dt_s)
         fc.reference_for(state, target, self._dt_s)
         if target.kind is TargetKind.POSITION and (commander.mode is FlightMode.AUTO_MISSION or nav.returns.active):
-            override = nav.avoid(state, target)
+            override = nav.avoid(state, target, self.frame_detections)  # each frame's: the sensor runs at 10 Hz
             if override is not None:
                 fc.override(override)
         out = self._pending_control = fc.control(state)

@@ -329,14 +329,17 @@ class Navigator:
         """The planned leg around the fence (and known obstacles) about home, (n, 3), for drawing; None if none."""
         return self.routing.path_home_ned_m
 
-    def avoid(self, state: VehicleState, target: NavTarget) -> ReferenceOverride | None:
-        """Let the avoidance planner override the reference (a POSITION target of AUTO_MISSION or an RTL's return):
-        it gets the route from the target on (routed via points, ``MissionExecutor.route_ahead``); waypoints a
-        detour bypassed (``rejoin_route_index``) are skipped in the executor (reported reached)."""
+    def avoid(
+        self, state: VehicleState, target: NavTarget, detections: Sequence[ObstacleDetection] | None = None
+    ) -> ReferenceOverride | None:
+        """Let the avoidance planner override the reference (a POSITION target of AUTO_MISSION or an RTL's return)
+        with this frame's ``detections`` (None: those of the latest :meth:`update`): it gets the route from the
+        target on (routed via points, ``MissionExecutor.route_ahead``); waypoints a detour bypassed
+        (``rejoin_route_index``) are skipped in the executor (reported reached)."""
         planner, frame = self.planner, self.frame
         if planner is None or frame is None:
             return None
-        detections = self._detections
+        detections = self._detections if detections is None else detections
         idle_output = getattr(planner, "idle_output", None)
         if idle_output is not None:  # nothing to avoid: the output update() would give, without the route
             idle = idle_output(state.time_us, detections)
