@@ -38,9 +38,7 @@ fence:
 
 
 @pytest.mark.parametrize("trigger", ["gcs_rtl", "low_battery"])
-def test_a_return_with_an_exclusion_zone_between_vehicle_and_home_flies_around_it(
-    tmp_path: Path, trigger: str
-) -> None:
+def test_a_return_with_an_exclusion_zone_between_vehicle_and_home_flies_around_it(tmp_path: Path, trigger: str) -> None:
     mission = tmp_path / "circle_between.yaml"
     mission.write_text(CIRCLE_BETWEEN)
     plan = load_mission_file(mission)
