@@ -345,7 +345,7 @@ class Autopilot:
     def drain_texts(self) -> list[StatusText]:
         """Events (commander, navigator, runner) since the last call."""
         texts = self.commander.drain_texts() + self.navigator.drain_texts()
-        texts += self.failures.drain_texts() + self.sensor_check.drain_texts()
+        texts += [*self.failures.drain_texts(), *self.sensor_check.drain_texts()]
         if self._texts:
             texts += self._texts
             self._texts = []
