@@ -1,9 +1,10 @@
 """Every return routed (issue 22 item 2): the commander's RTL flies the navigator's route home around the fence.
 
-Commander + navigator + a kinematic vehicle (``autopilot_fakes.KinematicLoop``), no sim: an RTL with an
-exclusion circle between the vehicle and home climbs, flies via points around it and lands at home (the
-target sequence checked leg by leg); with no route home it says so, holds, and takes CA_NOROUTE_ACT (a return
-that cannot return lands where it holds); the return altitude stays under the fence ceiling.
+Commander + navigator + a kinematic vehicle (``autopilot_fakes.KinematicLoop``), no sim: an RTL from every source
+(GCS command, DO_SET_MODE, battery and link failsafes) with an exclusion circle between the vehicle and home
+climbs, flies via points around it and lands at home (the target sequence checked leg by leg); with no route
+home it says so, holds, and takes CA_NOROUTE_ACT (a return that cannot return lands where it holds); the
+return altitude stays under the fence ceiling.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import itertools
 import math
 
 import numpy as np
+import pytest
 from autopilot_fakes import FRAME, HOME, KinematicLoop, command
 
 from autopilot.commander.state_machine import Commander
@@ -20,6 +22,7 @@ from autopilot.geofence.fence import circle_fence_items, polygon_fence_items
 from autopilot.navigation.home_frame import HomeFrame
 from autopilot.navigation.navigator import Navigator
 from autopilot.param_schema import make_param_store
+from autopilot.safety.failsafe import FailsafeAction, FailsafeEvent, FailsafeKind
 from mavlink_bridge.contract.mav_enums import MavCmd
 from mavlink_bridge.contract.vehicle_api import (
     CommandResult,
@@ -109,13 +112,29 @@ class RoutedLoop:
         self.track.clear()
 
 
-def test_rtl_climbs_then_flies_around_the_exclusion_circle_and_lands_at_home() -> None:
+def _ask_for_a_return(r: RoutedLoop, source: str) -> None:
+    """An RTL from each source the commander knows (the navigator's no-route action is a NO_ROUTE event)."""
+    c = r.commander
+    if source == "gcs_rtl":
+        assert c.handle_command(command(MavCmd.NAV_RETURN_TO_LAUNCH)) is CommandResult.ACCEPTED
+    elif source == "set_mode_auto_rtl":
+        rtl = FlightMode.AUTO_RTL
+        mode = command(MavCmd.DO_SET_MODE, 1, rtl.px4_main_mode, rtl.px4_sub_mode)
+        assert c.handle_command(mode) is CommandResult.ACCEPTED
+    else:
+        kind = {"battery": FailsafeKind.BATTERY_CRITICAL, "link_loss": FailsafeKind.GCS_LOSS}[source]
+        c.apply_failsafe(FailsafeEvent(kind, FailsafeAction.RTL, f"Failsafe: {kind.value}"))
+    assert c.mode is FlightMode.AUTO_RTL
+
+
+@pytest.mark.parametrize("source", ["gcs_rtl", "set_mode_auto_rtl", "battery", "link_loss"])
+def test_rtl_climbs_then_flies_around_the_exclusion_circle_and_lands_at_home(source: str) -> None:
     r = RoutedLoop()
     assert r.navigator.replace_mission(MissionType.FENCE, _circle_between()) == (MissionResult.ACCEPTED, "")
     fence = r.navigator.geofence
     assert fence.violates((45.0, 0.0, -10.0)) and not fence.segment_clear(FAR_NED, (0.0, 0.0, -RTL_ALT_M))
     r.take_off_and_go_far()
-    assert r.commander.handle_command(command(MavCmd.NAV_RETURN_TO_LAUNCH)) is CommandResult.ACCEPTED
+    _ask_for_a_return(r, source)
     assert r.run_until(lambda: not r.commander.armed, 120.0), r.texts[-8:]
     track = np.array(r.track)
     assert not any(fence.violates(p) for p in track), "the return entered the exclusion zone"
