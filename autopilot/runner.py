@@ -219,7 +219,7 @@ class Autopilot:
         set the target flight control flies until the next call (PX4: navigator and land detector at 50 Hz)."""
         commander = self.commander
         if commander.home is not self._last_home or self.navigator.frame is None:
-            self._track_home()
+            self._track_home(state)
         script = self.script
         if script is not None and script.next_at_us <= state.time_us:
             self._run_script(state)
@@ -261,14 +261,14 @@ class Autopilot:
             reason = f" ({self.commander.last_reason})" if result is not CommandResult.ACCEPTED else ""
             self._say(f"Script {step.cmd}: {result.name}{reason}")
 
-    def _track_home(self) -> None:
-        """Home moved (first fix, arming): the navigator's frame follows; listeners redraw what is about home."""
+    def _track_home(self, state: VehicleState) -> None:
+        """Home moved (first fix, arming): the navigator's frame follows, with the fix's GPS accuracy; views redraw."""
         home = self.commander.home
         self._last_home = home
         if home is not None:
-            frame = HomeFrame(home.geo, home.pos_ned_m)
-        elif self.estimator.origin is not None:
-            frame = HomeFrame(self.estimator.origin)  # before arming: home will be about here
+            frame = HomeFrame(home.geo, home.pos_ned_m, state.gps_eph_m, state.gps_epv_m)
+        elif self.estimator.origin is not None:  # before arming: home will be about here
+            frame = HomeFrame(self.estimator.origin, (0.0, 0.0, 0.0), state.gps_eph_m, state.gps_epv_m)
         else:
             return
         nav = self.navigator

@@ -174,8 +174,8 @@ class Navigator:
         self.frame = frame
         executor = self._executor()
         if executor is not None:
-            executor.set_home(frame.geo)
-        self.uploads.set_home(frame.geo)
+            executor.set_home(frame.geo, frame.home_tol)
+        self.uploads.set_home(frame.geo, frame.home_tol)
         self._sync_uploads()
 
     def _executor(self) -> MissionExecutor | None:
