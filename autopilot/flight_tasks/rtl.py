@@ -67,7 +67,6 @@ class RtlTask:
         self.goto_yaw = math.nan
         self.home_goal_ned_m: Vec3 = (0.0, 0.0, 0.0)  # the point above home at the return altitude
         self.await_route = False  # the RETURN phase flies the navigator's routed point (see the module docstring)
-        self._climb_ned: Vec3 = (0.0, 0.0, 0.0)
 
     def start(self, state: VehicleState, home_down_m: float, params: ParamStore) -> None:
         self.phase = RtlPhase.CLIMB
@@ -96,11 +95,10 @@ class RtlTask:
             if d - self.down_m < p("MIS_ALT_ACC_RAD"):
                 self.phase = RtlPhase.RETURN
                 self.home_goal_ned_m = (home_ned_m[0], home_ned_m[1], self.down_m)
-                self._climb_ned = (n, e, self.down_m)
                 self.goto_ned = self.home_goal_ned_m
                 self.goto_yaw = face_yaw(params, state, self.goto_ned)
                 if self.await_route:
-                    self.goto_ned, self.goto_yaw = self._climb_ned, math.nan  # until the navigator's route arrives
+                    self.goto_ned, self.goto_yaw = (n, e, self.down_m), math.nan  # until the navigator's route arrives
             else:
                 hold.pos_ned_m = (n, e, self.down_m)
                 return NavTarget(TargetKind.POSITION, hold.pos_ned_m, math.nan, *speeds)

@@ -4,7 +4,8 @@ Sim and autopilot over loopback UDP with the bundled GCS client: the vehicle wai
 of home with an exclusion circle half-way between; a GCS ``rtl`` (MAV_CMD_NAV_RETURN_TO_LAUNCH), and on another
 flight a low battery (BAT_HOVER_ENDUR lowered in flight: the pack runs down in seconds, BAT_CRIT_THR triggers
 COM_LOW_BAT_ACT 3 = return), each fly the return around the circle and land at home: no position sampled from
-telemetry inside the zone, no geofence failsafe, a "Route: ..." STATUSTEXT.
+telemetry inside the zone, no geofence failsafe (the autopilot's own check, every 0.1 s of sim time), a
+"Route: ..." STATUSTEXT.
 """
 
 from __future__ import annotations
@@ -67,9 +68,11 @@ def test_a_return_with_an_exclusion_zone_between_vehicle_and_home_flies_around_i
     assert ap["landed"] and ap["disarmed"] and sim["collisions"] == 0, (ap, sim)
     final_ned = sim["final_pos_ned_m"]
     assert isinstance(final_ned, list) and math.hypot(final_ned[0], final_ned[1]) < 1.5, final_ned  # at home
-    assert len(track) > 50 and max(p[0] for p in track) > 80.0  # sampled from the drop point home
+    # sampled from the drop point home (how densely depends on the machine's load at --speed max)
+    assert len(track) >= 10 and max(p[0] for p in track) > 80.0 and min(p[0] for p in track) < 20.0
     breaches = [p for p in track if fence.violates(p)]
     assert not breaches, breaches[:3]
+    # the autopilot checks the fence at 10 Hz of sim time (GF_ACTION 1 warns: "Failsafe: geofence breach: ...")
     assert not [t for t in texts if "geofence" in t.lower()], texts
     assert any(t.startswith("Route: ") and "around the fence" in t for t in texts), texts
     if trigger == "low_battery":
