@@ -65,6 +65,7 @@ class AutopilotConfig:
     log_dir: str | None = None
     speed_factor: float = 1.0  # only stretches GCS timeouts when < 1 (the sim owns time)
     avoidance: bool = True  # run the obstacle-avoidance planner in AUTO_MISSION (CA_ENABLE switches detours)
+    system_id: int = 1  # MAV_SYS_ID: traffic avoidance's right of way between vehicles depends on it (SPEC §13)
 
 
 class Autopilot:
@@ -93,7 +94,7 @@ class Autopilot:
             planner = AvoidancePlanner(PlannerParams.from_store(self.params))
         self.commander = Commander(self.params)
         self.commander.rtl.await_route = True  # the navigator routes every return (navigation.return_routing)
-        self.navigator = Navigator(self.params, planner, self.commander.mission_land_speed_m_s)  # type: ignore[arg-type]
+        self.navigator = Navigator(self.params, planner, self.commander.mission_land_speed_m_s, self.config.system_id)  # type: ignore[arg-type]
         self.script = script
         self.links = LinkHealth(self.config.speed_factor, wall_clock)
         self.failures = FailureInjector(self.params)  # what the estimator sees and the motors get (SYS_FAILURE_EN)
@@ -121,8 +122,7 @@ class Autopilot:
         self._truth: object | None = None  # the latest truth, for the step record (estimate vs truth)
         self._pending_control: SingleStep | None = None  # this step's cascade output, booked by after_answer
         self._motor = (0.0, 0.0, 0.0, 0.0)
-        self._next_failsafe_us = 0
-        self._next_nav_us = 0
+        self._next_failsafe_us = self._next_nav_us = 0
         autopilot_bindings(
             self.navigator, self.control, self.battery, self._apply_controller_params, self._listener_safety_radius
         ).attach(self.params)
@@ -196,7 +196,9 @@ class Autopilot:
         self._prev_time_us = t_us
         self.frames += 1
         self.frame_detections = getattr(frame, "detections", ())
+        self.navigator.traffic.receive(getattr(frame, "traffic", ()))  # TrafficReports received with this frame
         seen = self.sensor_check.apply(self.failures.apply_to_frame(frame), self.commander.in_air)
+        self.estimator.set_landed(self.commander.landed_state is LandedState.ON_GROUND)
         state = self.estimator.update(seen)
         self._pending_truth = self._truth = frame.truth
         commander = self.commander
@@ -404,9 +406,8 @@ class Autopilot:
             "wall_time_s": round(wall_time_s, 3),
             "frames": self.frames,
             "vehicle": self.airframe.name,
+            **({} if lockstep is None else {"lockstep": lockstep}),
         }
-        if lockstep is not None:
-            flight["lockstep"] = lockstep
         return report.summary(
             self.commander, self.navigator, self.battery, self.progress, self.tracking, self.truth_hash, flight
         )

@@ -158,6 +158,7 @@ def test_mavsdk_mission_raw_upload_arm_start_complete(flight: Flight) -> None:
     landed = steps["landed"]
     north_m, east_m, _ = LocalNedFrame(flight.home).ned_from_geodetic(landed["lat_deg"], landed["lon_deg"], 0.0)
     assert math.hypot(north_m, east_m) < 1.5  # RTL brought it home, in MAVSDK's own position telemetry
+    assert abs(landed["rel_alt_m"]) < 0.15  # on the ground it reads altitude 0 (the EKF's height datum, issue 22)
 
 
 def test_mavsdk_param_download_and_set(flight: Flight) -> None:
