@@ -93,6 +93,7 @@ class Autopilot:
         if planner is None and self.config.avoidance:
             planner = AvoidancePlanner(PlannerParams.from_store(self.params))
         self.commander = Commander(self.params)
+        self.commander.rtl.await_route = True  # the navigator routes every return (navigation.return_routing)
         self.navigator = Navigator(self.params, planner, self.commander.mission_land_speed_m_s, self.config.system_id)  # type: ignore[arg-type]
         self.script = script
         self.links = LinkHealth(self.config.speed_factor, wall_clock)
@@ -226,8 +227,8 @@ class Autopilot:
             self._run_script(state)
         if state.time_us >= self._next_failsafe_us:
             self._run_failsafes(state)
-        landed = commander.landed_state is LandedState.ON_GROUND
-        nav = self.navigator.update(state, commander.mode, landed, self.frame_detections)
+        on_ground, rtl_goal = commander.landed_state is LandedState.ON_GROUND, commander.rtl.return_goal_ned_m
+        nav = self.navigator.update(state, commander.mode, on_ground, self.frame_detections, rtl_goal)
         if nav.reached:
             self.progress.add(nav.reached)
         if nav.gripper_release is not None:
@@ -309,12 +310,12 @@ class Autopilot:
         self.update_context(failsafe_reasons=frozenset(kind.value for kind in self.failsafe.active))
 
     def _control(self, state: VehicleState, target: NavTarget) -> tuple[float, float, float, float]:
-        fc, commander = self.control, self.commander
+        fc, commander, nav = self.control, self.commander, self.navigator
         if target.kind is TargetKind.IDLE:
             return fc.idle(state, target, commander.armed, self._dt_s)
         fc.reference_for(state, target, self._dt_s)
-        if commander.mode is FlightMode.AUTO_MISSION and target.kind is TargetKind.POSITION:
-            override = self.navigator.avoid(state, target)
+        if target.kind is TargetKind.POSITION and (commander.mode is FlightMode.AUTO_MISSION or nav.returns.active):
+            override = nav.avoid(state, target, self.frame_detections)  # each frame's: the sensor runs at 10 Hz
             if override is not None:
                 fc.override(override)
         out = self._pending_control = fc.control(state)

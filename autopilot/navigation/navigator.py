@@ -8,7 +8,8 @@ PX4's navigator in spirit: it owns what the vehicle is asked to fly in AUTO_MISS
   :class:`AvoidancePlanner` and the route glue between them (the route handed to the planner, waypoints a
   detour bypassed or that lie inside an obstacle's safety volume skipped, the nose along the path).
 - Routes (issue 13): uploads accepted before home is known and checked once it is (:class:`UploadStore`);
-  legs routed around the fence and known obstacles (:class:`LegRouting`); bypassed items reported as such.
+  legs routed around the fence and known obstacles (:class:`LegRouting`); bypassed items reported as such;
+  the commander's AUTO_RTL leg home routed the same way (:class:`ReturnRouting`, issue 22).
 - Emits: one :class:`NavOutput` per step (the commander's mission target, items reached, gripper actions)
   and, while avoiding, a :class:`ReferenceOverride` for the setpoint generator; status texts.
 
@@ -20,7 +21,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
@@ -43,12 +44,14 @@ from autopilot.mission.validation import MissionLimits
 from autopilot.navigation.bypass import REJOINED_PAST, bypass_reason
 from autopilot.navigation.home_frame import HomeFrame
 from autopilot.navigation.leg_routing import LegRouting, RoutePlanner
+from autopilot.navigation.outputs import NOTHING as _NOTHING
+from autopilot.navigation.outputs import NavOutput, ReferenceOverride
+from autopilot.navigation.return_routing import ReturnRouting
 from autopilot.navigation.targets import face_along_path, mission_nav_target
 from autopilot.navigation.traffic_link import TrafficLink
 from autopilot.parameters.store import ParamStore
 from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import AvoidancePlanner
-from autopilot.safety.failsafe import FailsafeEvent
 from mavlink_bridge.contract.frames import Vec3
 from mavlink_bridge.contract.mav_enums import MissionState
 from mavlink_bridge.contract.vehicle_api import (
@@ -59,37 +62,12 @@ from mavlink_bridge.contract.vehicle_api import (
     Severity,
     StatusText,
 )
-from mavlink_bridge.contract.wire import ObstacleDetection, fast_frozen_init
+from mavlink_bridge.contract.wire import ObstacleDetection
 
 #: The planner gets the mission route this many CA_LOOKAHEAD_M past its target (the detour rejoins on it and
 #: checks it after the rejoin), at most this many points.
 ROUTE_AHEAD_LOOKAHEADS = 2.0
 ROUTE_MAX_POINTS = 64
-
-
-@fast_frozen_init
-@dataclass(frozen=True, slots=True)
-class NavOutput:
-    """What the navigator asks for at one step (targets about the estimator origin)."""
-
-    mission_target: NavTarget | None  # None: the mission flies nothing now (or the mode is not AUTO_MISSION)
-    reached: tuple[int, ...] = ()  # items reached at this step
-    gripper_release: bool | None = None  # a DO_GRIPPER action at this step: True release, False grab
-    bypassed: tuple[int, ...] = ()  # items flown around (a detour rejoined past them), never reached
-    failsafe: FailsafeEvent | None = None  # no route for CA_NOROUTE_T: CA_NOROUTE_ACT (once)
-
-
-@fast_frozen_init
-@dataclass(frozen=True, slots=True)
-class ReferenceOverride:
-    """The avoidance planner's reference for this step (about the estimator origin), replacing the route's."""
-
-    pos_ned_m: Vec3
-    vel_ned_m_s: Vec3
-    acc_ned_m_s2: Vec3
-
-
-_NOTHING = NavOutput(None)
 
 
 class Navigator:
@@ -110,6 +88,7 @@ class Navigator:
         self.uploads = UploadStore()
         self.geofence = Geofence()  # the uploaded FENCE about home (empty until home is known)
         self.routing = LegRouting(PlannerParams.from_store(params))
+        self.returns = ReturnRouting(self.routing)
         self.executor: MissionExecutor | None = None
         self.bypassed_seqs: list[int] = []
         self.frame: HomeFrame | None = None  # home about the origin (before arming: the origin itself)
@@ -242,6 +221,7 @@ class Navigator:
         """Entering AUTO_MISSION starts (or resumes) the mission; leaving it pauses the mission."""
         executor = self.executor
         self.routing.reset()
+        self.returns.reset()
         if executor is None:
             return
         if mode is FlightMode.AUTO_MISSION and executor.state is not MissionState.ACTIVE:
@@ -261,17 +241,33 @@ class Navigator:
 
     # ------------------------------------------------------------------ the step
     def update(
-        self, state: VehicleState, mode: FlightMode, landed: bool, detections: Sequence[ObstacleDetection]
+        self,
+        state: VehicleState,
+        mode: FlightMode,
+        landed: bool,
+        detections: Sequence[ObstacleDetection],
+        return_goal_ned_m: Vec3 | None = None,
     ) -> NavOutput:
-        """The mission's target at this step (AUTO_MISSION only), then traffic avoidance (its failsafe rides along)."""
-        return self.traffic.step(self, state, mode, landed, self._mission_update(state, mode, landed, detections))
+        """The mission's target at this step (AUTO_MISSION; in AUTO_RTL the routed point toward ``return_goal_ned_m``,
+        the commander's point above home about the origin), then traffic avoidance (its failsafe rides along)."""
+        out = self._mission_update(state, mode, landed, detections, return_goal_ned_m)
+        return self.traffic.step(self, state, mode, landed, out)
 
     def _mission_update(
-        self, state: VehicleState, mode: FlightMode, landed: bool, detections: Sequence[ObstacleDetection]
+        self,
+        state: VehicleState,
+        mode: FlightMode,
+        landed: bool,
+        detections: Sequence[ObstacleDetection],
+        return_goal_ned_m: Vec3 | None,
     ) -> NavOutput:
-        """The mission's target at this step (AUTO_MISSION only), with skips past obstacles' safety volumes."""
+        """The mission's target at this step (AUTO_MISSION), with skips past obstacles' safety volumes; in AUTO_RTL
+        the routed point toward ``return_goal_ned_m`` (the commander's point above home, about the origin)."""
         executor, frame = self.executor, self.frame
         self._detections = detections
+        if mode is FlightMode.AUTO_RTL and frame is not None:
+            nav_target, failsafe = self.returns.target(state, frame, return_goal_ned_m, self.planner_output, self._say)
+            return NavOutput(nav_target, failsafe=failsafe) if nav_target is not None else _NOTHING
         if executor is None or frame is None or mode is not FlightMode.AUTO_MISSION:
             return _NOTHING
         pos = frame.home_from_origin(state.pos_ned_m)
@@ -326,17 +322,18 @@ class Navigator:
         """The planned leg around the fence (and known obstacles) about home, (n, 3), for drawing; None if none."""
         return self.routing.path_home_ned_m
 
-    def avoid(self, state: VehicleState, target: NavTarget) -> ReferenceOverride | None:
-        """Let the avoidance planner override the reference (AUTO_MISSION, POSITION target).
-
-        The planner gets the route from the target on (``route_after_target``); items a detour passed
-        (``rejoin_route_index``: unreachable ones) are skipped in the executor, reported bypassed with the reason.
-        """
+    def avoid(
+        self, state: VehicleState, target: NavTarget, detections: Sequence[ObstacleDetection] | None = None
+    ) -> ReferenceOverride | None:
+        """Let the avoidance planner override the reference (a POSITION target of AUTO_MISSION or an RTL's return)
+        with this frame's ``detections`` (None: the latest :meth:`update`'s). The planner gets the route from the
+        target on (``route_after_target``); items a detour passed (``rejoin_route_index``: unreachable ones) are
+        skipped in the executor, reported bypassed with the reason."""
         planner, frame = self.planner, self.frame
         traffic = self.traffic.override(state.time_us, ReferenceOverride)  # wins over an obstacle detour
         if planner is None or frame is None:
             return traffic
-        detections = self._detections
+        detections = self._detections if detections is None else detections
         idle_output = getattr(planner, "idle_output", None)
         if idle_output is not None:  # nothing to avoid: the output update() would give, without the route
             idle = idle_output(state.time_us, detections)
