@@ -207,6 +207,8 @@ def commands(args: argparse.Namespace) -> tuple[list[str], list[str]]:
         ap += ["--params", args.params]
     if args.script:
         ap += ["--script", args.script]
+    if args.world and args.world.endswith((".yaml", ".yml")):  # the world's failures: the autopilot injects them
+        ap += ["--world-failures", args.world]
     if args.log_dir:
         sim += ["--log-dir", args.log_dir]
         ap += ["--log-dir", args.log_dir]

@@ -2,8 +2,8 @@
 
 Every frame (250 Hz): [failures] -> [stale-data check] -> estimator -> setpoints -> [avoidance] -> cascade ->
 [motor failures] -> ActuatorCommand. At 50 Hz and after any command: failsafes (10 Hz), navigator, commander.
-The answer goes out *before* the bookkeeping (``after_answer``), while the sim integrates; docs/architecture.md:
-what each module owns, reads and emits. ``frame_traffic``: the traffic reports of this frame (SPEC §13).
+The answer goes out *before* the bookkeeping (:meth:`Autopilot.after_answer`), while the simulator integrates.
+The runner only composes and steps the modules; ``docs/architecture.md`` says what each owns, reads and emits.
 """
 
 from __future__ import annotations
@@ -36,7 +36,6 @@ from autopilot.safety.link_health import LinkHealth
 from autopilot.safety.sensor_validation import StaleSensorCheck
 from mavlink_bridge.contract.frames import GeoPoint, Vec3
 from mavlink_bridge.contract.mav_enums import MavCmd
-from mavlink_bridge.contract.traffic import TrafficReport
 from mavlink_bridge.contract.vehicle_api import (
     CommandRequest,
     CommandResult,
@@ -66,6 +65,7 @@ class AutopilotConfig:
     log_dir: str | None = None
     speed_factor: float = 1.0  # only stretches GCS timeouts when < 1 (the sim owns time)
     avoidance: bool = True  # run the obstacle-avoidance planner in AUTO_MISSION (CA_ENABLE switches detours)
+    system_id: int = 1  # MAV_SYS_ID: traffic avoidance's right of way between vehicles depends on it (SPEC §13)
 
 
 class Autopilot:
@@ -93,7 +93,7 @@ class Autopilot:
         if planner is None and self.config.avoidance:
             planner = AvoidancePlanner(PlannerParams.from_store(self.params))
         self.commander = Commander(self.params)
-        self.navigator = Navigator(self.params, planner, self.commander.mission_land_speed_m_s)  # type: ignore[arg-type]
+        self.navigator = Navigator(self.params, planner, self.commander.mission_land_speed_m_s, self.config.system_id)  # type: ignore[arg-type]
         self.script = script
         self.links = LinkHealth(self.config.speed_factor, wall_clock)
         self.failures = FailureInjector(self.params)  # what the estimator sees and the motors get (SYS_FAILURE_EN)
@@ -110,7 +110,6 @@ class Autopilot:
         self.frames = 0
         self.end_reason: AutopilotEndReason | None = None
         self.frame_detections: tuple[ObstacleDetection, ...] = ()
-        self.frame_traffic: tuple[TrafficReport, ...] = ()
         self._texts: list[StatusText] = []
         self._context = CommandContext()
         self._prev_time_us: int | None = None
@@ -122,8 +121,7 @@ class Autopilot:
         self._truth: object | None = None  # the latest truth, for the step record (estimate vs truth)
         self._pending_control: SingleStep | None = None  # this step's cascade output, booked by after_answer
         self._motor = (0.0, 0.0, 0.0, 0.0)
-        self._next_failsafe_us = 0
-        self._next_nav_us = 0
+        self._next_failsafe_us = self._next_nav_us = 0
         autopilot_bindings(
             self.navigator, self.control, self.battery, self._apply_controller_params, self._listener_safety_radius
         ).attach(self.params)
@@ -196,8 +194,10 @@ class Autopilot:
             self._dt_s = (t_us - self._prev_time_us) * 1e-6
         self._prev_time_us = t_us
         self.frames += 1
-        self.frame_detections, self.frame_traffic = getattr(frame, "detections", ()), getattr(frame, "traffic", ())
+        self.frame_detections = getattr(frame, "detections", ())
+        self.navigator.traffic.receive(getattr(frame, "traffic", ()))  # TrafficReports received with this frame
         seen = self.sensor_check.apply(self.failures.apply_to_frame(frame), self.commander.in_air)
+        self.estimator.set_landed(self.commander.landed_state is LandedState.ON_GROUND)
         state = self.estimator.update(seen)
         self._pending_truth = self._truth = frame.truth
         commander = self.commander
@@ -220,7 +220,7 @@ class Autopilot:
         set the target flight control flies until the next call (PX4: navigator and land detector at 50 Hz)."""
         commander = self.commander
         if commander.home is not self._last_home or self.navigator.frame is None:
-            self._track_home()
+            self._track_home(state)
         script = self.script
         if script is not None and script.next_at_us <= state.time_us:
             self._run_script(state)
@@ -262,14 +262,14 @@ class Autopilot:
             reason = f" ({self.commander.last_reason})" if result is not CommandResult.ACCEPTED else ""
             self._say(f"Script {step.cmd}: {result.name}{reason}")
 
-    def _track_home(self) -> None:
-        """Home moved (first fix, arming): the navigator's frame follows; listeners redraw what is about home."""
+    def _track_home(self, state: VehicleState) -> None:
+        """Home moved (first fix, arming): the navigator's frame follows, with the fix's GPS accuracy; views redraw."""
         home = self.commander.home
         self._last_home = home
         if home is not None:
-            frame = HomeFrame(home.geo, home.pos_ned_m)
-        elif self.estimator.origin is not None:
-            frame = HomeFrame(self.estimator.origin)  # before arming: home will be about here
+            frame = HomeFrame(home.geo, home.pos_ned_m, state.gps_eph_m, state.gps_epv_m)
+        elif self.estimator.origin is not None:  # before arming: home will be about here
+            frame = HomeFrame(self.estimator.origin, (0.0, 0.0, 0.0), state.gps_eph_m, state.gps_epv_m)
         else:
             return
         nav = self.navigator

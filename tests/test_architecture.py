@@ -69,9 +69,13 @@ ALLOWED_IMPORTS: dict[str, frozenset[str]] = {
             "autopilot.estimation", "autopilot.flight_tasks", "autopilot.parameters", "autopilot.safety",
             "mavlink_bridge.contract",
         ),
+        "autopilot.traffic": (
+            "autopilot.parameters", "autopilot.planner", "autopilot.safety", "mavlink_bridge.contract",
+        ),
         "autopilot.navigation": (
             "autopilot.estimation", "autopilot.flight_tasks", "autopilot.geofence", "autopilot.mission",
-            "autopilot.parameters", "autopilot.planner", "autopilot.safety", "mavlink_bridge.contract",
+            "autopilot.parameters", "autopilot.planner", "autopilot.safety", "autopilot.traffic",
+            "mavlink_bridge.contract",
         ),
         "autopilot.flight_control": (
             "autopilot.control", "autopilot.estimation", "autopilot.flight_tasks", "autopilot.navigation",
@@ -88,7 +92,7 @@ ALLOWED_IMPORTS: dict[str, frozenset[str]] = {
         "autopilot": (
             "autopilot.commander", "autopilot.control", "autopilot.estimation", "autopilot.flight_control",
             "autopilot.flight_tasks", "autopilot.mission", "autopilot.navigation", "autopilot.parameters",
-            "autopilot.planner", "autopilot.reporting", "autopilot.safety", "autopilot.telemetry",
+            "autopilot.planner", "autopilot.reporting", "autopilot.safety", "autopilot.telemetry", "autopilot.traffic",
             "mavlink_bridge.contract", "mavlink_bridge.gcs_server", "mavlink_bridge.lockstep", "mavlink_bridge.wire",
         ),
     }.items()

@@ -163,6 +163,8 @@ def sitl_run(
         vehicle = load_mission_file(world).vehicle
     ports = Ports.free()
     extra = ["--estimator", estimator, *autopilot_args]  # a later --estimator in autopilot_args wins
+    if world is not None and world.suffix in (".yaml", ".yml"):  # its failures: are injected by the autopilot
+        extra += ["--world-failures", str(world)]
     api_port = None
     if api:
         api_in, api_port = free_udp_port(), free_udp_port()

@@ -18,6 +18,9 @@ types are FAILURE_UNIT / FAILURE_TYPE names without their prefix (``gps``, ``bar
 
     - {at_s: 30, cmd: inject_failure, unit: gps, type: off}
     - {at_s: 32, cmd: inject_failure, unit: motor, type: off, instance: 2}
+
+A mission's or world's ``world: failures:`` (``--world-failures FILE``; :mod:`mavlink_bridge.contract.failure_schedule`)
+become the same ``inject_failure`` steps (:func:`failure_steps`), merged with the script by time.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from mavlink_bridge.contract.failure_schedule import FailureScheduleError, ScheduledFailure, mission_failures
 from mavlink_bridge.contract.mav_enums import FailureType, FailureUnit, MavCmd
 from mavlink_bridge.contract.source_lines import YamlSource, YamlSyntaxError, did_you_mean, read_yaml
 from mavlink_bridge.contract.vehicle_api import CommandRequest
@@ -153,6 +157,35 @@ def load_script(path: str | Path) -> list[ScriptStep]:
     except YamlSyntaxError as exc:
         raise ScriptError(str(exc)) from None
     return parse_script(source.data, str(path), source)
+
+
+def failure_steps(failures: Sequence[ScheduledFailure]) -> list[ScriptStep]:
+    """The ``inject_failure`` steps of scheduled failures (the world file's ``failures:``)."""
+    return [
+        ScriptStep(round(f.at_s * 1e6), "inject_failure", (float(f.unit), float(f.kind), float(f.instance)))
+        for f in failures
+    ]
+
+
+def load_world_failures(path: str | Path) -> list[ScriptStep]:
+    """The ``world: failures:`` of a mission or bare world file as script steps (ScriptError FILE:LINE)."""
+    try:
+        source = read_yaml(path)
+    except OSError as exc:
+        raise ScriptError(
+            f"{path}: cannot read: {exc.strerror}; fix: check the path given to --world-failures"
+        ) from None
+    except YamlSyntaxError as exc:
+        raise ScriptError(str(exc)) from None
+    try:
+        return failure_steps(mission_failures(source.data))
+    except FailureScheduleError as exc:
+        raise ScriptError(f"{source.where(*exc.node)}: {exc}") from None
+
+
+def merged(*step_lists: Sequence[ScriptStep]) -> list[ScriptStep]:
+    """Steps of several sources in time order (stable: a script's step before a failure at the same time)."""
+    return sorted((step for steps in step_lists for step in steps), key=lambda s: s.at_us)
 
 
 class CommandScript:

@@ -59,6 +59,9 @@ class TruthEstimator:
     def local_frame(self) -> LocalNedFrame | None:
         return self._frame
 
+    def set_landed(self, landed: bool) -> None:
+        """The truth needs no help on the ground."""
+
     def update(self, frame: FrameLike) -> VehicleState | None:
         if frame.gps is not None:
             self._gps = frame.gps

@@ -43,6 +43,7 @@ from autopilot.mission.validation import MissionLimits
 from autopilot.navigation.home_frame import HomeFrame
 from autopilot.navigation.leg_routing import LegRouting, RoutePlanner
 from autopilot.navigation.targets import face_along_path, mission_nav_target
+from autopilot.navigation.traffic_link import TrafficLink
 from autopilot.parameters.store import ParamStore
 from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import AvoidancePlanner
@@ -98,9 +99,11 @@ class Navigator:
         params: ParamStore,
         planner: RoutePlanner | None = None,
         land_speed_m_s: Callable[[], float] | None = None,
+        system_id: int = 1,
     ) -> None:
         self.params = params
         self.planner = planner
+        self.traffic = TrafficLink(params, system_id, lambda text: self._texts.append(text))  # SPEC §13
         #: The commander's descent speed for a mission LAND now (it changes at MPC_LAND_ALT2).
         self.land_speed_m_s = land_speed_m_s or (lambda: params.get("MPC_LAND_SPEED"))
         self.uploads = UploadStore()
@@ -171,8 +174,8 @@ class Navigator:
         self.frame = frame
         executor = self._executor()
         if executor is not None:
-            executor.set_home(frame.geo)
-        self.uploads.set_home(frame.geo)
+            executor.set_home(frame.geo, frame.home_tol)
+        self.uploads.set_home(frame.geo, frame.home_tol)
         self._sync_uploads()
 
     def _executor(self) -> MissionExecutor | None:
@@ -257,11 +260,13 @@ class Navigator:
 
     # ------------------------------------------------------------------ the step
     def update(
-        self,
-        state: VehicleState,
-        mode: FlightMode,
-        landed: bool,
-        detections: Sequence[ObstacleDetection],
+        self, state: VehicleState, mode: FlightMode, landed: bool, detections: Sequence[ObstacleDetection]
+    ) -> NavOutput:
+        """The mission's target at this step (AUTO_MISSION only), then traffic avoidance (its failsafe rides along)."""
+        return self.traffic.step(self, state, mode, landed, self._mission_update(state, mode, landed, detections))
+
+    def _mission_update(
+        self, state: VehicleState, mode: FlightMode, landed: bool, detections: Sequence[ObstacleDetection]
     ) -> NavOutput:
         """The mission's target at this step (AUTO_MISSION only), with skips past obstacles' safety volumes."""
         executor, frame = self.executor, self.frame
@@ -328,28 +333,21 @@ class Navigator:
         executor (reported reached, DO items still run).
         """
         planner, frame = self.planner, self.frame
+        traffic = self.traffic.override(state.time_us, ReferenceOverride)  # wins over an obstacle detour
         if planner is None or frame is None:
-            return None
+            return traffic
         detections = self._detections
         idle_output = getattr(planner, "idle_output", None)
         if idle_output is not None:  # nothing to avoid: the output update() would give, without the route
             idle = idle_output(state.time_us, detections)
             if idle is not None:
                 self.planner_output = idle
-                return None
+                return traffic
         pos = frame.home_from_origin(state.pos_ned_m)
         goal = frame.home_from_origin(target.pos_ned_m)
         route = self._mission_route()
-        nxt: Sequence[float] | np.ndarray | None = None
         routed = self.routing.active
-        if routed:  # the via points, the target, the later legs around the fence
-            nxt = self.routing.ahead()
-        elif route is not None:
-            nxt = route.pos_ned_m[1:] if len(route.seqs) > 1 else None
-        else:
-            out = self._last_output
-            if out is not None and out.target is not None and out.target.next_pos_ned_m is not None:
-                nxt = out.target.next_pos_ned_m
+        nxt = self.route_after_target()
         result = planner.update(state.time_us, pos, state.vel_ned_m_s, state.q_ned_frd, detections, goal, nxt)
         self.planner_output = result
         k = int(getattr(result, "rejoin_route_index", 0))
@@ -364,8 +362,8 @@ class Navigator:
         for decision in getattr(result, "decisions", ()):
             self._say(str(decision.text), Severity.NOTICE)
         setpoint = getattr(result, "setpoint", None)
-        if setpoint is None:
-            return None
+        if setpoint is None or traffic is not None:
+            return traffic
         p, v, a = setpoint.pos_ned_m, setpoint.vel_ned_m_s, setpoint.acc_ned_m_s2
         return ReferenceOverride(
             frame.origin_from_home((float(p[0]), float(p[1]), float(p[2]))),
@@ -374,6 +372,16 @@ class Navigator:
         )
 
     # ------------------------------------------------------------------ route glue
+    def route_after_target(self) -> object:
+        """After the flown target, about home (the planner's ``next``): routed legs, the route, the next waypoint."""
+        if self.routing.active:
+            return self.routing.ahead()
+        route = self._mission_route()
+        if route is not None:
+            return route.pos_ned_m[1:] if len(route.seqs) > 1 else None
+        out = self._last_output
+        return out.target.next_pos_ned_m if out is not None and out.target is not None else None
+
     def _mission_route(self) -> MissionRoute | None:
         """The executor's route when the flown target is its current positional item (None otherwise)."""
         executor, out = self.executor, self._last_output

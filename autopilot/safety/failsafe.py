@@ -55,6 +55,7 @@ class FailsafeKind(Enum):
     BARO_LOSS = "baro lost"
     MAG_LOSS = "mag lost"
     NO_ROUTE = "no route"  # the navigator found no route to the mission target for CA_NOROUTE_T (CA_NOROUTE_ACT)
+    TRAFFIC = "traffic conflict"  # NAV_TRAFF_AVOID 2/3/4 (autopilot.traffic)
 
 
 @dataclass(frozen=True, slots=True)

@@ -1,15 +1,17 @@
-"""Stale-data check on the IMU, magnetometer and barometer, PX4's ``DataValidator`` way (SPEC §5b).
+"""Stale-data check on the IMU, magnetometer, barometer and GPS, PX4's ``DataValidator`` way (SPEC §5b).
 
 A real sensor's reading is never bit-identical for long: noise moves its last digits. A reading that stays
 exactly the same for :data:`STALE_AFTER_US` is a stuck sensor (a frozen driver, a dead bus; or
 MAV_CMD_INJECT_FAILURE ... STUCK). :class:`StaleSensorCheck` sits between the frame and the estimator: a stale
 magnetometer or barometer is dropped (NaN: "no sample", the estimator falls back to GPS height or gyro heading
-and its status says so); a stale gyro or accelerometer is reported only (the IMU clocks the prediction and has
-no fallback here). A sensor becomes stale only in the air (its clock restarts at takeoff): on the ground a
-resting vehicle in a noise-free sim (``--no-sensor-noise``) reads exactly the same, and that is not a failure
-(a noise-free sim can still trip it in a perfectly steady hover: real sensors, and the sim's default, are
-never noise-free); a stale sensor stays stale, on the ground too, until its readings change. Every transition
-is a STATUSTEXT. While no mag or baro is stale the frame goes through unchanged (no allocation).
+and its status says so); a stale GPS (position and velocity of every fix the same: a frozen receiver) is dropped
+too (no fix: the estimator dead-reckons and the GPS-loss failsafe takes over); a stale gyro or accelerometer is
+reported only (the IMU clocks the prediction and has no fallback here). A sensor becomes stale only in the
+air (its clock restarts at takeoff): on the ground a resting vehicle in a noise-free sim (``--no-sensor-noise``)
+reads exactly the same, and that is not a failure (a noise-free sim can still trip it in a perfectly steady
+hover: real sensors, and the sim's default, are never noise-free); a stale sensor stays stale, on the ground
+too, until its readings change. Every transition is a STATUSTEXT. While nothing is stale the frame goes through
+unchanged (no allocation).
 """
 
 from __future__ import annotations
@@ -24,9 +26,9 @@ from mavlink_bridge.contract.wire import SensorSample
 
 #: A reading unchanged this long (sim µs) is stale (PX4: 100 equal samples, ~0.5 s at its baro rates).
 STALE_AFTER_US = 500_000
-GYRO, ACCEL, MAG, BARO = 0, 1, 2, 3
-_NAMES = ("Gyro", "Accel", "Mag", "Baro")
-_DROPPED = ("", "", "dropped: heading from the gyro", "dropped: height from GPS")
+GYRO, ACCEL, MAG, BARO, GPS = 0, 1, 2, 3, 4
+_NAMES = ("Gyro", "Accel", "Mag", "Baro", "GPS")
+_DROPPED = ("", "", "dropped: heading from the gyro", "dropped: height from GPS", "dropped: dead reckoning")
 _NAN3 = (math.nan, math.nan, math.nan)
 _NO_TEXTS: tuple[StatusText, ...] = ()
 
@@ -35,9 +37,9 @@ class StaleSensorCheck:
     """Per sensor: the last reading, since when it is unchanged, whether it is stale (see the module docstring)."""
 
     def __init__(self) -> None:
-        self._last: list[object] = [None, None, None, None]
-        self._since_us = [0, 0, 0, 0]
-        self.stale = [False, False, False, False]
+        self._last: list[object] = [None, None, None, None, None]
+        self._since_us = [0, 0, 0, 0, 0]
+        self.stale = [False, False, False, False, False]
         self._any_stale = False
         self._in_air = False
         self._texts: list[StatusText] = []
@@ -73,13 +75,17 @@ class StaleSensorCheck:
         s = frame.sensor
         t = s.time_us
         if in_air and not self._in_air:  # takeoff: every clock restarts (resting readings may be exact repeats)
-            self._since_us[GYRO] = self._since_us[ACCEL] = self._since_us[MAG] = self._since_us[BARO] = t
+            self._since_us[:] = [t] * len(self._since_us)
         self._in_air = in_air
         if not (in_air or self._any_stale):
             return frame
+        fix = frame.gps
+        if fix is not None:  # at the receiver's rate: the fix's position and velocity
+            self._check(GPS, (fix.lat_deg, fix.lon_deg, fix.alt_amsl_m, fix.vel_ned_m_s), True, t, in_air)
         g, a, m, p = s.gyro_frd_rad_s, s.accel_frd_m_s2, s.mag_frd_gauss, s.pressure_alt_m
         last = self._last
-        if not self._any_stale and g != last[GYRO] and a != last[ACCEL] and m != last[MAG] and p != last[BARO]:
+        moved = g != last[GYRO] and a != last[ACCEL] and m != last[MAG] and p != last[BARO]
+        if not self._any_stale and moved:
             last[GYRO], last[ACCEL], last[MAG], last[BARO] = g, a, m, p  # the usual step: every reading moved
             since = self._since_us
             since[GYRO] = since[ACCEL] = since[MAG] = since[BARO] = t
@@ -89,9 +95,12 @@ class StaleSensorCheck:
         self._check(MAG, m, math.isfinite(m[0] + m[1] + m[2]), t, in_air)
         self._check(BARO, p, math.isfinite(p), t, in_air)
         stale = self.stale
-        if not (stale[MAG] or stale[BARO]):
+        if not (stale[MAG] or stale[BARO] or stale[GPS]):
             return frame
-        mag = _NAN3 if stale[MAG] else m
-        pressure_hpa, pressure_alt_m = (math.nan, math.nan) if stale[BARO] else (s.abs_pressure_hpa, p)
-        sensor = SensorSample(t, a, g, mag, pressure_hpa, pressure_alt_m, s.temperature_degc)
-        return InjectedFrame(sensor, frame.gps, frame.truth, getattr(frame, "detections", ()))
+        sensor = s
+        if stale[MAG] or stale[BARO]:
+            mag = _NAN3 if stale[MAG] else m
+            pressure_hpa, pressure_alt_m = (math.nan, math.nan) if stale[BARO] else (s.abs_pressure_hpa, p)
+            sensor = SensorSample(t, a, g, mag, pressure_hpa, pressure_alt_m, s.temperature_degc)
+        fix = None if stale[GPS] else frame.gps
+        return InjectedFrame(sensor, fix, frame.truth, getattr(frame, "detections", ()))

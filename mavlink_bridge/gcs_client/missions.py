@@ -1,4 +1,10 @@
-"""The ground station's mission protocol: upload, download, clear and set-current, with retries."""
+"""The ground station's mission protocol: upload, download, clear and set-current, with retries.
+
+MAVLink transfers carry no transfer id, so over a link that duplicates and reorders a MISSION_ACK may belong to an
+earlier transfer. An ACCEPTED ACK ends an upload only after its last item was sent; an error ACK ends a transfer
+only when the vehicle repeats it for the message sent again (a stray copy is followed by the awaited answer). An
+upload the vehicle no longer knows (ERROR: it timed out or never saw the count) is restarted from MISSION_COUNT.
+"""
 
 from __future__ import annotations
 
@@ -9,6 +15,9 @@ from mavlink_bridge.contract.vehicle_api import MissionItem, MissionResult, Miss
 from mavlink_bridge.gcs_client.errors import MissionDownloadError, MissionUploadError
 from mavlink_bridge.gcs_client.session import GcsSession, Msg
 from mavlink_bridge.wire.mission_items import MissionItemEncodeError, item_from_msg, send_item, xy_to_int
+
+#: Uploads started again from MISSION_COUNT after the vehicle answered ERROR twice (it has no transfer of ours).
+UPLOAD_RESTARTS = 2
 
 
 class GcsMissions(GcsSession):
@@ -37,13 +46,14 @@ class GcsMissions(GcsSession):
         resend: Callable[[], None] = send_count
         resend()
         sent_last = count == 0
-        retries = 0
+        retries = restarts = 0
+        doubted: MissionResult | None = None  # an error ACK to confirm: the last message was sent again
         max_retries = max(1, round(self.timeout_s / self.retry_s))
         while True:
             msg = self._wait(
                 self._mission_reply_matcher(mtype, ("MISSION_REQUEST_INT", "MISSION_REQUEST")), self.retry_s
             )
-            if msg is None:
+            if msg is None and doubted is None:
                 retries += 1
                 if retries > max_retries:
                     self.mav.mission_ack_send(ts, tc, int(MissionResult.OPERATION_CANCELLED), mtype)
@@ -51,13 +61,25 @@ class GcsMissions(GcsSession):
                 resend()
                 continue
             retries = 0
-            if msg.get_type() == "MISSION_ACK":
-                result = _mission_result(msg.type)
-                if result is MissionResult.ACCEPTED:
-                    if sent_last:
-                        return
-                    continue  # a stale ACK of an earlier transfer
+            if msg is not None and msg.get_type() == "MISSION_ACK" and msg.type == int(MissionResult.ACCEPTED):
+                if sent_last:
+                    return
+                continue  # a stale ACK of an earlier transfer
+            if msg is None or msg.get_type() == "MISSION_ACK":
+                result = _mission_result(msg.type) if msg is not None else doubted
+                assert result is not None
+                if doubted is None:  # maybe a stray copy of an earlier transfer's ACK: ask again
+                    doubted = result
+                    resend()
+                    continue
+                # confirmed: repeated, or no request came back for the message sent again (PX4 stays silent)
+                if result is MissionResult.ERROR and restarts < UPLOAD_RESTARTS:
+                    restarts += 1  # the vehicle has no upload of ours (it timed out): start again
+                    doubted, sent_last, resend = None, count == 0, send_count
+                    resend()
+                    continue
                 raise MissionUploadError(result, self._reason(serial, result.name))
+            doubted = None
             seq = int(msg.seq)
             if not 0 <= seq < count:
                 continue
@@ -81,25 +103,33 @@ class GcsMissions(GcsSession):
             return None
 
         reply = self._exchange(lambda: self.mav.mission_request_list_send(ts, tc, mtype), is_count, "MISSION_COUNT")
-        items: list[MissionItem] = []
-        for seq in range(int(reply.count)):
-
-            def is_item(msg: Msg, seq: int = seq) -> Msg | None:
-                kind = msg.get_type()
-                if kind == "MISSION_ACK" and int(getattr(msg, "mission_type", 0)) == mtype:
-                    if msg.type == int(MissionResult.ACCEPTED):
-                        return None  # a late or duplicated ACK of an earlier upload: not about this download
-                    raise MissionDownloadError(f"download refused at item {seq}: {_mission_result(msg.type).name}")
-                if kind == "MISSION_ITEM_INT" and int(msg.seq) == seq and int(msg.mission_type) == mtype:
-                    return msg
-                return None
-
-            msg = self._exchange(
-                lambda seq=seq: self.mav.mission_request_int_send(ts, tc, seq, mtype), is_item, f"mission item {seq}"
-            )
-            items.append(item_from_msg(msg))
+        items = [self._download_item(seq, mtype) for seq in range(int(reply.count))]
         self.mav.mission_ack_send(ts, tc, int(MissionResult.ACCEPTED), mtype)
         return items
+
+    def _download_item(self, seq: int, mtype: int) -> MissionItem:
+        """Item ``seq``; an error ACK is believed (MissionDownloadError) when the vehicle repeats it for the item
+        asked again; an ACCEPTED ACK is a late copy of an earlier upload's and is not about this download."""
+        ts, tc = self.target_system, self.target_component
+
+        def is_item(msg: Msg) -> Msg | None:
+            kind = msg.get_type()
+            if kind == "MISSION_ACK" and int(getattr(msg, "mission_type", 0)) == mtype:
+                return msg if msg.type != int(MissionResult.ACCEPTED) else None
+            if kind == "MISSION_ITEM_INT" and int(msg.seq) == seq and int(msg.mission_type) == mtype:
+                return msg
+            return None
+
+        doubted = False
+        while True:
+            msg = self._exchange(
+                lambda: self.mav.mission_request_int_send(ts, tc, seq, mtype), is_item, f"mission item {seq}"
+            )
+            if msg.get_type() != "MISSION_ACK":
+                return item_from_msg(msg)
+            if doubted:
+                raise MissionDownloadError(f"download refused at item {seq}: {_mission_result(msg.type).name}")
+            doubted = True
 
     def clear_mission(self, mission_type: MissionType = MissionType.MISSION) -> None:
         """MISSION_CLEAR_ALL; MissionUploadError if the vehicle refuses."""

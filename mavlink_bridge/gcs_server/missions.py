@@ -7,6 +7,11 @@ MISSION_REQUEST is used) -> MISSION_ACK. The vehicle sees only complete lists:
 refused, cancelled or timed-out upload leaves the previous mission in force and says why
 in a STATUSTEXT. Download: MISSION_REQUEST_LIST -> MISSION_COUNT -> MISSION_REQUEST(_INT)
 -> items -> MISSION_ACK. Also MISSION_CLEAR_ALL and MISSION_SET_CURRENT.
+
+A link may duplicate and reorder (issue 22): only a MISSION_ACK(OPERATION_CANCELLED) from the uploading GCS
+cancels an upload (a late copy of a download's ACK does not); a late copy of an item of the upload that just ended
+is ignored (its last item is answered with that upload's ACK again, the GCS may have missed it); any other item
+outside a transfer is answered with MISSION_ACK(ERROR) so the GCS restarts instead of resending it unanswered.
 Time is the wall clock (the GCS is a real-time peer); ``TransferTimeouts.scaled`` stretches it.
 """
 
@@ -114,7 +119,7 @@ class MissionProtocol:
         self.current_seq = 0  # set by the server from each telemetry snapshot
         self.stats = MissionProtocolStats()
         self._upload: _Upload | None = None
-        self._finished: _FinishedUpload | None = None
+        self._finished: dict[MissionType, _FinishedUpload] = {}  # the last installed upload of each type
         self._download: dict[MissionType, list[MissionItem]] = {}
 
     @property
@@ -171,6 +176,7 @@ class MissionProtocol:
             self._statustext(Severity.WARNING, "mission upload refused: another transfer is in progress")
             return
         self._upload = None
+        self._finished.pop(mission_type, None)
         if count > self.max_items:
             self.stats.uploads_refused += 1
             self._statustext(Severity.WARNING, f"mission upload refused: {count} items > limit {self.max_items}")
@@ -188,9 +194,7 @@ class MissionProtocol:
         seq = int(msg.seq)
         up = self._upload
         if up is None or up.partner != partner or up.mission_type != mission_type:
-            done = self._finished
-            if done is not None and (done.partner, done.mission_type, done.count - 1) == (partner, mission_type, seq):
-                self._ack(partner, done.result, done.mission_type)  # the GCS missed our ACK and resent the last item
+            self._on_item_outside_transfer(partner, mission_type, seq, int(getattr(msg, "mission_type", 0)))
             return
         if msg.get_type() == "MISSION_ITEM":
             up.use_int = False  # a float-item client (MAVProxy) gets MISSION_REQUEST from now on
@@ -205,6 +209,19 @@ class MissionProtocol:
         else:
             self._request(up, wall_time_s)
 
+    def _on_item_outside_transfer(
+        self, partner: tuple[int, int], mission_type: MissionType | None, seq: int, raw_type: int
+    ) -> None:
+        """A late copy of an item of the upload that just ended is ignored (the last one re-ACKed: the GCS resends
+        it when our ACK was lost); any other item gets MISSION_ACK(ERROR) so the GCS starts its upload again."""
+        done = self._finished.get(mission_type) if mission_type is not None else None
+        if done is not None and done.partner == partner and 0 <= seq < done.count:
+            if seq == done.count - 1:
+                self._ack(partner, done.result, done.mission_type)
+            return
+        self._statustext(Severity.WARNING, f"mission item {seq} ignored: no upload in progress")
+        self._ack(partner, MissionResult.ERROR, raw_type)
+
     def _install(self, partner: tuple[int, int], mission_type: MissionType, items: list[MissionItem]) -> None:
         result, reason = self._vehicle.replace_mission(mission_type, items)
         if result is MissionResult.ACCEPTED:
@@ -213,7 +230,7 @@ class MissionProtocol:
         else:
             self.stats.uploads_refused += 1
             self._statustext(Severity.WARNING, f"{mission_type.name.lower()} refused: {reason}; previous kept")
-        self._finished = _FinishedUpload(partner, mission_type, len(items), result)
+        self._finished[mission_type] = _FinishedUpload(partner, mission_type, len(items), result)
         self._ack(partner, result, mission_type)
 
     def _request(self, up: _Upload, wall_time_s: float) -> None:
@@ -225,13 +242,16 @@ class MissionProtocol:
             self._mav.mission_request_send(sys_id, comp_id, up.next_seq, int(up.mission_type))
 
     def _on_ack(self, msg: mavlink2.MAVLink_message) -> None:
+        """OPERATION_CANCELLED from the uploading GCS cancels its upload; any other ACK ends a download (the next
+        list is read afresh) and never touches an upload: it may be a late copy of an earlier transfer's ACK."""
         up = self._upload
-        if up is None or up.partner != _partner(msg):
-            mission_type = _upload_type(int(getattr(msg, "mission_type", 0)))
+        mission_type = _upload_type(int(getattr(msg, "mission_type", 0)))
+        cancels = int(msg.type) == int(MissionResult.OPERATION_CANCELLED)
+        if up is None or not cancels or up.partner != _partner(msg) or up.mission_type != mission_type:
             if mission_type is not None:
-                self._download.pop(mission_type, None)  # the GCS finished downloading: next list is fresh
+                self._download.pop(mission_type, None)
             return
-        self._upload = None  # the GCS cancelled its upload
+        self._upload = None
         self.stats.uploads_failed += 1
         self._statustext(Severity.WARNING, f"{up.mission_type.name.lower()} upload cancelled by the GCS; previous kept")
 

@@ -1,7 +1,7 @@
 """Fence-aware routing in the autopilot (issue 13), in-process closed loop (sim vehicle + sensors + Autopilot).
 
-Uploads before the first fix are stored and checked once home is known; a mission with an item outside the
-inclusion fence is refused naming it (or, uploaded before the fix, found infeasible then and not flown); a
+An item outside the inclusion fence is refused at upload naming it, with the same reason before and after the first
+fix; what needs home (GF_MAX_HOR_DIST) is checked once home is known, and a mission failing then is not flown; a
 leg crossing a no-fly corridor with buildings past it is flown around the zones with the real avoidance
 planner: no breach, no collision, every item reached or honestly bypassed.
 """
@@ -54,20 +54,35 @@ def test_waypoint_outside_a_500m_inclusion_fence_is_refused_naming_it() -> None:
     assert loop.vehicle.replace_mission(MissionType.FENCE, _inclusion_500m(loop)) == (MissionResult.ACCEPTED, "")
     result, reason = loop.vehicle.replace_mission(MissionType.MISSION, _far_mission(loop))
     assert result is MissionResult.INVALID_PARAM5_X
-    assert reason.startswith("item 2: 900 m from home, outside the inclusion fence (inclusion circle 1")
+    assert reason.startswith("item 2: 400 m outside the inclusion fence (inclusion circle 1 (r 500 m at 30.2635")
     loop.run_s(0.01)
     assert f"Mission refused: {reason}" in loop.texts  # the STATUSTEXT a GCS shows (MISSION_ACK has no text)
     assert not loop.ap.navigator.mission_ready
 
 
-def test_uploads_before_the_first_fix_are_checked_once_home_is_known() -> None:
+def test_waypoint_outside_the_fence_is_refused_before_and_after_the_first_fix_with_the_same_reason() -> None:
+    """Fence and waypoint are both geodetic: the check needs no home, so the fix's timing cannot change the answer."""
     loop = SimLoop("x500")
     assert loop.ap.home_geo is None  # no frame yet: no fix, no home
     assert loop.vehicle.replace_mission(MissionType.FENCE, _inclusion_500m(loop)) == (MissionResult.ACCEPTED, "")
+    before = loop.vehicle.replace_mission(MissionType.MISSION, _far_mission(loop))
+    loop.run_s(0.5)
+    assert loop.ap.home_geo is not None
+    after = loop.vehicle.replace_mission(MissionType.MISSION, _far_mission(loop))
+    assert before == after
+    assert before[0] is MissionResult.INVALID_PARAM5_X and before[1].startswith("item 2: 400 m outside the inclusion")
+    loop.run_s(0.01)
+    assert loop.texts.count(f"Mission refused: {before[1]}") == 2
+    assert not loop.ap.navigator.mission and not loop.ap.navigator.mission_ready
+
+
+def test_what_needs_home_is_checked_once_home_is_known_and_a_failing_mission_never_starts() -> None:
+    loop = SimLoop("x500")
+    assert loop.ap.home_geo is None
+    assert loop.vehicle.param_set("GF_MAX_HOR_DIST", 500.0)[0]
     assert loop.vehicle.replace_mission(MissionType.MISSION, _far_mission(loop)) == (MissionResult.ACCEPTED, "")
     loop.run_s(0.5)
-    assert any(t.startswith("Geofence: 1 items, 1 zones (placed once home is known)") for t in loop.texts)
-    issue = "item 2: 900 m from home, outside the inclusion fence"
+    issue = "item 2: 900 m from home, beyond the 500 m limit (GF_MAX_HOR_DIST)"
     assert any(t.startswith(f"Mission not flyable from home: {issue}") for t in loop.texts), loop.texts
     assert not loop.ap.navigator.mission_ready  # reported and not flown
     assert loop.vehicle.handle_command(command(400, 1.0)) is CommandResult.ACCEPTED

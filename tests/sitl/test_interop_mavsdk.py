@@ -9,7 +9,8 @@ parameter and sets MIS_RTL_ALT; ``MissionRaw`` uploads the items and downloads t
 reach the last item, land and disarm. A second session (``interop_clients/mavsdk_offboard_velocity.py``)
 flies OFFBOARD on ``Offboard.set_velocity_ned`` / ``set_velocity_body`` alone, from takeoff to landing, and a
 third (``mavsdk_manual_control.py``) flies POSCTL on ``ManualControl`` joystick input.
-Skipped when no interpreter imports ``mavsdk`` >= 4 (see ``interop_clients`` for ``QUADSITL_INTEROP_PYTHON``).
+MAVSDK is a pinned dev dependency (installed by ``make test``): its absence fails the tests, it never skips them
+(``interop_clients`` also looks in ``QUADSITL_INTEROP_PYTHON``).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from typing import Any
 
 import pytest
 from conftest import REPO_ROOT
-from interop_clients import MAVSDK_DRIVER, MAVSDK_MANUAL_DRIVER, MAVSDK_OFFBOARD_DRIVER, mavsdk4_python
+from interop_clients import MAVSDK_DRIVER, MAVSDK_MANUAL_DRIVER, MAVSDK_OFFBOARD_DRIVER, MISSING_CLIENT, mavsdk4_python
 from interop_clients.missions import short_delivery
 from sitl_procs import logs, read_json
 
@@ -113,7 +114,7 @@ def flight(tmp_path_factory: pytest.TempPathFactory) -> Flight:
     """Fly the short delivery once with MAVSDK (module scope: the tests below read the same flight)."""
     python = mavsdk4_python()
     if python is None:
-        pytest.skip("mavsdk>=4 not importable here nor in $QUADSITL_INTEROP_PYTHON")
+        pytest.fail(MISSING_CLIENT.format(client="mavsdk>=4 is"))
     tmp_path = tmp_path_factory.mktemp("mavsdk")
     plan = load_mission_file(WORLD)
     sent = [_mission_item_int(item) for item in short_delivery(plan.home)]
@@ -157,6 +158,7 @@ def test_mavsdk_mission_raw_upload_arm_start_complete(flight: Flight) -> None:
     landed = steps["landed"]
     north_m, east_m, _ = LocalNedFrame(flight.home).ned_from_geodetic(landed["lat_deg"], landed["lon_deg"], 0.0)
     assert math.hypot(north_m, east_m) < 1.5  # RTL brought it home, in MAVSDK's own position telemetry
+    assert abs(landed["rel_alt_m"]) < 0.15  # on the ground it reads altitude 0 (the EKF's height datum, issue 22)
 
 
 def test_mavsdk_param_download_and_set(flight: Flight) -> None:
@@ -178,7 +180,7 @@ def _fly_session(tmp_path: Path, script: Path, seed: int) -> tuple[dict[str, Any
     with the phases' telemetry samples by name (``by_phase``), and the autopilot's summary."""
     python = mavsdk4_python()
     if python is None:
-        pytest.skip("mavsdk>=4 not importable here nor in $QUADSITL_INTEROP_PYTHON")
+        pytest.fail(MISSING_CLIENT.format(client="mavsdk>=4 is"))
     result_path, driver_log = tmp_path / f"{script.stem}.json", tmp_path / f"{script.stem}.log"
     with _pair(tmp_path, seed) as run, GcsClient(str(run.gcs_url), timeout_s=20.0) as gcs:
         driver = [

@@ -1,8 +1,10 @@
 """Loopback SITL with injected failures (issue 12 "Must show"): sim and autopilot as two processes, failures
-scheduled at fixed sim times from the ``--script`` file (MAV_CMD_INJECT_FAILURE, SYS_FAILURE_EN = 1).
+scheduled at fixed sim times from the ``--script`` file or the world file's ``failures:`` (MAV_CMD_INJECT_FAILURE,
+SYS_FAILURE_EN = 1).
 
 - GPS off mid-mission: dead reckoning for COM_POS_FS_DELAY, then a landing without horizontal position
   control; disarmed within the delay plus the descent, no collision.
+- GPS stuck mid-mission (from the world file): the stale check drops the frozen fix, then as GPS off.
 - GPS off and back before the delay: the mission continues and completes.
 - Baro stuck mid-mission: reported, the mission completes and the vehicle lands.
 - Mag off mid-mission: "heading from the gyro" warned, the mission completes.
@@ -55,9 +57,9 @@ SPEED = "6"  # sim seconds per wall second: ARM_S leaves the ground station ~5 w
 FLIGHT_TIMEOUT_S = 240.0  # wall
 
 
-def _files(tmp_path: Path, *failures: str) -> tuple[Path, Path, Path]:
+def _files(tmp_path: Path, *failures: str, world_failures: str = "") -> tuple[Path, Path, Path]:
     world = tmp_path / "route.yaml"
-    world.write_text(ROUTE)
+    world.write_text(ROUTE + (f"  failures: {world_failures}\n" if world_failures else ""))
     params = tmp_path / "params.yaml"
     params.write_text(f"SYS_FAILURE_EN: 1\nCOM_POS_FS_DELAY: {POS_FS_DELAY_S}\n")
     script = tmp_path / "script.yaml"
@@ -66,10 +68,10 @@ def _files(tmp_path: Path, *failures: str) -> tuple[Path, Path, Path]:
     return world, params, script
 
 
-def _fly(tmp_path: Path, *failures: str) -> tuple[SitlRun, list[tuple[float, str]]]:
-    """Fly the route with the scripted failures until the vehicle has landed and disarmed; the run and the
-    recording's text log as (sim s, text)."""
-    world, params, script = _files(tmp_path, *failures)
+def _fly(tmp_path: Path, *failures: str, world_failures: str = "") -> tuple[SitlRun, list[tuple[float, str]]]:
+    """Fly the route with the scripted failures (and the world file's ``failures:``) until the vehicle has landed
+    and disarmed; the run and the recording's text log as (sim s, text)."""
+    world, params, script = _files(tmp_path, *failures, world_failures=world_failures)
     rrd = tmp_path / "flight.rrd"
     ap_args = ("--estimator", "ekf", "--params", str(params), "--script", str(script), "--rerun", f"save:{rrd}")
     pair = sitl_run(tmp_path, world, seed=5, sim_args=("--speed", SPEED), autopilot_args=ap_args)
@@ -113,6 +115,24 @@ def test_gps_off_mid_mission_dead_reckons_then_lands_without_position(tmp_path: 
     modes = [m["mode"] for m in summary["mode_history"]]
     assert modes[modes.index("AUTO_MISSION") :][:2] == ["AUTO_MISSION", "AUTO_LAND"]
     assert summary["items_reached"] < summary["items_total"]  # it never reached the end of the route
+
+
+@needs_ekf
+def test_gps_stuck_from_the_world_file_is_caught_and_the_vehicle_lands(tmp_path: Path) -> None:
+    """The receiver freezes on the first leg at 5 m/s (scheduled by the world file, not the script): the stale
+    check drops the repeated fix, the filter dead-reckons, the position-loss action lands it."""
+    run, texts = _fly(tmp_path, world_failures=f"[{{at_s: {INJECT_S}, inject: gps_stuck}}]")
+    t_inject = _first(texts, "Failure injected: GPS stuck")
+    assert t_inject == pytest.approx(INJECT_S, abs=0.01)
+    t_stale = _first(texts, "GPS stale")
+    assert 0.4 <= t_stale - t_inject <= 0.7  # five identical fixes
+    t_lost = _first(texts, "GPS lost: dead reckoning")
+    t_action = _first(texts, "Failsafe: position lost")
+    assert t_stale <= t_lost and t_action - t_lost == pytest.approx(POS_FS_DELAY_S, abs=0.15)
+    t_disarm = _first(texts, "Disarmed")
+    assert t_action < t_disarm <= t_action + ALT_M / 0.7 + 3.0
+    _no_collision(run)
+    assert run.autopilot_summary["items_reached"] < run.autopilot_summary["items_total"]
 
 
 @needs_ekf

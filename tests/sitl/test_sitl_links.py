@@ -1,5 +1,6 @@
 """The real autopilot process: GCS and API links serve the same surface, both polled and both with telemetry;
-``--signing-key``/``--require-signing`` reject an unsigned ARM on either link (SPEC §3, §10)."""
+``--signing-key``/``--require-signing`` reject an unsigned ARM on either link (SPEC §3, §10); the mission protocol
+survives a GCS link that duplicates and reorders (issue 22)."""
 
 from __future__ import annotations
 
@@ -7,10 +8,12 @@ from pathlib import Path
 
 import pytest
 from conftest import free_udp_port
+from gcs_fakes import waypoint
 from sitl_procs import logs, start_autopilot, start_sim, stop
 
 from mavlink_bridge.contract.vehicle_api import CommandResult, FlightMode
 from mavlink_bridge.gcs_client.client import GcsClient, GcsTimeoutError
+from mavlink_bridge.wire.lossy import LossProfile, LossyUdpProxy
 from mavlink_bridge.wire.signing import signing_key_from_text
 
 pytestmark = [pytest.mark.sitl]
@@ -62,3 +65,28 @@ def test_signed_gcs_and_api_links_of_the_real_process(tmp_path: Path) -> None:
             client.close()
         stop(ap)
         stop(sim)
+
+
+def test_mission_round_trips_of_the_real_process_over_a_duplicating_reordering_gcs_link(tmp_path: Path) -> None:
+    """Issue 22 item 7 against the autopilot process (its simulator not started: uploads need no fix): a 100-item
+    mission uploaded and downloaded five times through a relay that duplicates 10 % and reorders 10 % of the
+    datagrams each way; every round accepted and identical."""
+    gcs, gcs_target = free_udp_port(), free_udp_port()
+    ap = start_autopilot(
+        tmp_path, free_udp_port(), None, "--gcs", f"udpin:127.0.0.1:{gcs}",
+        "--gcs-target", f"udpout:127.0.0.1:{gcs_target}", "--connect-timeout-s", "120",
+    )  # fmt: skip
+    profile = LossProfile(duplicate_p=0.10, reorder_p=0.10, seed=4)
+    try:
+        with LossyUdpProxy(("127.0.0.1", gcs), profile) as proxy:
+            host, port = proxy.listen_address
+            with GcsClient(f"udpout:{host}:{port}", timeout_s=10.0) as client:
+                client.wait_heartbeat(120.0)
+                for round_no in range(5):
+                    route = [waypoint(i, 1000 * i + round_no, -700 * i, 10.0 + (i + round_no) % 7) for i in range(100)]
+                    client.upload_mission(route)
+                    assert client.download_mission() == route, f"round {round_no}"
+            assert proxy.stats.duplicated > 100 and proxy.stats.reordered > 100
+    finally:
+        rc = stop(ap)
+    assert rc == 0, logs(tmp_path)

@@ -4,7 +4,8 @@ The three user stories of issue 13, each with sim + autopilot over loopback UDP 
 a FENCE upload right after the first heartbeat is accepted; a leg across an exclusion circle with a tall
 building just past it is flown around both and `tools.gcs fly` succeeds (no breach, no collision); a waypoint
 900 m out with a 500 m inclusion fence is refused at upload with the item and the reason, and `fly` fails
-saying so. Plus the bundled no-fly-corridor delivery, flown clean.
+saying so; the same upload is refused with the same reason before the first fix and after it (issue 22 item 4).
+Plus the bundled no-fly-corridor delivery, flown clean.
 """
 
 from __future__ import annotations
@@ -14,10 +15,22 @@ from pathlib import Path
 
 import pytest
 from conftest import REPO_ROOT
-from sitl_procs import connect_gcs, read_json, sitl_pair
+from sitl_procs import (
+    STARTUP_TIMEOUT_S,
+    Ports,
+    connect_gcs,
+    logs,
+    read_json,
+    sitl_pair,
+    start_autopilot,
+    start_sim,
+    stop,
+)
 
 from autopilot.mission.files import load_mission_file
-from mavlink_bridge.contract.vehicle_api import MissionType
+from autopilot.mission.plan import MissionPlan
+from mavlink_bridge.contract.vehicle_api import MissionResult, MissionType
+from mavlink_bridge.gcs_client.client import GcsClient, MissionUploadError
 from tools import gcs
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
@@ -77,6 +90,41 @@ def test_fence_upload_right_after_the_first_heartbeat_is_accepted(tmp_path: Path
     assert not [t for t in texts if "refused" in t or "not flyable" in t], texts
     # whether the vehicle had its first fix when the upload arrived is a race at --speed max (the GCS's telemetry
     # lags); storing before the fix and placing once home is known is tested in-process (test_autopilot_routing)
+
+
+def _refusal(client: GcsClient, plan: MissionPlan) -> tuple[MissionResult, str]:
+    """The MISSION_ACK result and the reason of the refused upload (the vehicle's "Mission refused: R" and the
+    protocol's "mission refused: R; previous kept" STATUSTEXTs carry the same R; the client shows the later one)."""
+    client.upload_mission(plan.fence, MissionType.FENCE)
+    with pytest.raises(MissionUploadError) as refused:
+        client.upload_mission(plan.items, MissionType.MISSION)
+    return refused.value.result, refused.value.text.split("refused: ", 1)[1].removesuffix("; previous kept")
+
+
+def test_waypoint_outside_the_fence_is_refused_before_the_first_fix_and_after_it_with_the_same_reason(
+    tmp_path: Path,
+) -> None:
+    """No race: the autopilot serves its GCS link before any sim exists, so the first upload certainly comes before
+    the first fix; the sim is started only then, and the second upload comes after home is known."""
+    mission = tmp_path / "far_waypoint.yaml"
+    mission.write_text(FAR_WAYPOINT)
+    plan = load_mission_file(mission)
+    ports = Ports.free()
+    ap = start_autopilot(tmp_path, ports.sim, ports, "--sim-timeout-s", "30")
+    sim = None
+    try:
+        with connect_gcs(f"udpin:127.0.0.1:{ports.gcs_target}") as client:
+            assert client.telemetry().home is None
+            before = _refusal(client, plan)
+            sim = start_sim(tmp_path, ports.sim, "--world", str(mission), "--autopilot-timeout-s", "30")
+            client.wait_until(lambda st: st.home is not None, STARTUP_TIMEOUT_S)
+            after = _refusal(client, plan)
+    finally:
+        rcs = (stop(ap), stop(sim) if sim is not None else 0)
+    assert rcs == (0, 0), logs(tmp_path)
+    assert before == after
+    assert before[0] is MissionResult.INVALID_PARAM5_X
+    assert before[1].startswith("item 2: 400 m outside the inclusion fence (inclusion circle 1"), before
 
 
 def test_leg_across_an_exclusion_circle_with_a_tall_building_past_it(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]

@@ -9,6 +9,7 @@ import math
 from autopilot.geofence.fence import circle_fence_items, geofence_from_items, polygon_fence_items
 from autopilot.mission.feasibility import FeasibilityLimits, check_feasibility, mission_legs
 from autopilot.mission.uploads import UploadStore
+from autopilot.mission.validation import MissionLimits
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
 from mavlink_bridge.contract.mav_enums import MavCmd, MavFrame
 from mavlink_bridge.contract.vehicle_api import MissionItem, MissionResult, MissionType
@@ -95,21 +96,76 @@ def test_legs_follow_takeoff_rtl_and_jumps() -> None:
     assert legs[-1].goal_ned_m == (0.0, 0.0, -30.0)  # RTL at MIS_RTL_ALT
 
 
-def test_uploads_before_home_are_stored_and_checked_once_home_is_known() -> None:
+def test_uploads_before_home_are_stored_and_what_needs_home_is_checked_once_it_is_known() -> None:
     store = UploadStore()
+    store.set_limits(FeasibilityLimits(ceiling_m=50.0), MissionLimits())
     assert store.upload(MissionType.FENCE, circle(40, 0, 8)) == (MissionResult.ACCEPTED, "")
-    assert store.upload(MissionType.MISSION, mission((41, 1, 10))) == (MissionResult.ACCEPTED, "")
+    assert store.upload(MissionType.MISSION, mission((20, 0, 80))) == (MissionResult.ACCEPTED, "")  # ceiling: home
     assert not store.flyable  # no home yet
     assert "once home is known" in store.drain_texts()[-1].text
     store.set_home(HOME)
-    assert not store.flyable and store.mission_issue.startswith("item 1: inside exclusion circle 1")
-    assert store.drain_texts()[-1].text.startswith("Mission not flyable from home: item 1: inside exclusion")
+    assert not store.flyable and store.mission_issue.startswith("item 1: altitude 80 m above home, over the 50 m")
+    assert store.drain_texts()[-1].text.startswith("Mission not flyable from home: item 1: altitude 80 m")
+    store.set_limits(FeasibilityLimits(ceiling_m=120.0), MissionLimits())
+    assert store.flyable and store.drain_texts()[-1].text == "Mission flyable with the new limits"
+    assert store.upload(MissionType.FENCE, circle(20, 0, 8)) == (MissionResult.ACCEPTED, "")
+    assert not store.flyable and store.drain_texts()[-1].text.startswith(
+        "Mission not flyable with the new fence: item 1: inside exclusion circle 1"
+    )
     assert store.upload(MissionType.FENCE, circle(40, 30, 8)) == (MissionResult.ACCEPTED, "")
     assert store.flyable and store.drain_texts()[-1].text == "Mission flyable with the new fence"
     result, reason = store.upload(MissionType.MISSION, mission((40, 31, 10)))
     assert result is MissionResult.INVALID_PARAM5_X and reason.startswith("item 1: inside exclusion circle 1")
     assert store.drain_texts()[-1].text.startswith("Mission refused: item 1")
     assert store.flyable  # the previous mission is kept
+
+
+def _upload_with_and_without_home(
+    fence: list[MissionItem], items: list[MissionItem]
+) -> list[tuple[MissionResult, str]]:
+    """The answers to the same FENCE then MISSION upload before the first fix and after it."""
+    answers = []
+    for home in (None, HOME):
+        store = UploadStore()
+        if home is not None:
+            store.set_home(home)
+        assert store.upload(MissionType.FENCE, fence) == (MissionResult.ACCEPTED, "")
+        answers.append(store.upload(MissionType.MISSION, items))
+        assert not store.mission and not store.flyable
+    return answers
+
+
+def test_waypoint_in_an_exclusion_zone_is_refused_before_and_after_the_first_fix_with_the_same_reason() -> None:
+    lat, lon = _ll(40, 0)
+    before, after = _upload_with_and_without_home(circle(40, 0, 8), mission((20, 0, 10), (41, 1, 10)))
+    assert before == after
+    assert before == (
+        MissionResult.INVALID_PARAM5_X,
+        f"item 2: inside exclusion circle 1 (r 8 m at {lat:.6f}, {lon:.6f})",
+    )
+    before, after = _upload_with_and_without_home(wall(), mission((62, 0, 10)))
+    assert (
+        before
+        == after
+        == (MissionResult.INVALID_PARAM5_X, "item 1: inside exclusion polygon 1 (4 vertices, fence items 0-3)")
+    )
+
+
+def test_waypoint_outside_the_inclusion_zones_is_refused_before_and_after_the_first_fix() -> None:
+    before, after = _upload_with_and_without_home(circle(0, 0, 500, inclusion=True), mission((900, 0, 20)))
+    assert before == after
+    zone = f"inclusion circle 1 (r 500 m at {HOME.lat_deg:.6f}, {HOME.lon_deg:.6f})"
+    assert before[1] == f"item 1: 400 m outside the inclusion fence ({zone})"
+
+
+def test_a_fence_uploaded_after_the_mission_marks_it_not_flyable_before_the_fix() -> None:
+    store = UploadStore()
+    assert store.upload(MissionType.MISSION, mission((41, 1, 10))) == (MissionResult.ACCEPTED, "")
+    assert store.upload(MissionType.FENCE, circle(40, 0, 8)) == (MissionResult.ACCEPTED, "")
+    assert store.mission_issue.startswith("item 1: inside exclusion circle 1")
+    assert store.drain_texts()[-1].text.startswith("Mission not flyable with the new fence: item 1: inside")
+    store.set_home(HOME)
+    assert not store.flyable and store.mission_issue.startswith("item 1: inside exclusion circle 1")
 
 
 def test_bad_fence_is_refused_naming_the_item_before_home_too() -> None:

@@ -6,9 +6,9 @@ from __future__ import annotations
 import math
 
 from autopilot.safety.failure_injection import InjectedFrame
-from autopilot.safety.sensor_validation import STALE_AFTER_US, StaleSensorCheck
+from autopilot.safety.sensor_validation import GPS, STALE_AFTER_US, StaleSensorCheck
 from mavlink_bridge.contract.vehicle_api import Severity
-from mavlink_bridge.contract.wire import SensorSample
+from mavlink_bridge.contract.wire import GpsSample, SensorSample
 
 STEP_US = 4000
 
@@ -94,3 +94,32 @@ def test_a_dropped_nan_reading_is_not_judged() -> None:
         )
         assert check.apply(frame, True) is frame
     assert not any(check.stale)
+
+
+def _gps_frames(check: StaleSensorCheck, seconds: float, frozen: bool, t0: int = 0, in_air: bool = True):  # type: ignore[no-untyped-def]
+    """Frames with a fix every 0.1 s (frozen: the same position and velocity each time); the fix frames seen."""
+    fixes = []
+    n = round(seconds * 1e6 / STEP_US)
+    for k in range(n):
+        frame = _Frame(t0 + k * STEP_US, k)
+        if k % 25 == 0:
+            j = 0 if frozen else k
+            frame.gps = GpsSample(frame.sensor.time_us, 30.0 + 1e-7 * j, 120.0, 12.0, (0.0, 0.0, 0.0), 0.8, 1.4, 3, 12)
+            fixes.append(check.apply(frame, in_air))
+        else:
+            check.apply(frame, in_air)
+    return fixes, t0 + n * STEP_US
+
+
+def test_a_frozen_gps_is_dropped_in_the_air_and_comes_back_when_its_fixes_move() -> None:
+    check = StaleSensorCheck()
+    fixes, _ = _gps_frames(check, 3.0, frozen=True, in_air=False)
+    assert all(f.gps is not None for f in fixes) and not check.stale[GPS]  # on the ground: never judged
+    check = StaleSensorCheck()
+    fixes, t = _gps_frames(check, 1.0, frozen=True)
+    assert fixes[4].gps is not None and all(f.gps is None for f in fixes[6:])  # 0.5 s of the same fix
+    (text,) = check.drain_texts()
+    assert text.text.startswith("GPS stale") and "dead reckoning" in text.text and text.severity is Severity.WARNING
+    fixes, _ = _gps_frames(check, 0.5, frozen=False, t0=t)
+    assert fixes[-1].gps is not None and not check.stale[GPS]
+    assert [x.text for x in check.drain_texts()] == ["GPS readings change again: back in use"]
