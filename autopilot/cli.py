@@ -128,6 +128,13 @@ def build_parser() -> argparse.ArgumentParser:
     add_autopilot_options(p)
     p.add_argument("--instance", type=int, default=0, metavar="N", help="add N to every default port")
     p.add_argument("--vehicle", default="x500", metavar="NAME", help="airframe the controller assumes")
+    p.add_argument(
+        "--sys-id",
+        type=int,
+        default=1,
+        metavar="ID",
+        help="MAV_SYS_ID on every link, 1..254 (default 1; quadsitl up gives a fleet's instance i the id i+1)",
+    )
     p.add_argument("--log-dir", type=Path, default=None, metavar="DIR", help="where autopilot_summary.json goes")
     p.add_argument(
         "--speed",
@@ -184,6 +191,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.instance < 0:
         print("quadsitl autopilot: --instance must be >= 0", file=sys.stderr)
         return EXIT_USAGE
+    if not 1 <= args.sys_id <= 254:
+        print(f"quadsitl autopilot: --sys-id must be 1..254 (MAV_SYS_ID), got {args.sys_id}", file=sys.stderr)
+        return EXIT_USAGE
     config = AutopilotConfig(
         vehicle=args.vehicle,
         estimator=args.estimator,
@@ -213,6 +223,7 @@ def main(argv: list[str] | None = None) -> int:
             urls["sim"],
             sim_lost_timeout_s=args.sim_timeout_s,
             spin_s=args.lockstep_spin_us * 1e-6,
+            system_id=args.sys_id,
         )
         vehicle = VehicleAdapter(autopilot)
         for url, target in ((urls["gcs"], urls["gcs_target"]), (urls["api"], urls["api_target"])):
@@ -221,6 +232,7 @@ def main(argv: list[str] | None = None) -> int:
                     GcsServer(
                         url,
                         vehicle,
+                        system_id=args.sys_id,
                         speed_factor=args.speed if args.speed > 0.0 else 1.0,
                         default_target_url=target,
                         signing_key=key,

@@ -18,6 +18,9 @@ from autopilot.runner import Autopilot
 SNAPSHOT_EVERY = 4
 #: Poll the GCS/API links at most this often (wall seconds).
 LINK_POLL_PERIOD_S = 0.004
+#: Without GCS/API links, wake this often while waiting for a frame (only to notice a lost sim or a stop): a
+#: fleet's autopilots wait for the slowest one every step, and each empty wake-up costs CPU the others need.
+IDLE_WAKE_PERIOD_S = 0.1
 
 
 @dataclass
@@ -43,13 +46,16 @@ def run_loop(
     next_poll = 0.0
     steps = 0
     reason = AutopilotEndReason.STOPPED
+    wait_s = LINK_POLL_PERIOD_S if servers else IDLE_WAKE_PERIOD_S
     while not should_stop():
-        frame = client.next_frame(LINK_POLL_PERIOD_S)  # type: ignore[attr-defined]
+        frame = client.next_frame(wait_s)  # type: ignore[attr-defined]
         now = time.monotonic()
         if frame is not None:
             client.answer(autopilot.step(frame))  # type: ignore[attr-defined]
             autopilot.after_answer()  # while the sim integrates the next step
             steps += 1
+        elif should_stop():  # asked to stop while waiting: a stop, even if the sim went quiet meanwhile
+            break
         elif client.sim_lost:  # type: ignore[attr-defined]
             reason = AutopilotEndReason.SIM_LOST
             break

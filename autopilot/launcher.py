@@ -100,11 +100,16 @@ def preflight(args: argparse.Namespace, sim_cmd: list[str]) -> str | None:
     return None
 
 
-def _port_text(url: str) -> str:
+def link_text(url: str, target: str, peer: str) -> str:
+    """A GCS/API link as it really is: a ``udpin:`` link listens (and sends to ``target`` until ``peer`` talks),
+    a ``udpout:`` link sends to its address from a free local port; ``off`` is off."""
     if url == "off":
         return "off"
     link = LinkUrl.parse(url)
-    return f"{link.host}:{link.port}"
+    if link.mode is LinkMode.LISTEN:
+        to = LinkUrl.parse(target)
+        return f"listens on {link.host}:{link.port}, sends to {to.host}:{to.port} until someone talks ({peer})"
+    return f"sends to {link.host}:{link.port} from a free local port ({peer})"
 
 
 def listen_urls(args: argparse.Namespace) -> list[str]:
@@ -118,10 +123,8 @@ def banner(args: argparse.Namespace, vehicle: str) -> str:
     listen = LinkUrl.parse(resolve_url(args.listen, DEFAULT_LISTEN_URL, args.instance))
     urls = link_urls(args)
     speed = "as fast as possible (--speed max)" if args.speed == "max" else f"{args.speed}x real time"
-    gcs_in, gcs_out = _port_text(urls["gcs"]), _port_text(urls["gcs_target"])
-    api_in, api_out = _port_text(urls["api"]), _port_text(urls["api_target"])
-    gcs = "off" if gcs_in == "off" else f"listens on {gcs_in}, sends to {gcs_out} (QGroundControl, tools.gcs)"
-    api = "off" if api_in == "off" else f"listens on {api_in}, sends to {api_out} (MAVSDK, scripts)"
+    gcs = link_text(urls["gcs"], urls["gcs_target"], "QGroundControl, tools.gcs")
+    api = link_text(urls["api"], urls["api_target"], "MAVSDK, scripts")
     recording = "off (--rerun save:PATH.rrd to record)" if args.rerun == "off" else args.rerun
     lines = [
         f"{version_text('quadsitl up')}: simulator + autopilot, {speed}",
@@ -136,7 +139,7 @@ def banner(args: argparse.Namespace, vehicle: str) -> str:
     return "\n".join(lines)
 
 
-def _world_vehicle(world: str | None) -> str | None:
+def world_vehicle(world: str | None) -> str | None:
     """The ``vehicle:`` of a mission YAML (the default airframe of ``up``), if any."""
     if world is None or not world.endswith((".yaml", ".yml")):
         return None
@@ -160,7 +163,7 @@ def commands(args: argparse.Namespace) -> tuple[list[str], list[str]]:
     if listen.mode is not LinkMode.LISTEN:
         raise LinkUrlError(f"--listen must be udp:HOST:PORT or udpin:HOST:PORT, got {args.listen!r}")
     link_urls(args)  # LinkUrlError for a malformed link URL before anything starts
-    vehicle = args.vehicle or _world_vehicle(args.world) or "x500"
+    vehicle = args.vehicle or world_vehicle(args.world) or "x500"
     py = [sys.executable, "-m"]
     sim = [*py, "sim", "--seed", str(args.seed), "--speed", args.speed, "--instance", str(args.instance)]
     sim += ["--vehicle", vehicle]

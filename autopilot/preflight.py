@@ -13,7 +13,7 @@ from pathlib import Path
 
 from autopilot.commander.script import ScriptError, load_script
 from autopilot.control.airframe import AIRFRAME_DIR, AirframeError, load_airframe
-from autopilot.mission.files import MissionFileError, load_mission_file
+from autopilot.mission.files import MissionFileError, load_fleet_missions, load_mission_file
 from autopilot.param_schema import make_param_store
 from autopilot.parameters.store import ParamError
 from mavlink_bridge.contract.source_lines import YamlSyntaxError, did_you_mean, read_yaml
@@ -88,6 +88,7 @@ def check_autopilot_inputs(
             else:
                 plan = load_mission_file(path)
                 check_vehicle(vehicle or plan.vehicle, path if vehicle is None else None)
+                load_fleet_missions(path)  # a fleet world's vehicles' missions and fences
         elif vehicle is not None:
             check_vehicle(vehicle)
         if params is not None:

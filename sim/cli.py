@@ -20,7 +20,10 @@ from mavlink_bridge.lockstep import DEFAULT_SIM_PORT, add_spin_option
 from mavlink_bridge.wire.link import LinkMode, LinkUrl, LinkUrlError, resolve_url
 from mavlink_bridge.wire.lossy import loss_fraction
 from sim.end_reason import EndReason
+from sim.fleet_server import FleetServer
+from sim.fleet_world import load_fleet
 from sim.server import DEFAULT_VEHICLE, SimConfig, SimServer, SimSetupError, mission_vehicle
+from sim.traffic import DEFAULT_TRAFFIC_RANGE_M
 from sim.vehicle_config import load_vehicle
 from sim.world import load_world
 
@@ -68,7 +71,13 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="{max|FLOAT}",
         help="sim seconds per wall second: 1 is real time, max (default) as fast as the autopilot answers",
     )
-    p.add_argument("--instance", type=int, default=0, metavar="N", help="offset of the listen port (14560 + N)")
+    p.add_argument(
+        "--instance",
+        type=int,
+        default=0,
+        metavar="N",
+        help="offset of the listen port (14560 + N; a fleet world's vehicle i listens on 14560 + N + i)",
+    )
     p.add_argument(
         "--listen",
         default=None,
@@ -81,6 +90,13 @@ def build_parser() -> argparse.ArgumentParser:
         default=0.0,
         metavar="FRACTION",
         help="drop this share of lockstep datagrams each way, seeded by --seed (to test loss; default 0)",
+    )
+    p.add_argument(
+        "--traffic-range-m",
+        type=float,
+        default=DEFAULT_TRAFFIC_RANGE_M,
+        metavar="M",
+        help=f"a fleet world's receivers report traffic this close (default {DEFAULT_TRAFFIC_RANGE_M:g} m)",
     )
     p.add_argument("--log-dir", type=Path, default=None, metavar="DIR", help="where sim_summary.json is written")
     p.add_argument("--duration-s", type=float, default=None, metavar="S", help="stop after this much sim time")
@@ -106,6 +122,10 @@ def check_inputs(args: argparse.Namespace) -> None:
     """Load the world and the vehicle as the server would, without opening a port (ValueError: refused)."""
     if args.world is not None:
         load_world(args.world)
+        fleet = load_fleet(args.world)
+        default = args.vehicle or mission_vehicle(args.world) or DEFAULT_VEHICLE
+        for name in dict.fromkeys(v.vehicle or default for v in fleet.vehicles):
+            load_vehicle(name)
     load_vehicle(args.vehicle or mission_vehicle(args.world) or DEFAULT_VEHICLE)
 
 
@@ -132,6 +152,7 @@ def config_from_args(args: argparse.Namespace) -> SimConfig:
         truth_log=args.truth_log,
         lockstep_spin_s=args.lockstep_spin_us * 1e-6,
         loss_fraction=args.sim_loss,
+        traffic_range_m=args.traffic_range_m,
     )
 
 
@@ -160,7 +181,13 @@ def main(argv: list[str] | None = None) -> int:
             return EXIT_USAGE
         return EXIT_OK
     try:
-        server = SimServer(config_from_args(args))
+        config = config_from_args(args)
+        fleet = load_fleet(args.world) if args.world is not None and args.world.is_file() else None
+        if fleet is not None and not args.traffic_range_m > 0.0:
+            raise SimSetupError(f"--traffic-range-m: expected a positive distance, got {args.traffic_range_m}")
+        server: SimServer | FleetServer = (
+            FleetServer(config, fleet) if fleet is not None and fleet.is_fleet else SimServer(config)
+        )
     except (ValueError, OSError) as exc:  # refused world/vehicle/options, or the port is taken
         print(f"quadsitl sim: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -168,9 +195,17 @@ def main(argv: list[str] | None = None) -> int:
     def _stop(signum: int, _frame: FrameType | None) -> None:
         server.request_stop()
 
-    host, port = server.local_address
     pace = "as fast as possible" if args.speed is None else f"{args.speed:g}x real time"
-    print(f"quadsitl sim: waiting for an autopilot on udp {host}:{port} ({pace}); Ctrl-C stops", flush=True)
+    if isinstance(server, FleetServer):
+        ports = ", ".join(
+            f"{v.name} (sys id {v.sys_id}) udp {host}:{port}"
+            for v, (host, port) in zip(server.fleet.vehicles, server.local_addresses, strict=True)
+        )
+        count = len(server.servers)
+        print(f"quadsitl sim: {count} vehicles wait for their autopilots: {ports} ({pace}); Ctrl-C stops", flush=True)
+    else:
+        host, port = server.local_address
+        print(f"quadsitl sim: waiting for an autopilot on udp {host}:{port} ({pace}); Ctrl-C stops", flush=True)
 
     previous = {sig: signal.signal(sig, _stop) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:

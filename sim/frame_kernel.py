@@ -40,6 +40,7 @@ from mavlink_bridge.contract.sensor_values import (
     V_TEMPERATURE,
     V_VEL_NED,
 )
+from sim.batch import BatchSim
 from sim.sensors import _SEA_LEVEL_PA, GPS_PERIOD_US, MAG_FIELD_NED_GAUSS, SensorModel
 from sim.vehicle import VehicleSim
 
@@ -160,8 +161,8 @@ def fill_values(
     return True
 
 
-def sensor_constants(sensors: SensorModel, vehicle: VehicleSim) -> np.ndarray:
-    """The ``C_*`` array of a sensor model and a vehicle (truth about the vehicle's world home)."""
+def sensor_constants(sensors: SensorModel, vehicle: VehicleSim | BatchSim) -> np.ndarray:
+    """The ``C_*`` array of a sensor model and a vehicle or batch (truth about the world's home)."""
     nm = sensors.noise_model
     c = np.zeros(N_CONSTANTS)
     c[C_HOME_ALT] = sensors.home.alt_amsl_m
@@ -181,7 +182,7 @@ def sensor_constants(sensors: SensorModel, vehicle: VehicleSim) -> np.ndarray:
     c[C_GPS_EPV] = sensors._gps_epv_m
     c[C_GPS_FIX_TYPE] = 3
     c[C_GPS_SATELLITES] = 12
-    c[C_TRUTH_FRAME : C_TRUTH_FRAME + 12] = frame_constants(vehicle._home_frame)
+    c[C_TRUTH_FRAME : C_TRUTH_FRAME + 12] = frame_constants(LocalNedFrame(vehicle.world.home))
     c[C_GPS_FRAME : C_GPS_FRAME + 12] = frame_constants(sensors._frame)
     return c
 
@@ -192,12 +193,16 @@ class SensorValues:
     ``values`` (``N_VALUES``, layout ``mavlink_bridge.contract.sensor_values``) is reused every step.
     """
 
-    __slots__ = ("_batch", "_constants", "_sensors", "values")
+    __slots__ = ("_batch", "_constants", "_force", "_sensors", "_state", "values")
 
-    def __init__(self, vehicle: VehicleSim, sensors: SensorModel) -> None:
-        self._batch = vehicle.batch
+    def __init__(self, vehicle: VehicleSim | BatchSim, sensors: SensorModel, row: int = 0) -> None:
+        """The values of ``vehicle`` (a single vehicle, or row ``row`` of a batch: one vehicle of a fleet)."""
+        batch = vehicle if isinstance(vehicle, BatchSim) else vehicle.batch
+        self._batch = batch
         self._sensors = sensors
-        self._constants = sensor_constants(sensors, vehicle)
+        self._constants = sensor_constants(sensors, batch)
+        self._state = batch.state[row : row + 1]  # views: the kernel reads row 0 of them
+        self._force = batch.specific_force_frd[row : row + 1]
         self.values = np.zeros(N_VALUES)
 
     def fill(self) -> bool:
@@ -206,8 +211,8 @@ class SensorValues:
         if s._counters[0] + NOISE_PER_STEP > s._noise.shape[0]:
             s._reserve_noise(NOISE_PER_STEP)
         return fill_values(
-            b.state,
-            b.specific_force_frd,
+            self._state,
+            self._force,
             b.t_us,
             self._constants,
             s._noise,

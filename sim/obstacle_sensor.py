@@ -35,9 +35,11 @@ from numba import njit
 from mavlink_bridge.contract.frames import dcm_from_quat
 from mavlink_bridge.contract.wire import ObstacleDetection, ObstacleShape
 
-from .world import KIND_BOX, KIND_CYLINDER, KIND_SPHERE, World, obstacle_distance_m
+from .world import KIND_BOX, KIND_CYLINDER, KIND_SPHERE, OBSTACLE_PARAM_WIDTH, World, obstacle_distance_m
 
 _HIT_EPS_M = 1e-3
+#: A detection's bounding volume: centre NED (a column's top centre), radius, is a ground column, shape.
+_Volume = tuple[np.ndarray, float, bool, ObstacleShape]
 _MAX_MARCH_STEPS = 128
 
 
@@ -57,6 +59,7 @@ class ObstacleSensorConfig:
     ultrasonic_range_m: float = 6.0
     ultrasonic_half_angle_deg: float = 12.5
     ultrasonic_noise_m: float = 0.02
+    max_others: int = 6  # other vehicles (a fleet's) tracked at once: the nearest in view
 
 
 @njit(cache=True)
@@ -112,7 +115,7 @@ class ObstacleSensor:
         self._tan_v = math.tan(math.radians(self.config.camera_vfov_deg / 2))
         self._cos_us = math.cos(math.radians(self.config.ultrasonic_half_angle_deg))
         # bounding volumes: (centre NED, radius, is_column, shape)
-        self._volumes: list[tuple[np.ndarray, float, bool, ObstacleShape]] = []
+        self._volumes: list[_Volume] = []
         for kind, p in zip(self._kinds, self._params, strict=True):
             if kind == KIND_SPHERE:
                 self._volumes.append((p[:3].copy(), float(p[3]), False, ObstacleShape.SPHERE))
@@ -127,8 +130,9 @@ class ObstacleSensor:
         x = float(v_frd[0])
         return x > 1e-6 and abs(v_frd[1]) <= self._tan_h * x and abs(v_frd[2]) <= self._tan_v * x
 
-    def _nearest_on_volume(self, k: int, pos: np.ndarray) -> np.ndarray:
-        center, radius, column, _ = self._volumes[k]
+    @staticmethod
+    def _nearest_on_volume(volume: _Volume, pos: np.ndarray) -> np.ndarray:
+        center, radius, column, _ = volume
         if not column:
             d = pos - center
             n = float(np.linalg.norm(d))
@@ -139,48 +143,96 @@ class ObstacleSensor:
         down = min(max(float(pos[2]), float(center[2])), 0.0)  # between the top and the ground
         return np.array((center[0] + h[0], center[1] + h[1], down))
 
-    def _nearest_on_obstacle(self, k: int, pos: np.ndarray) -> np.ndarray:
+    @staticmethod
+    def _nearest_on_obstacle(kind: int, params: np.ndarray, pos: np.ndarray) -> np.ndarray:
         """True nearest surface point via the signed-distance gradient (central differences)."""
         h = 1e-4
         grad = np.empty(3)
         for i in range(3):
             dp = np.zeros(3)
             dp[i] = h
-            plus = obstacle_distance_m(self._kinds[k], self._params[k], *(pos + dp))
-            minus = obstacle_distance_m(self._kinds[k], self._params[k], *(pos - dp))
+            plus = obstacle_distance_m(kind, params, *(pos + dp))
+            minus = obstacle_distance_m(kind, params, *(pos - dp))
             grad[i] = (plus - minus) / (2 * h)
-        dist = obstacle_distance_m(self._kinds[k], self._params[k], pos[0], pos[1], pos[2])
+        dist = obstacle_distance_m(kind, params, pos[0], pos[1], pos[2])
         g = float(np.linalg.norm(grad))
         return pos - dist * grad / max(g, 1e-9)
 
-    def detect(self, pos_ned: np.ndarray, q_ned_frd: np.ndarray, time_us: int) -> tuple[ObstacleDetection, ...]:
-        """The obstacles seen now from ``pos_ned`` with attitude ``q_ned_frd`` (FRD detections, seeded noise)."""
-        if not self._volumes:
-            return ()
+    def _scene(
+        self, pos: np.ndarray, r_ned_frd: np.ndarray, others: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray, list[_Volume], list[int]]:
+        """The world's obstacles plus those of ``others`` (rows ``north, east, down, radius, id``: other vehicles as
+        spheres) that reach into the camera's range and field of view: kinds, params, volumes and report ids."""
+        ids = list(range(len(self._volumes)))
+        if others is None or not len(others):
+            return self._kinds, self._params, self._volumes, ids
+        radius = others[:, 3]
+        rel_frd = (others[:, :3] - pos) @ r_ned_frd  # each row: R^T (centre - pos)
+        x, y, z = rel_frd[:, 0], np.abs(rel_frd[:, 1]), np.abs(rel_frd[:, 2])
+        th, tv = self._tan_h, self._tan_v
+        in_view = (
+            (np.linalg.norm(rel_frd, axis=1) - radius <= self.config.camera_range_m)
+            & (x > -radius)
+            & ((y - th * x) <= radius * math.sqrt(1.0 + th * th))  # the sphere reaches past each side plane
+            & ((z - tv * x) <= radius * math.sqrt(1.0 + tv * tv))
+        )
+        near = others[in_view]
+        if len(near) > self.config.max_others:  # the nearest ones (a stereo tracker's object slots)
+            gap_m = np.linalg.norm(near[:, :3] - pos, axis=1) - near[:, 3]
+            near = near[np.sort(np.argsort(gap_m, kind="stable")[: self.config.max_others])]
+        if not len(near):
+            return self._kinds, self._params, self._volumes, ids
+        spheres = np.zeros((len(near), OBSTACLE_PARAM_WIDTH))
+        spheres[:, :4] = near[:, :4]
+        kinds = np.concatenate((self._kinds, np.full(len(near), KIND_SPHERE, dtype=np.int64)))
+        params = np.vstack((self._params, spheres))
+        volumes = self._volumes + [(row[:3].copy(), float(row[3]), False, ObstacleShape.SPHERE) for row in near]
+        return kinds, params, volumes, ids + [int(i) for i in near[:, 4]]
+
+    def detect(
+        self, pos_ned: np.ndarray, q_ned_frd: np.ndarray, time_us: int, others: np.ndarray | None = None
+    ) -> tuple[ObstacleDetection, ...]:
+        """The obstacles seen now from ``pos_ned`` with attitude ``q_ned_frd`` (FRD detections, seeded noise).
+
+        ``others`` (m, 5): other vehicles as spheres ``north, east, down, radius, obstacle id`` (a fleet world's
+        vehicles see each other; ids after the world's obstacles)."""
         cfg = self.config
         pos = np.ascontiguousarray(pos_ned, dtype=np.float64)
+        if not self._volumes and (others is None or not len(others)):
+            return ()
         r_ned_frd = dcm_from_quat(np.asarray(q_ned_frd, float))
+        kinds, params, volumes, ids = self._scene(pos, r_ned_frd, others)
+        if not volumes:
+            return ()
         n_grid = len(self._grid_frd)
-        np.matmul(self._grid_frd, r_ned_frd.T, out=self._dirs[:n_grid])
+        n_rays = n_grid + len(volumes)
+        dirs = self._dirs if n_rays == len(self._dirs) else np.empty((n_rays, 3))
+        hits = self._hits if n_rays == len(self._hits) else np.empty((n_rays, 2))
+        np.matmul(self._grid_frd, r_ned_frd.T, out=dirs[:n_grid])
         # one extra ray per obstacle toward its true nearest point (when that point is in view)
-        extra = np.zeros(len(self._volumes), bool)
-        for k in range(len(self._volumes)):
-            rel = self._nearest_on_obstacle(k, pos) - pos
+        extra = np.zeros(len(volumes), bool)
+        n_static = len(self._volumes)
+        for k in range(len(volumes)):
+            if k < n_static:
+                rel = self._nearest_on_obstacle(kinds[k], params[k], pos) - pos
+            else:  # another vehicle: a sphere, whose nearest point is exact
+                rel = self._nearest_on_volume(volumes[k], pos) - pos
             rng = float(np.linalg.norm(rel))
-            self._dirs[n_grid + k] = (1.0, 0.0, 0.0)
+            dirs[n_grid + k] = (1.0, 0.0, 0.0)
             if 1e-6 < rng <= cfg.camera_range_m and self._in_fov(r_ned_frd.T @ rel):
-                self._dirs[n_grid + k] = rel / rng
+                dirs[n_grid + k] = rel / rng
                 extra[k] = True
-        _march(self._kinds, self._params, pos, self._dirs, cfg.camera_range_m, self._hits)
-        seen = set(int(k) for k in self._hits[:n_grid, 1] if k >= 0)
-        seen |= {k for k in range(len(self._volumes)) if extra[k] and int(self._hits[n_grid + k, 1]) == k}
-        us_range = self._ultrasonic(pos, r_ned_frd)
-        out = []
-        for k in sorted(seen):
-            out.append(self._report(k, pos, r_ned_frd, time_us, us_range))
-        return tuple(out)
+        if len(volumes) == n_static:
+            _march(kinds, params, pos, dirs, cfg.camera_range_m, hits)
+        else:  # other vehicles are seen by the ray toward each (small: the grid would rarely add one) and occlude
+            _march(self._kinds, self._params, pos, dirs[:n_grid], cfg.camera_range_m, hits[:n_grid])
+            _march(kinds, params, pos, dirs[n_grid:], cfg.camera_range_m, hits[n_grid:])
+        seen = set(int(k) for k in hits[:n_grid, 1] if k >= 0)
+        seen |= {k for k in range(len(volumes)) if extra[k] and int(hits[n_grid + k, 1]) == k}
+        us_range = self._ultrasonic(kinds, params, pos, r_ned_frd)
+        return tuple(self._report(volumes[k], ids[k], pos, r_ned_frd, time_us, us_range) for k in sorted(seen))
 
-    def _ultrasonic(self, pos: np.ndarray, r_ned_frd: np.ndarray) -> float:
+    def _ultrasonic(self, kinds: np.ndarray, params: np.ndarray, pos: np.ndarray, r_ned_frd: np.ndarray) -> float:
         """True range to the nearest surface in the ultrasonic cone (inf beyond its range)."""
         half = math.radians(self.config.ultrasonic_half_angle_deg)
         dirs_frd = [(1.0, 0.0, 0.0)] + [
@@ -189,15 +241,15 @@ class ObstacleSensor:
         ]
         dirs = np.array(dirs_frd) @ r_ned_frd.T
         hits = np.empty((len(dirs), 2))
-        _march(self._kinds, self._params, pos, dirs, self.config.ultrasonic_range_m, hits)
+        _march(kinds, params, pos, dirs, self.config.ultrasonic_range_m, hits)
         return float(hits[:, 0].min())
 
     def _report(
-        self, k: int, pos: np.ndarray, r_ned_frd: np.ndarray, time_us: int, us_range: float
+        self, volume: _Volume, obstacle_id: int, pos: np.ndarray, r_ned_frd: np.ndarray, time_us: int, us_range: float
     ) -> ObstacleDetection:
         cfg = self.config
-        _, radius, _, shape = self._volumes[k]
-        rel_ned = self._nearest_on_volume(k, pos) - pos
+        _, radius, _, shape = volume
+        rel_ned = self._nearest_on_volume(volume, pos) - pos
         rel_frd = r_ned_frd.T @ rel_ned
         rng = float(np.linalg.norm(rel_frd))
         los = rel_frd / max(rng, 1e-9)
@@ -211,4 +263,4 @@ class ObstacleSensor:
         measured = max(measured, 0.0)
         radius_est = radius * (1.0 + float(np.clip(self._rng.normal(0.0, cfg.radius_noise_frac), -0.1, 0.1)))
         p = los * measured
-        return ObstacleDetection(time_us, k, (float(p[0]), float(p[1]), float(p[2])), radius_est, shape)
+        return ObstacleDetection(time_us, obstacle_id, (float(p[0]), float(p[1]), float(p[2])), radius_est, shape)

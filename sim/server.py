@@ -39,6 +39,7 @@ from mavlink_bridge.wire.frame_writer import FrameWriter
 from sim.end_reason import EndReason
 from sim.frame_kernel import SensorValues
 from sim.sensors import SensorModel
+from sim.traffic import DEFAULT_TRAFFIC_RANGE_M
 from sim.vehicle import VehicleSim
 from sim.vehicle_config import load_vehicle
 from sim.world import World, empty_world, load_world
@@ -72,6 +73,7 @@ class SimConfig:
     truth_log: Path | None = None  # .npz of the truth state at control rate
     lockstep_spin_s: float = DEFAULT_SPIN_S  # busy-poll for the answer before sleeping (0 = never)
     loss_fraction: float = 0.0  # > 0: the lockstep drops this share of datagrams each way (seeded; --sim-loss)
+    traffic_range_m: float = DEFAULT_TRAFFIC_RANGE_M  # a fleet world's receivers report targets this close (3D)
 
 
 @dataclass(frozen=True, slots=True)

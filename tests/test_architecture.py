@@ -21,7 +21,15 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("sim", "autopilot", "mavlink_bridge")
 #: The I/O edges of sim and autopilot: they own sockets (CLI, lockstep server/loop, links).
-IO_EDGES = {"sim.cli", "sim.server", "autopilot.cli", "autopilot.launcher", "autopilot.io_loop"}
+IO_EDGES = {
+    "sim.cli",
+    "sim.server",
+    "sim.fleet_server",
+    "autopilot.cli",
+    "autopilot.launcher",
+    "autopilot.fleet_launcher",
+    "autopilot.io_loop",
+}
 MAX_LINES = 420
 #: Modules allowed over MAX_LINES, with the reason (reviewed; keep the list short). A ratchet: a listed module
 #: that shrinks under the limit must leave the list (the test says so).

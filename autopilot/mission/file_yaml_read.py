@@ -19,7 +19,8 @@ from mavlink_bridge.contract.vehicle_api import MissionItem
 _REL = int(MavFrame.GLOBAL_RELATIVE_ALT_INT)
 _MISSION_FRAME = int(MavFrame.MISSION)
 _NAN = float("nan")
-_TOP_KEYS = ("version", "name", "home", "vehicle", "speed_m_s", "mission", "fence", "world")
+#: ``vehicles``/``traffic`` (a fleet world, SPEC §13) are the simulator's and each vehicle's: not read here.
+_TOP_KEYS = ("version", "name", "home", "vehicle", "speed_m_s", "mission", "fence", "world", "vehicles", "traffic")
 _ENTRY_KINDS = (
     "takeoff", "waypoint", "pattern", "payload_release", "payload_grab", "loiter", "speed", "delay", "jump",
     "return_to_launch", "land", "mav_item",
@@ -38,13 +39,17 @@ class YamlReader:
         self.kind = ""
         #: The ``mission:`` entry index of each mission item (patterns expand to many, speed_m_s adds one).
         self.entry_of_seq: list[int | None] = []
+        #: YAML path of the entry being read: () for the file's own mission, ("vehicles", i) for a fleet vehicle's.
+        self.prefix: tuple[str | int, ...] = ()
 
     def line(self, *path: str | int) -> int | None:
         """The line of the deepest node along ``path`` (None without a source)."""
-        return self.source.line(*path) if self.source is not None else None
+        return self.source.line(*self.prefix, *path) if self.source is not None else None
 
     def fail(self, message: str, field: str = "", fix: str = "") -> MissionFileError:
         section = f"{self.section} ({self.kind})" if self.kind and self.index is None else self.section
+        if self.prefix:
+            section = f"vehicles[{self.prefix[1]}] {section}".rstrip()
         if self.kind and self.index is not None:
             message = f"({self.kind}) {message}"
         node = [p for p in (self.section, self.index, self.kind, field) if p not in ("", None)]
@@ -153,6 +158,18 @@ class YamlReader:
         items = self.mission(doc.get("mission"), frame, speed)
         fence = self.fence(doc.get("fence"), frame)
         return MissionPlan(name, home, items, fence, speed, vehicle, world)
+
+    def read_vehicle(self, index: int, entry: Any, world: MissionPlan) -> MissionPlan:
+        """Fleet vehicle ``index``'s ``mission:``/``fence:``/``speed_m_s:`` as a plan about the world's home (SPEC
+        §13; its name and airframe from the entry). Leaves ``prefix`` at the entry, for the caller's checks."""
+        self.prefix, self.section, self.index, self.kind = ("vehicles", index), "", None, ""
+        entry = self.mapping(entry, ("name", "vehicle", "home", "mission", "fence", "speed_m_s"))
+        speed = self.number(entry, "speed_m_s", 0.1, 50.0) if entry.get("speed_m_s") is not None else world.speed_m_s
+        frame = LocalNedFrame(world.home)
+        items = self.mission(entry.get("mission"), frame, speed)
+        fence = self.fence(entry.get("fence"), frame)
+        name, vehicle = str(entry.get("name", f"vehicle{index}")), str(entry.get("vehicle") or world.vehicle)
+        return MissionPlan(name, world.home, items, fence, speed, vehicle, world.world)
 
     # ---- mission entries
 

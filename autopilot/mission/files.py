@@ -84,14 +84,46 @@ def load_mission_file(
     except OSError as exc:
         fix = "check the path (missions/ holds the examples)" if not p.exists() else "check its permissions"
         raise MissionFileError(p, f"cannot read: {exc.strerror}", fix=fix) from None
+    _check_plan(plan, p, fmt, text, reader, limits)
+    return plan
+
+
+def load_fleet_missions(
+    path: str | Path, *, limits: MissionLimits | None = None, expander: PatternExpander = expand_pattern
+) -> list[MissionPlan]:
+    """Each ``vehicles:`` entry of a YAML fleet world as its own checked plan, about the world's home (SPEC §13;
+    ``[]`` for any other file). Raises :class:`MissionFileError` naming the file, the line, the vehicle and item."""
+    p = Path(path)
+    if _format(p) != "yaml":
+        return []
+    world = load_mission_file(p, limits=limits, expander=expander)  # the file itself first (its errors, its OSError)
+    text = p.read_text()
+    source = parse_yaml(text, p)
+    entries = source.data.get("vehicles") if isinstance(source.data, dict) else None
+    if not isinstance(entries, list):
+        return []
+    reader = YamlReader(p, expander, source)
+    plans = []
+    for i, entry in enumerate(entries):
+        plan = reader.read_vehicle(i, entry, world)
+        _check_plan(plan, p, "yaml", text, reader, limits)
+        plans.append(plan)
+    return plans
+
+
+def _check_plan(
+    plan: MissionPlan, p: Path, fmt: str, text: str, reader: YamlReader | None, limits: MissionLimits | None
+) -> None:
+    """Validate a plan's items and fence (MissionFileError naming the item and its line)."""
     for section, items in (("mission", plan.items), ("fence", plan.fence)):
         issue = check_mission(items, plan.home, limits)
         if issue is not None:
             index = issue.item_index if issue.item_index >= 0 else None
             message = issue.reason.split(": ", 1)[1] if index is not None else issue.reason
             line = _item_line(fmt, text, reader, section, index)
+            if reader is not None and reader.prefix:
+                section = f"vehicles[{reader.prefix[1]}] {section}"
             raise MissionFileError(p, message, section=section, item_index=index, field=issue.field, line=line)
-    return plan
 
 
 def _item_line(fmt: str, text: str, reader: YamlReader | None, section: str, index: int | None) -> int | None:

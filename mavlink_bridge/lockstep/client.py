@@ -7,7 +7,9 @@ answers a re-sent frame it has already answered from its cache without bothering
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
+from mavlink_bridge.contract.traffic import TrafficReport
 from mavlink_bridge.contract.wire import ActuatorCommand, GpsSample, GroundTruth, ObstacleDetection, SensorSample
 from mavlink_bridge.lockstep.answer_kernel import AnswerWriter
 from mavlink_bridge.lockstep.edge import (
@@ -22,6 +24,7 @@ from mavlink_bridge.lockstep.edge import (
 )
 from mavlink_bridge.wire.codec import AUTOPILOT_COMPONENT_ID, AUTOPILOT_SYSTEM_ID, Decoder, Encoder, Heartbeat
 from mavlink_bridge.wire.link import LinkMode, LinkUrl, LinkUrlError, UdpLink
+from mavlink_bridge.wire.traffic_codec import MAV_TYPE_ADSB
 
 
 def _client_url(sim_url: str) -> LinkUrl:
@@ -51,11 +54,13 @@ class LockstepClient:
         sim_lost_timeout_s: float = 3.0,
         heartbeat: Heartbeat | None = None,
         spin_s: float = DEFAULT_SPIN_S,
+        system_id: int = AUTOPILOT_SYSTEM_ID,
     ) -> None:
+        """``system_id``: the vehicle's MAV_SYS_ID (a fleet's instance i is i + 1, as in PX4 SITL)."""
         self.heartbeat_period_s = heartbeat_period_s
         self.sim_lost_timeout_s = sim_lost_timeout_s
         self._link = UdpLink(_client_url(sim_url), spin_s=spin_s)
-        self._encoder = Encoder(AUTOPILOT_SYSTEM_ID, AUTOPILOT_COMPONENT_ID)
+        self._encoder = Encoder(system_id, AUTOPILOT_COMPONENT_ID)
         self._decoder = Decoder()
         self._heartbeat_bytes = self._encoder.heartbeat(heartbeat or Heartbeat())
         self._last_heard_s: float | None = None
@@ -64,9 +69,12 @@ class LockstepClient:
         self._truth: GroundTruth | None = None
         self._gps: GpsSample | None = None
         self._detections: list[ObstacleDetection] = []
+        self._traffic: list[TrafficReport] = []
+        #: Sim time (µs) of the frame with the traffic receiver's last HEARTBEAT (MAV_TYPE_ADSB); -1: never heard.
+        self.traffic_receiver_t_us = -1
         self._pending_time_us = -1
         self._answered_time_us = -1
-        self._answers = AnswerWriter(AUTOPILOT_SYSTEM_ID, AUTOPILOT_COMPONENT_ID)  # in place, own sequence
+        self._answers = AnswerWriter(system_id, AUTOPILOT_COMPONENT_ID)  # in place, own sequence
         self._answers.write(0, (0.0, 0.0, 0.0, 0.0), False, False, True)  # load the compiled writer now
         self._answers.seq = 0
         self._answer_len = 0
@@ -151,6 +159,7 @@ class LockstepClient:
     def _absorb(self, data: bytes, now: float) -> LockstepFrame | None:
         """Collect the messages of one datagram from the sim; a HIL_SENSOR completes a frame."""
         frame: LockstepFrame | None = None
+        receiver_heard = False
         last = self._last_heard_s
         if last is not None and now - last > self.sim_lost_timeout_s:  # a restarted sim counts from zero again
             self._answered_time_us = self._pending_time_us = -1
@@ -163,6 +172,10 @@ class LockstepClient:
                 self._gps = msg
             elif kind is ObstacleDetection:
                 self._detections.append(msg)
+            elif kind is TrafficReport:
+                self._traffic.append(msg)
+            elif kind is Heartbeat and msg.mav_type == MAV_TYPE_ADSB:
+                receiver_heard = True
             elif kind is SensorSample:
                 t = msg.time_us
                 gps, truth = self._gps, self._truth
@@ -186,10 +199,14 @@ class LockstepClient:
                 ):
                     self._invalid += 1
                 else:
-                    frame = LockstepFrame(msg, gps, truth, tuple(self._detections))
+                    traffic = tuple(r if r.t_us else replace(r, t_us=t) for r in self._traffic)  # ADS-B: now
+                    frame = LockstepFrame(msg, gps, truth, tuple(self._detections), traffic)
                     self._pending_time_us = t
                     self._frames += 1
+                    if receiver_heard:
+                        self.traffic_receiver_t_us = t
                 self._detections.clear()
+                self._traffic.clear()
         return frame
 
     def answer(self, cmd: ActuatorCommand) -> None:

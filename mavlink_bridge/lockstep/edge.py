@@ -8,6 +8,7 @@ import argparse
 import math
 from dataclasses import dataclass
 
+from mavlink_bridge.contract.traffic import TrafficReport
 from mavlink_bridge.contract.wire import GpsSample, GroundTruth, ObstacleDetection, SensorSample
 from mavlink_bridge.wire.codec import Encoder
 
@@ -55,6 +56,9 @@ class LockstepFrame:
     gps: GpsSample | None
     truth: GroundTruth
     detections: tuple[ObstacleDetection, ...] = ()
+    #: Traffic reports the simulator's receiver passed on with this frame (SPEC §13), each stamped with its fix
+    #: time: other vehicles (UTM_GLOBAL_POSITION) and manned aircraft (ADSB_VEHICLE), at most 1 Hz per target.
+    traffic: tuple[TrafficReport, ...] = ()
 
     @property
     def time_us(self) -> int:
@@ -161,8 +165,10 @@ class ResendTimer:
 
 
 def encode_frame(encoder: Encoder, frame: LockstepFrame) -> bytes:
-    """One datagram for a frame: HIL_GPS?, HIL_STATE_QUATERNION, OBSTACLE_DISTANCE_3D*, HIL_SENSOR last."""
-    parts = [] if frame.gps is None else [encoder.gps(frame.gps)]
+    """One datagram for a frame: traffic*, HIL_GPS?, HIL_STATE_QUATERNION, OBSTACLE_DISTANCE_3D*, HIL_SENSOR last."""
+    parts = [encoder.traffic(r) for r in frame.traffic]
+    if frame.gps is not None:
+        parts.append(encoder.gps(frame.gps))
     parts.append(encoder.truth(frame.truth))
     parts.extend(encoder.detection(d) for d in frame.detections)
     parts.append(encoder.sensor(frame.sensor))

@@ -41,6 +41,7 @@ import struct
 from collections.abc import Callable
 
 from mavlink_bridge.contract.frames import DEG_E7, GRAVITY_M_S2
+from mavlink_bridge.contract.traffic import TrafficReport, TrafficSource
 from mavlink_bridge.contract.wire import (
     ACTUATOR_FLAG_LOCKSTEP,
     ACTUATOR_MODE_ARMED,
@@ -77,6 +78,7 @@ from mavlink_bridge.wire.framing import (
     _dialect,
     _Layout,
 )
+from mavlink_bridge.wire.traffic_codec import ADSB_VEHICLE, UTM_GLOBAL_POSITION, adsb_payload, utm_payload
 
 __all__ = [
     "AUTOPILOT_COMPONENT_ID",
@@ -272,6 +274,12 @@ class Encoder:
         )
         return self._frame(_HIL_ACTUATORS, payload)
 
+    def traffic(self, r: TrafficReport) -> bytes:
+        """ADSB_VEHICLE (manned) or UTM_GLOBAL_POSITION (another vehicle), see ``traffic_codec``."""
+        if r.source is TrafficSource.MANNED:
+            return self._frame(ADSB_VEHICLE, adsb_payload(r))
+        return self._frame(UTM_GLOBAL_POSITION, utm_payload(r))
+
     def encode(self, msg: WireMessage) -> bytes:
         """Any wire message -> one frame (dispatch on type)."""
         return _ENCODERS[type(msg)](self, msg)
@@ -284,6 +292,7 @@ _ENCODERS: dict[type, Callable[[Encoder, WireMessage], bytes]] = {
     GroundTruth: Encoder.truth,
     ObstacleDetection: Encoder.detection,
     ActuatorCommand: Encoder.actuators,
+    TrafficReport: Encoder.traffic,
 }
 
 

@@ -46,6 +46,7 @@ from mavlink_bridge.wire.framing import (
     WireMessage,
     _crc_mcrf4xx,
 )
+from mavlink_bridge.wire.traffic_codec import ADSB_VEHICLE, UTM_GLOBAL_POSITION, decode_adsb, decode_utm
 
 
 def _decode_heartbeat(buf: bytes, at: int) -> Heartbeat:
@@ -116,6 +117,8 @@ _DECODERS: dict[int, Callable[[bytes, int], WireMessage | None]] = {
     _HIL_STATE_Q.msg_id: _decode_truth,
     _OBSTACLE_3D.msg_id: _decode_detection,
     _HIL_ACTUATORS.msg_id: _decode_actuators,
+    ADSB_VEHICLE.msg_id: decode_adsb,
+    UTM_GLOBAL_POSITION.msg_id: decode_utm,
 }
 #: msg id -> (crc_extra, full payload length, decoder ``(buffer, offset)`` or None) for every message of the dialect.
 _TABLE: dict[int, tuple[bytes, int, Callable[[bytes, int], WireMessage | None] | None]] = {

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from fastcrc import crc16 as _crc16
 from pymavlink.dialects.v20 import ardupilotmega as _dialect
 
+from mavlink_bridge.contract.traffic import TrafficReport
 from mavlink_bridge.contract.wire import (
     GRIPPER_CHANNEL,
     ActuatorCommand,
@@ -54,7 +55,7 @@ class Heartbeat:
     system_status: int = _dialect.MAV_STATE_STANDBY
 
 
-WireMessage = SensorSample | GpsSample | GroundTruth | ObstacleDetection | ActuatorCommand | Heartbeat
+WireMessage = SensorSample | GpsSample | GroundTruth | ObstacleDetection | ActuatorCommand | Heartbeat | TrafficReport
 
 
 # --- CRC-16/MCRF4XX (X.25, the MAVLink checksum) at C speed -----------------------------------

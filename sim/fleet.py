@@ -1,0 +1,199 @@
+"""Several vehicles in one world, stepped together (SPEC §13); no sockets (``sim.fleet_server`` serves them).
+
+Vehicles of one airframe share one :class:`BatchSim` (one compiled call steps them all); a fleet of mixed
+airframes has one batch per airframe. Each vehicle has its own seeded streams (gusts, sensor noise, obstacle
+sensor), derived from the world's seed and its instance only (:func:`vehicle_seed`), so adding a vehicle never
+shifts another's. Vehicles are physical to each other: two whose collision spheres (``collision_radius_m``, the
+half diagonal plus a propeller) overlap are in contact, a COLLISION for both; each vehicle's obstacle sensor sees
+the others as spheres of that radius (obstacle id ``len(world.obstacles) + instance``).
+"""
+
+from __future__ import annotations
+
+import hashlib
+
+import numpy as np
+
+from sim.batch import BatchSim
+from sim.end_reason import EndReason
+from sim.fleet_world import FleetSpec
+from sim.frame_kernel import SensorValues
+from sim.obstacle_sensor import ObstacleSensor
+from sim.sensors import SensorModel
+from sim.vehicle_config import VehicleConfig
+from sim.world import World
+
+_RUNNING = int(EndReason.RUNNING)
+
+
+def vehicle_seed(seed: int, instance: int) -> int:
+    """The seed of vehicle ``instance``'s streams in a fleet world run with ``seed`` (63 bits; independent of the
+    other vehicles, so adding one shifts no other's streams)."""
+    state = np.random.SeedSequence([int(seed) & (2**64 - 1), instance]).generate_state(1, np.uint64)[0]
+    return int(state) >> 1
+
+
+class FleetSim:
+    """The vehicles of a fleet world: their batches, sensors and contacts (row i = instance i)."""
+
+    def __init__(
+        self,
+        world: World,
+        fleet: FleetSpec,
+        airframes: tuple[VehicleConfig, ...],
+        *,
+        seed: int = 0,
+        physics_hz: int = 1000,
+        control_hz: int = 250,
+        sensor_noise: bool = True,
+    ) -> None:
+        """``airframes[i]`` is vehicle i's (ValueError for a bad rate or vehicles placed in contact)."""
+        self.world = world
+        self.fleet = fleet
+        n = len(fleet.vehicles)
+        self.n = n
+        self.seeds = tuple(vehicle_seed(seed, i) for i in range(n))
+        self.radius_m = np.array([a.collision_radius_m for a in airframes])
+        home_ned = np.array([(v.home_north_m, v.home_east_m, 0.0) for v in fleet.vehicles]).reshape(n, 3)
+        self.batches: list[BatchSim] = []
+        self.rows: list[tuple[int, int]] = [(0, 0)] * n  # vehicle -> (batch, row)
+        self.members: list[np.ndarray] = []  # batch -> vehicle indices
+        for name in dict.fromkeys(a.name for a in airframes):
+            members = np.array([i for i in range(n) if airframes[i].name == name])
+            batch = BatchSim(
+                airframes[members[0]],
+                len(members),
+                physics_hz=physics_hz,
+                control_hz=control_hz,
+                world=world,
+                seed=np.array([self.seeds[i] for i in members], dtype=np.int64),
+            )
+            batch.reset(home_ned[members])
+            for row, i in enumerate(members):
+                self.rows[i] = (len(self.batches), row)
+            self.batches.append(batch)
+            self.members.append(members)
+        self.sensors = [SensorModel(airframes[i], world.home, self.seeds[i], noise=sensor_noise) for i in range(n)]
+        self.values = [SensorValues(self.batches[b], self.sensors[i], row) for i, (b, row) in enumerate(self.rows)]
+        self.obstacle_sensors = [ObstacleSensor(world, self.seeds[i]) for i in range(n)]
+        self.pos_ned = np.zeros((n, 3))
+        self.vel_ned = np.zeros((n, 3))
+        self.end_reason = np.zeros(n, dtype=np.int8)
+        self.gather()
+        self.contacts: list[tuple[int, int, float]] = []  # (i, j, t_s) of each first contact of a pair
+        self._touching = np.zeros((n, n), dtype=bool)
+        self.min_separation_m = np.full(n, np.inf)  # closest approach to any other vehicle (surface to surface)
+        self._others_id = len(world.obstacles) + np.arange(n, dtype=np.float64)
+        gap = self._gaps()
+        if n > 1 and float(gap.min()) <= 0.0:
+            i, j = np.unravel_index(int(np.argmin(gap)), gap.shape)
+            raise ValueError(
+                f"vehicles[{j}].home: {fleet.vehicles[j].name} starts in contact with {fleet.vehicles[i].name}; "
+                "fix: move their homes further apart"
+            )
+        self._motor_cmd = [np.zeros((len(m), 4)) for m in self.members]
+        self.hashes = [hashlib.sha256() for _ in range(n)]
+
+    # ---- state ---------------------------------------------------------------------------------------
+    @property
+    def t_us(self) -> int:
+        return self.batches[0].t_us
+
+    @property
+    def t_s(self) -> float:
+        return self.batches[0].t_s
+
+    @property
+    def steps(self) -> int:
+        """Control steps taken (the frame number)."""
+        return self.batches[0]._steps
+
+    def state_row(self, i: int) -> np.ndarray:
+        """Vehicle i's truth state (17,) (a view)."""
+        b, row = self.rows[i]
+        return self.batches[b].state[row]
+
+    def gather(self) -> None:
+        """Refresh ``pos_ned``, ``vel_ned`` and ``end_reason`` (instance order) from the batches (after a step, or
+        after writing a batch state directly)."""
+        for batch, members in zip(self.batches, self.members, strict=True):
+            self.pos_ned[members] = batch.state[:, 0:3]
+            self.vel_ned[members] = batch.state[:, 3:6]
+            self.end_reason[members] = batch.end_reason
+
+    def _gaps(self) -> np.ndarray:
+        """(n, n) surface-to-surface distances between vehicles (inf on the diagonal)."""
+        d = np.linalg.norm(self.pos_ned[:, None, :] - self.pos_ned[None, :, :], axis=2)
+        gap = d - self.radius_m[:, None] - self.radius_m[None, :]
+        np.fill_diagonal(gap, np.inf)
+        return gap
+
+    @property
+    def running(self) -> np.ndarray:
+        """(n,) bool: vehicles still integrated (not crashed or ended)."""
+        return self.end_reason == _RUNNING
+
+    # ---- a control step ------------------------------------------------------------------------------
+    def set_motors(self, i: int, motors: np.ndarray) -> None:
+        """Vehicle i's motor commands (4,) for the next step (0 = stopped)."""
+        b, row = self.rows[i]
+        self._motor_cmd[b][row] = motors
+
+    def release_payload(self, i: int) -> None:
+        b, row = self.rows[i]
+        mask = np.zeros(self.batches[b].n, dtype=bool)
+        mask[row] = True
+        self.batches[b].release_payload(mask)
+
+    def payload_kg(self, i: int) -> float:
+        b, row = self.rows[i]
+        return float(self.batches[b].payload_kg[row])
+
+    def step(self) -> None:
+        """Integrate every batch one control step, then the vehicle-vehicle contacts."""
+        for batch, cmd in zip(self.batches, self._motor_cmd, strict=True):
+            batch.step(cmd)
+        self.gather()
+        if self.n > 1:
+            self._contacts()
+
+    def _contacts(self) -> None:
+        gap = self._gaps()
+        np.minimum(self.min_separation_m, gap.min(axis=1), out=self.min_separation_m)
+        touching = gap <= 0.0
+        new = touching & ~self._touching
+        self._touching |= touching
+        if not new.any():
+            return
+        for i, j in zip(*np.nonzero(np.triu(new)), strict=True):
+            self.contacts.append((int(i), int(j), self.t_s))
+            self.end(EndReason.COLLISION, [int(i), int(j)])
+
+    def end(self, reason: EndReason, vehicles: list[int]) -> None:
+        """End the running ones of ``vehicles`` with ``reason`` (they freeze)."""
+        for i in vehicles:
+            b, row = self.rows[i]
+            mask = np.zeros(self.batches[b].n, dtype=bool)
+            mask[row] = True
+            self.batches[b].end(reason, mask)
+        self.gather()
+
+    def contacts_of(self, i: int) -> list[int]:
+        """The vehicles vehicle i touched."""
+        return [b if a == i else a for a, b, _ in self.contacts if i in (a, b)]
+
+    # ---- sensing -------------------------------------------------------------------------------------
+    def others_of(self, i: int) -> np.ndarray:
+        """(n-1, 5) the other vehicles as obstacle-sensor spheres: north, east, down, radius, obstacle id."""
+        rows = np.column_stack((self.pos_ned, self.radius_m, self._others_id))
+        return np.delete(rows, i, axis=0)
+
+    def detect(self, i: int) -> tuple:
+        """Vehicle i's obstacle detections now (world obstacles and the other vehicles)."""
+        state = self.state_row(i)
+        return self.obstacle_sensors[i].detect(state[0:3], state[6:10], self.t_us, self.others_of(i))
+
+    def record(self) -> None:
+        """Add every vehicle's truth state of now to its hash."""
+        for i, h in enumerate(self.hashes):
+            h.update(self.state_row(i))

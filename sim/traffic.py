@@ -1,0 +1,121 @@
+"""Scripted manned traffic and the simulated transponder receiver of each vehicle (SPEC §13).
+
+``ScriptedTraffic`` flies each ``traffic:`` aircraft kinematically: it appears at the first point of its path at
+``start_s``, follows the polyline at constant ``speed_m_s`` and is gone after the last point (no dynamics, no
+wind: a manned aircraft as an ADS-B receiver sees it).
+
+``TrafficReceiver`` decides what each vehicle's receiver reports at a control step: every other vehicle (as a
+UAV report, from the truth, as that vehicle's own UTM broadcast would say) and every airborne scripted aircraft
+(a MANNED report), once a second per target, within ``range_m`` (3D) of the receiver, never the receiver's own
+vehicle. Targets are staggered over the second (target k is due at step ``k * control_hz // targets`` of each
+second) so the reports of a big fleet do not all land in one frame; the receiver's own HEARTBEAT is due at step
+0 of each second. Everything is a function of the step number and the states: deterministic at any speed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
+from mavlink_bridge.contract.traffic import AdsbEmitterType, TrafficReport, TrafficSource
+from sim.fleet_world import ScriptedAircraft
+
+#: Default reporting range of the simulated receiver (m, 3D): far beyond any NMAC volume and a quad's horizon.
+DEFAULT_TRAFFIC_RANGE_M = 10_000.0
+
+
+class ScriptedTraffic:
+    """Positions and velocities (NED about the world's home) of the scripted aircraft at a sim time."""
+
+    def __init__(self, aircraft: tuple[ScriptedAircraft, ...]) -> None:
+        self.aircraft = aircraft
+        self._points: list[np.ndarray] = []  # (k, 3) NED per aircraft
+        self._dist_m: list[np.ndarray] = []  # (k,) cumulative path length
+        for a in aircraft:
+            pts = np.array([(p.north_m, p.east_m, -p.alt_m) for p in a.path], dtype=np.float64)
+            self._points.append(pts)
+            self._dist_m.append(np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1)))))
+
+    def __len__(self) -> int:
+        return len(self.aircraft)
+
+    def state(self, k: int, t_s: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """(pos_ned (3,), vel_ned (3,)) of aircraft ``k`` at ``t_s``; None before its start or after its end."""
+        a = self.aircraft[k]
+        s = (t_s - a.start_s) * a.speed_m_s
+        dist = self._dist_m[k]
+        if s < 0.0 or s > dist[-1]:
+            return None
+        pts = self._points[k]
+        seg = min(int(np.searchsorted(dist, s, side="right")) - 1, len(pts) - 2)
+        length = dist[seg + 1] - dist[seg]
+        direction = (pts[seg + 1] - pts[seg]) / length if length > 0.0 else np.zeros(3)
+        return pts[seg] + direction * (s - dist[seg]), direction * a.speed_m_s
+
+    def positions(self, t_s: float) -> np.ndarray:
+        """(m, 3) positions at ``t_s`` (NaN rows for aircraft not flying)."""
+        out = np.full((len(self.aircraft), 3), np.nan)
+        for k in range(len(self.aircraft)):
+            st = self.state(k, t_s)
+            if st is not None:
+                out[k] = st[0]
+        return out
+
+
+class TrafficReceiver:
+    """What each vehicle's simulated receiver reports at a control step (see the module docstring)."""
+
+    def __init__(
+        self,
+        home: GeoPoint,
+        sys_ids: tuple[int, ...],
+        traffic: ScriptedTraffic,
+        control_hz: int,
+        range_m: float = DEFAULT_TRAFFIC_RANGE_M,
+    ) -> None:
+        if not range_m > 0.0:
+            raise ValueError(f"traffic range: expected a positive distance in metres, got {range_m}")
+        self._frame = LocalNedFrame(home)
+        self.sys_ids = sys_ids
+        self.traffic = traffic
+        self.control_hz = control_hz
+        self.range_m = range_m
+        targets = len(sys_ids) + len(traffic)
+        #: step within each second at which target k (vehicles first, then aircraft) is reported
+        self._due_step = [k * control_hz // max(targets, 1) for k in range(targets)]
+
+    def heartbeat_due(self, step: int) -> bool:
+        """True when the receivers send their 1 Hz HEARTBEAT (MAV_TYPE_ADSB) with this step's frame."""
+        return step % self.control_hz == 0
+
+    def reports(
+        self, step: int, t_us: int, pos_ned: np.ndarray, vel_ned: np.ndarray, broadcasting: np.ndarray
+    ) -> list[list[TrafficReport]]:
+        """Per vehicle, the reports due at ``step`` (time ``t_us``); ``pos_ned``/``vel_ned`` (n, 3) truth of the
+        vehicles, ``broadcasting`` (n,) bool: vehicles whose autopilot is alive (a dead one sends no UTM)."""
+        n = len(self.sys_ids)
+        out: list[list[TrafficReport]] = [[] for _ in range(n)]
+        phase = step % self.control_hz
+        for k, due in enumerate(self._due_step):
+            if due != phase:
+                continue
+            if k < n:
+                if not broadcasting[k]:
+                    continue
+                target_pos, target_vel = pos_ned[k], vel_ned[k]
+                who = (TrafficSource.UAV, self.sys_ids[k], "", AdsbEmitterType.UAV)
+            else:
+                a = self.traffic.aircraft[k - n]
+                st = self.traffic.state(k - n, t_us * 1e-6)
+                if st is None:
+                    continue
+                target_pos, target_vel = st
+                who = (TrafficSource.MANNED, a.icao, a.callsign, a.emitter)
+            geo = self._frame.geodetic_from_ned(float(target_pos[0]), float(target_pos[1]), float(target_pos[2]))
+            vn, ve, vd = (float(v) for v in target_vel)
+            report = TrafficReport(*who, geo.lat_deg, geo.lon_deg, geo.alt_amsl_m, vn, ve, vd, t_us)
+            gap_m = np.linalg.norm(pos_ned - target_pos, axis=1)
+            for i in range(n):
+                if i != k and gap_m[i] <= self.range_m:
+                    out[i].append(report)
+        return out
