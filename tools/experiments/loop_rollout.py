@@ -120,7 +120,8 @@ def fly_route(rollout: LoopRollout) -> LoopOutcome:
     sensors = SensorModel(config, world.home, rollout.seed)
     est = make_estimator(rollout.estimator)
     ap_config = AutopilotConfig(vehicle=rollout.vehicle, estimator=rollout.estimator, avoidance=False)
-    params = make_param_store(payload_nominal_kg=load_airframe(rollout.vehicle).payload_nominal_kg)
+    airframe = load_airframe(rollout.vehicle)
+    params = make_param_store(payload_nominal_kg=airframe.payload_nominal_kg, airframe=airframe.name)
     for name, value in rollout.params:
         params.set(name, value)
     ap = Autopilot(ap_config, params=params, estimator=est)

@@ -15,8 +15,9 @@ worth about a 2 % rise of the RMS error). What the EKF's own error adds to e (a 
 
 The position level is learned (x+y shared, z its own: k1, k2, δ1, δ2 for the NLVG-PID; k_p, k_i, k_d for the
 fixed PID); the attitude loop is the base gains' for both structures, so the pair differs only in the variable
-gain. The fixed PID is tuned first with at least the NLVG's rollout budget; the NLVG's restart 0 starts at
-that tuned PID ("best kept": it never ends above it on the training cost), restart 1 at the base gains.
+gain. The fixed PID is tuned first with at least the NLVG's rollout budget (restart 0 at the paper PID's position
+gains, restart 1 at the base's k1); the NLVG's restart 0 starts at that tuned PID ("best kept": it never ends
+above it on the training cost), restart 1 at the base gains.
 
 Each ES iteration's rollouts are one ordered map over small frozen payloads (:func:`map_rollouts`).
 """
@@ -30,8 +31,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from autopilot.control.gains import CascadeGains
+from autopilot.control.gains import POSITION_CHANNELS, CascadeGains
 from autopilot.tuning import CentralEsConfig, EsResult, central_es
+from tools.campaign.engine import TaskEngine
 from tools.experiments.gain_vector import GainParametrisation, Structure
 from tools.experiments.loop_rollout import LoopOutcome, LoopRollout, fly_route
 from tools.experiments.paper_pipeline import equal_budget_iterations
@@ -43,17 +45,23 @@ POSITION_GROUPS: tuple[tuple[str, ...], ...] = (("x", "y"), ("z",))
 POSITION_BOUNDS = {"kp": (0.5, 30.0), "ki": (0.1, 3.0), "kd": (0.3, 30.0)}
 POSITION_DELTA_BOUNDS = {"delta1": (0.005, 0.15), "delta2": (0.2, 3.0)}
 
-Mapper = Callable[[Callable[[LoopRollout], LoopOutcome], Sequence[LoopRollout]], list[LoopOutcome]]
+#: flies a batch of rollouts and returns their outcomes in input order
+Mapper = Callable[[Sequence[LoopRollout]], list[LoopOutcome]]
 
 
-def map_rollouts(payloads: Sequence[LoopRollout], workers: int | None = None, label: str = "rollouts") -> list:
-    """Fly ``payloads`` on the campaign engine (one ordered map over worker processes); in this process when
-    ``workers`` is 0."""
-    if workers == 0:
-        return [fly_route(p) for p in payloads]
-    from tools.campaign.engine import run_tasks
+def in_process(payloads: Sequence[LoopRollout]) -> list[LoopOutcome]:
+    """The :data:`Mapper` of small runs and tests: every rollout in this process, one after the other."""
+    return [fly_route(p) for p in payloads]
 
-    return run_tasks(fly_route, list(payloads), workers=workers, progress_label=label)
+
+def engine_mapper(engine: TaskEngine, label: str | None = None) -> Mapper:
+    """The :data:`Mapper` on an open campaign engine session (one ordered map over its worker processes)."""
+    calls = iter(range(1 << 62))
+
+    def run(payloads: Sequence[LoopRollout]) -> list[LoopOutcome]:
+        return engine.run(fly_route, list(payloads), key=f"loop-rollout-{next(calls)}", progress_label=label)
+
+    return run
 
 
 @dataclass(frozen=True, slots=True)
@@ -102,7 +110,7 @@ def _per_route(cfg: LoopTuneConfig, outcomes: Sequence[LoopOutcome], m: int) -> 
 
 def reference(cfg: LoopTuneConfig, mapper: Mapper) -> Reference:
     """Fly the paper's fixed PID on ``cfg``'s routes and seeds."""
-    mse, ch = _per_route(cfg, mapper(fly_route, cfg.payloads([CascadeGains.fixed_pid()])), 1)
+    mse, ch = _per_route(cfg, mapper(cfg.payloads([CascadeGains.fixed_pid()])), 1)
     if not np.all(np.isfinite(mse)):
         raise RuntimeError(f"the paper PID did not complete the tuning routes on {cfg.vehicle}")
     return Reference(tuple(mse[0]), tuple(ch[0]))
@@ -116,7 +124,7 @@ def loop_cost(cfg: LoopTuneConfig, ref: Reference, mapper: Mapper) -> Callable[[
 
     def cost(k: np.ndarray) -> np.ndarray:
         gains = [param.single(row) for row in np.atleast_2d(k)]
-        mse, ch = _per_route(cfg, mapper(fly_route, cfg.payloads(gains)), len(gains))
+        mse, ch = _per_route(cfg, mapper(cfg.payloads(gains)), len(gains))
         with np.errstate(invalid="ignore"):
             j = (mse / ref_mse) @ w + cfg.effort_weight * np.mean(ch / ref_ch, axis=1)
         return np.where(np.isfinite(j), j, np.inf)
@@ -140,7 +148,9 @@ def tune_loop(cfg: LoopTuneConfig, ref: Reference, mapper: Mapper, on_iteration=
     starts = ([param.vector(cfg.warm_start)] if cfg.warm_start is not None else []) + [param.vector(cfg.base)]
     initial = np.stack(starts[: cfg.es.restarts])
     t0 = time.perf_counter()
-    res = central_es(loop_cost(cfg, ref, mapper), param.space(), cfg.es, initial_gains=initial, on_iteration=on_iteration)
+    res = central_es(
+        loop_cost(cfg, ref, mapper), param.space(), cfg.es, initial_gains=initial, on_iteration=on_iteration
+    )
     return LoopOutcomeOfTune(cfg, res, param.single(res.k_best), time.perf_counter() - t0)
 
 
@@ -169,7 +179,7 @@ def tune_pair(
     pid_cfg = replace(nlvg_cfg, structure=Structure.PID)
     dims = {c.structure: c.parametrisation().space().dim for c in (nlvg_cfg, pid_cfg)}
     pid_iters = equal_budget_iterations(dims[Structure.NLVG], dims[Structure.PID], restarts, iterations)
-    pid_cfg = replace(pid_cfg, es=replace(es, iterations=pid_iters, restarts=1))
+    pid_cfg = replace(pid_cfg, es=replace(es, iterations=pid_iters), warm_start=paper_position_on(base))
     ref = reference(nlvg_cfg, mapper)
     log(f"[{vehicle}] paper PID on the tuning routes: e RMS {np.sqrt(ref.mse_m2)} m, chatter {np.sqrt(ref.chatter_sq)}")
 
@@ -184,6 +194,12 @@ def tune_pair(
     nlvg = tune_loop(replace(nlvg_cfg, warm_start=pid.gains), ref, mapper, progress("nlvg"))
     log(f"[{vehicle}] nlvg J {nlvg.result.j_initial:.4f} -> {nlvg.result.j_best:.4f} ({nlvg.wall_s:.0f} s)")
     return LoopPair(pid, nlvg, ref)
+
+
+def paper_position_on(base: CascadeGains) -> CascadeGains:
+    """``base`` with the paper's fixed-PID gains on the position channels (the PID tune's restart 0)."""
+    paper = CascadeGains.fixed_pid()
+    return replace(base, **{ch: getattr(paper, ch) for ch in POSITION_CHANNELS})
 
 
 def rms_or_nan(values: Sequence[float]) -> float:
