@@ -6,6 +6,7 @@ Usage::
         [--vehicle delivery650] [--iterations N] [--restarts R] [--seed S] [--quiet]
     python -m tools.tune_es --ship --vehicle x500 [--iterations N] [--restarts R] [--workers W]
         [--ship-structure nlvg|pid|none] [--out DIR]
+    python -m tools.tune_es --ship-noise-model [--vehicle delivery650] [--effort-scale S]
 
 ``--config``: writes into ``--out``: ``gains.yaml`` (a gains file: ``CascadeGains.from_yaml`` and the
 autopilot's ``--params`` take it as it is), ``j_per_iteration.csv``, ``convergence.png``, ``k_of_s.png`` (the
@@ -32,14 +33,15 @@ from pathlib import Path
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+from autopilot.control.param_decls import DEFAULT_GAINS_PATH
 from autopilot.tuning import EsError, EsIteration
 from tools.experiments.tune_config import TuneConfigError, load_tune_config
-from tools.experiments.tuner import tune, write_outputs
+from tools.experiments.tuner import provenance, tune, write_outputs
 
 DEFAULT_VEHICLE = "delivery650"
 #: ES budget of ``--ship`` (the NLVG's; the fixed PID gets at least as many rollouts)
-SHIP_ITERATIONS = 6
-SHIP_RESTARTS = 2
+SHIP_ITERATIONS = 3
+SHIP_RESTARTS = 1
 
 
 def ship(args: argparse.Namespace, argv: list[str] | None, console: Console) -> int:
@@ -65,6 +67,31 @@ def ship(args: argparse.Namespace, argv: list[str] | None, console: Console) -> 
     return 0
 
 
+def ship_noise_model(vehicle: str, iterations: int | None, effort_scale: float, console: Console) -> int:
+    """``--ship-noise-model``: the generic default gains of issue 14 (:data:`DEFAULT_GAINS_PATH`), tuned in the
+    batched rollouts with the estimated feedback-noise model (:mod:`tools.experiments.noisy_pipeline`); they
+    fly airframes without their own tuned file. Written as ``--ship --vehicle V --effort-scale S`` before
+    issue 22."""
+    from tools.experiments.noisy_pipeline import tune_noisy_pair
+
+    try:
+        pair = tune_noisy_pair(vehicle, effort_scale, iterations, log=lambda msg: console.print(msg))
+    except (EsError, TuneConfigError, ValueError) as exc:
+        console.print(f"[red]ship failed:[/red] {exc}")
+        return 1
+    command = f"python -m tools.tune_es --ship-noise-model --vehicle {vehicle} --effort-scale {effort_scale:g}" + (
+        f" --iterations {iterations}" if iterations is not None else ""
+    )
+    levels = {}
+    for level in ("attitude", "position"):
+        o = pair.outcomes[(level, "nlvg")]
+        levels[level] = provenance(o.config, command, o, j_warm_start_pid=pair.j_warm_start[level])
+    out = DEFAULT_GAINS_PATH
+    pair.gains["nlvg"].to_yaml(out, provenance={"command": command, "vehicle": vehicle, "levels": levels})
+    console.print(f"generic NLVG-PID gains (noise model, {vehicle}): {out}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m tools.tune_es", description=__doc__.splitlines()[0])
     parser.add_argument("--config", help="tuning config YAML (tools/experiments/*.yaml)")
@@ -72,6 +99,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--vehicle", default=DEFAULT_VEHICLE, help="airframe to tune (default %(default)s)")
     parser.add_argument("--out", help="output directory (--config) or gains file (--ship)")
     parser.add_argument("--iterations", type=int, default=None, help="override es.iterations")
+    parser.add_argument(
+        "--ship-noise-model", action="store_true", help="the generic default gains of the feedback-noise model"
+    )
+    parser.add_argument("--effort-scale", type=float, default=1.0, help="--ship-noise-model: multiplies the configs' λ")
     parser.add_argument("--workers", type=int, default=2, help="--ship: rollout worker processes (0: in process)")
     parser.add_argument(
         "--ship-structure",
@@ -86,6 +117,8 @@ def main(argv: list[str] | None = None) -> int:
     console = Console(stderr=True)
     if args.ship:
         return ship(args, argv, console)
+    if args.ship_noise_model:
+        return ship_noise_model(args.vehicle, args.iterations, args.effort_scale, console)
     if not (args.config and args.out):
         parser.error("--config and --out are required (or --ship)")
     try:
