@@ -39,8 +39,9 @@ from sim.world import empty_world
 #: SHA-256 of the golden flight. Re-recorded when the default gains became the ES-tuned NLVG-PID of
 #: autopilot/control/default_gains.yaml (issue 14: same end state, position RMS 0.101 -> 0.116 m), and when the
 #: navigator and commander moved to 50 Hz (same flight within the 50 Hz tick), and when the summary gained
-#: items_bypassed (issue 13; the same motor commands and texts); see the commits.
-GOLDEN_SHA256 = "6106abdfad94453fd9950407ad1be3ff2dec878e5c0e775c8a64a705628f0157"
+#: items_bypassed (issue 13; the same motor commands and texts), and when x500 got its own default gains tuned
+#: on its closed loop with the EKF (issue 22: same end state, position RMS 0.117 -> 0.099 m); see the commits.
+GOLDEN_SHA256 = "8ef96ec614e5f068c5c69ae4dce00dea6b88abc8b9e4033e82f1263afed4b71b"
 RATE_HZ = 250
 #: Sim time (s) → parameter changes applied between frames (as a GCS would).
 PARAM_CHANGES: dict[float, dict[str, float]] = {
