@@ -46,9 +46,13 @@ SHIP_RESTARTS = 1
 
 def ship(args: argparse.Namespace, argv: list[str] | None, console: Console) -> int:
     """``--ship``: both structures tuned on ``--vehicle``'s own closed loop, the chosen one to its defaults."""
-    from tools.experiments.loop_ship import ship_loop
+    from tools.experiments.loop_ship import ship_loop, ship_paper_pid
 
     command = "python -m tools.tune_es " + " ".join(sys.argv[1:] if argv is None else argv)
+    if args.ship_structure == "paper":
+        target = ship_paper_pid(args.vehicle, command, args.candidates_from)
+        console.print(f"the paper's fixed PID is the default of {args.vehicle}: {target}")
+        return 0
     try:
         paths = ship_loop(
             args.vehicle,
@@ -106,9 +110,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, default=2, help="--ship: rollout worker processes (0: in process)")
     parser.add_argument(
         "--ship-structure",
-        choices=("nlvg", "pid", "none"),
+        choices=("nlvg", "pid", "none", "paper"),
         default="nlvg",
-        help="--ship: which tuned structure becomes the airframe's defaults (default %(default)s)",
+        help="--ship: which tuned structure becomes the airframe's defaults (default %(default)s); paper: no "
+        "tuning, the paper's fixed PID",
+    )
+    parser.add_argument(
+        "--candidates-from", default=None, help="--ship-structure paper: the airframe whose tuned sets were compared"
     )
     parser.add_argument("--restarts", type=int, default=None, help="override es.restarts")
     parser.add_argument("--seed", type=int, default=None, help="override es.seed")

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from autopilot.control.gains import CascadeGains
 from autopilot.control.param_decls import airframe_gains_path, shipped_gains
 from tools.campaign.engine import TaskEngine
 from tools.experiments.loop_tuner import LoopOutcomeOfTune, LoopPair, engine_mapper, in_process, tune_pair
@@ -48,6 +49,25 @@ def _provenance(o: LoopOutcomeOfTune, command: str, pair: LoopPair) -> dict[str,
         "j_paper_pid": float(sum(w for _r, w in cfg.routes) + cfg.effort_weight),
         "paper_pid_pos_err_rms_m": [float(np.sqrt(v)) for v in pair.reference.mse_m2],
     }
+
+
+def ship_paper_pid(vehicle: str, command: str, candidates_from: str | None = None) -> Path:
+    """Write the paper's fixed PID as ``vehicle``'s defaults: the choice where neither tuned set beats it on both
+    true tracking error and chatter in the delivery campaign. ``candidates_from``: the airframe whose tuned sets
+    the campaign compares with it."""
+    target = airframe_gains_path(vehicle)
+    prov: dict[str, Any] = {
+        "command": command,
+        "vehicle": vehicle,
+        "structure": "paper_pid",
+        "reason": "the tuned NLVG-PID and fixed PID did not beat the paper's fixed PID on both true tracking error "
+        "and motor chatter on the delivery mission in wind with the EKF (python -m tools.bench --only "
+        "gains_campaign), so this airframe keeps the paper's PID",
+    }
+    if candidates_from:
+        prov["candidates_from"] = candidates_from
+    CascadeGains.fixed_pid().to_yaml(target, provenance=prov)
+    return target
 
 
 def ship_loop(
