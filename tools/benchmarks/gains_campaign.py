@@ -234,8 +234,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     CACHE, WORKERS = args.cache, args.workers
     if args.bench:
+        import tools.benchmarks.gains_campaign as suite  # the module tools.bench runs (not this __main__)
         from tools import bench
 
+        suite.CACHE, suite.WORKERS = args.cache, args.workers
         return bench.main(["--only", "gains_campaign", "--merge"])
     campaign(FULL_SEEDS, args.workers, vehicles=tuple(args.vehicles), sets=tuple(args.sets), cache=args.cache)
     return 0
