@@ -36,10 +36,10 @@ lint: venv
 paper: venv
 	$(BIN)/python -m tools.paper_table
 
-# Third-party GCS interoperability (MAVProxy, MAVSDK-Python): installs the clients, runs their tests.
+# Third-party GCS interoperability (MAVProxy, MAVSDK-Python, dev dependencies): only their tests (`make test` runs
+# them too).
 interop: venv
-	$(BIN)/python -m pip install --quiet -e '.[dev,interop]'
-	$(BIN)/python -m pytest -q tests/test_interop_mavproxy.py tests/test_interop_mavsdk.py
+	$(BIN)/python -m pytest -q tests/sitl/test_interop_mavproxy.py tests/sitl/test_interop_mavsdk.py
 
 # Refresh docs/recording_web_viewer.png: fly the city-block delivery and screenshot its recording in Rerun's
 # web viewer with headless Chromium (software rendering, no GPU). Needs Chromium, which `make test` does not:

@@ -3,7 +3,7 @@
 ``sim`` and ``autopilot`` never import each other, so this dispatcher imports
 the chosen side only by name: ``quadsitl sim`` runs ``sim.cli``, ``quadsitl autopilot``
 runs ``autopilot.cli`` and ``quadsitl up`` runs ``autopilot.launcher``, which starts both as
-separate processes.
+separate processes; ``quadsitl campaign`` runs ``tools.campaign.cli`` (many flights on Dask).
 """
 
 from __future__ import annotations
@@ -17,11 +17,12 @@ _COMMANDS = {
     "sim": ("sim.cli", "run the lockstep simulator (UDP server)"),
     "autopilot": ("autopilot.cli", "run the autopilot (client of the simulator, GCS and API links)"),
     "up": ("autopilot.launcher", "start sim and autopilot as two processes; stop both on SIGINT/SIGTERM"),
+    "campaign": ("tools.campaign.cli", "fly many seeded flights on Dask; results table, report, replay"),
 }
 
 
 def _usage() -> str:
-    lines = ["usage: quadsitl {sim,autopilot,up} [options]   (quadsitl CMD --help for options)", ""]
+    lines = ["usage: quadsitl {sim,autopilot,up,campaign} [options]   (quadsitl CMD --help for options)", ""]
     lines += [f"  {name:<10} {help_text}" for name, (_, help_text) in _COMMANDS.items()]
     lines += ["", "  --version  print the version", "", "Start here: quadsitl up --world missions/delivery.yaml"]
     return "\n".join(lines)

@@ -30,19 +30,19 @@ import time
 from pathlib import Path
 from types import FrameType
 
+from autopilot.commander.script import CommandScript, ScriptError, load_script, load_world_failures, merged
 from autopilot.control.airframe import AirframeError
 from autopilot.estimation import DEFAULT_ESTIMATOR, ESTIMATORS
 from autopilot.io_loop import Links, run_loop
-from autopilot.params import ParamError
-from autopilot.reporting import AutopilotEndReason
+from autopilot.parameters.store import ParamError
+from autopilot.reporting.report import AutopilotEndReason
 from autopilot.runner import Autopilot, AutopilotConfig
-from autopilot.scripted_commands import CommandScript, ScriptError, load_script
 from autopilot.vehicle_adapter import VehicleAdapter
 from mavlink_bridge.contract.about import version_text
-from mavlink_bridge.gcs_server import GcsServer
-from mavlink_bridge.link import LinkUrlError, resolve_url
+from mavlink_bridge.gcs_server.server import GcsServer
 from mavlink_bridge.lockstep import LockstepClient, add_spin_option
-from mavlink_bridge.signing import SigningKeyError, signing_key_from_text
+from mavlink_bridge.wire.link import LinkUrlError, resolve_url
+from mavlink_bridge.wire.signing import SigningKeyError, signing_key_from_text
 
 EXIT_OK = 0
 EXIT_ERROR = 1
@@ -103,6 +103,12 @@ def add_autopilot_options(p: argparse.ArgumentParser) -> None:
         help="state estimator: ekf (sensor fusion, default) or truth (the sim's ground truth, controller studies)",
     )
     p.add_argument("--script", default=None, metavar="FILE", help="commands at fixed sim times (YAML)")
+    p.add_argument(
+        "--world-failures",
+        default=None,
+        metavar="MISSION.yaml",
+        help="inject this file's world: failures: at their sim times (sets SYS_FAILURE_EN 1; up passes its --world)",
+    )
     p.add_argument(
         "--sim-timeout-s", type=float, default=3.0, metavar="S", help="wall s of sim silence that ends the run"
     )
@@ -190,9 +196,12 @@ def main(argv: list[str] | None = None) -> int:
     autopilot: Autopilot | None = None
     try:
         urls = link_urls(args)
-        script = CommandScript(load_script(args.script)) if args.script else None
+        failures = load_world_failures(args.world_failures) if args.world_failures else []
+        steps = merged(load_script(args.script) if args.script else [], failures)
         key = _signing_key(args)
-        autopilot = Autopilot(config, script=script)
+        autopilot = Autopilot(config, script=CommandScript(steps) if steps else None)
+        if failures:  # a world that schedules failures asks for them: the injection is enabled
+            autopilot.params.set("SYS_FAILURE_EN", 1.0)
         autopilot.listener = _make_listener(  # type: ignore[assignment]
             args.rerun,
             args.vehicle,

@@ -11,7 +11,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from autopilot.reporting import AutopilotEndReason
+from autopilot.reporting.report import AutopilotEndReason
 from autopilot.runner import Autopilot
 
 #: Publish the telemetry snapshot every this many control steps (62.5 Hz at 250 Hz) and on any event.
@@ -25,7 +25,7 @@ class Links:
     """The sockets of one autopilot process (SPEC §3); any of the GCS/API servers may be absent."""
 
     lockstep: object  # mavlink_bridge.lockstep.LockstepClient
-    gcs: list[object] = field(default_factory=list)  # mavlink_bridge.gcs_server.GcsServer
+    gcs: list[object] = field(default_factory=list)  # mavlink_bridge.gcs_server.server.GcsServer
 
 
 def run_loop(

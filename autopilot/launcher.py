@@ -25,9 +25,9 @@ from types import FrameType
 from autopilot.cli import add_autopilot_options, link_urls
 from autopilot.preflight import InputFileError, check_autopilot_inputs
 from mavlink_bridge.contract.about import version_text
-from mavlink_bridge.link import LinkMode, LinkUrl, LinkUrlError, check_ports_free, resolve_url
 from mavlink_bridge.lockstep import DEFAULT_LISTEN_URL
-from mavlink_bridge.lossy import loss_fraction
+from mavlink_bridge.wire.link import LinkMode, LinkUrl, LinkUrlError, check_ports_free, resolve_url
+from mavlink_bridge.wire.lossy import loss_fraction
 
 EXIT_USAGE = 2
 #: How long a child gets to exit after SIGTERM before it is killed (wall s).
@@ -204,6 +204,8 @@ def commands(args: argparse.Namespace) -> tuple[list[str], list[str]]:
         ap += ["--params", args.params]
     if args.script:
         ap += ["--script", args.script]
+    if args.world and args.world.endswith((".yaml", ".yml")):  # the world's failures: the autopilot injects them
+        ap += ["--world-failures", args.world]
     if args.log_dir:
         sim += ["--log-dir", args.log_dir]
         ap += ["--log-dir", args.log_dir]

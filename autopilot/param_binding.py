@@ -10,12 +10,12 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 
 from autopilot.control.param_decls import controller_param_specs
-from autopilot.failsafe import BatteryModel
-from autopilot.flight_control import SETPOINT_PARAMS, FlightControl
+from autopilot.flight_control.controller import SETPOINT_PARAMS, FlightControl
 from autopilot.mission.param_decls import mission_param_specs
 from autopilot.navigation import Navigator
-from autopilot.params import ParamStore
+from autopilot.parameters.store import ParamStore
 from autopilot.planner.param_decls import planner_param_specs
+from autopilot.safety.failsafe import BatteryModel
 
 Handler = Callable[[str, float], None]
 

@@ -15,9 +15,10 @@ from pathlib import Path
 from autopilot.control.gains import GAINS_FILE_FORMAT, CascadeGains
 from autopilot.control.param_decls import controller_param_specs, params_from_gains
 from autopilot.mission.param_decls import mission_param_specs
-from autopilot.nav_params import nav_param_specs
-from autopilot.params import ParamError, ParamSpec, ParamStore
+from autopilot.parameters.nav_decls import nav_param_specs
+from autopilot.parameters.store import ParamError, ParamSpec, ParamStore
 from autopilot.planner.param_decls import planner_param_specs
+from autopilot.traffic.param_decls import traffic_param_specs
 
 #: Upper bound of ``PLD_MASS_KG`` (kg).
 PAYLOAD_MASS_MAX_KG = 20.0
@@ -47,6 +48,7 @@ _GROUPS = (
     ("Navigation, commander and failsafes", nav_param_specs),
     ("Mission", mission_param_specs),
     ("Obstacle avoidance", planner_param_specs),
+    ("Traffic avoidance", traffic_param_specs),
     ("Controller (NLVG-PID cascade)", controller_param_specs),
 )
 

@@ -11,11 +11,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from autopilot.commander.script import ScriptError, load_script
 from autopilot.control.airframe import AIRFRAME_DIR, AirframeError, load_airframe
 from autopilot.mission.files import MissionFileError, load_mission_file
 from autopilot.param_schema import make_param_store
-from autopilot.params import ParamError
-from autopilot.scripted_commands import ScriptError, load_script
+from autopilot.parameters.store import ParamError
 from mavlink_bridge.contract.source_lines import YamlSyntaxError, did_you_mean, read_yaml
 
 MISSION_SUFFIXES = (".yaml", ".yml", ".plan", ".waypoints", ".txt")

@@ -14,25 +14,26 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from autopilot import reporting
-from autopilot.commander import CommandContext, Commander, CommanderInputs
+from autopilot.commander.inputs import CommandContext, CommanderInputs
+from autopilot.commander.script import CommandScript
+from autopilot.commander.state_machine import Commander
 from autopilot.control.airframe import Airframe, load_airframe
 from autopilot.control.cascade import SingleStep
 from autopilot.estimation import Estimator, FrameLike, VehicleState, make_estimator
-from autopilot.failsafe import BatteryModel, FailsafeInputs, FailsafeMonitor, SensorFailsafe
-from autopilot.failure_injection import FailureInjector
-from autopilot.flight_control import FlightControl
-from autopilot.link_health import LinkHealth
+from autopilot.flight_control.controller import FlightControl
+from autopilot.flight_tasks.setpoints import NavTarget, TargetKind
 from autopilot.navigation import HomeFrame, Navigator
 from autopilot.param_binding import autopilot_bindings
 from autopilot.param_schema import make_param_store
-from autopilot.params import ParamStore
+from autopilot.parameters.store import ParamStore
 from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import AvoidancePlanner
-from autopilot.reporting import AutopilotEndReason, MissionProgress, StepListener, StepRecord, Tracking, TruthHash
-from autopilot.scripted_commands import CommandScript
-from autopilot.sensor_validation import StaleSensorCheck
-from autopilot.setpoints import NavTarget, TargetKind
+from autopilot.reporting import report
+from autopilot.reporting.report import AutopilotEndReason, MissionProgress, StepListener, StepRecord
+from autopilot.safety.failsafe import BatteryModel, FailsafeInputs, FailsafeMonitor, SensorFailsafe
+from autopilot.safety.failure_injection import FailureInjector
+from autopilot.safety.link_health import LinkHealth
+from autopilot.safety.sensor_validation import StaleSensorCheck
 from mavlink_bridge.contract.frames import GeoPoint, Vec3
 from mavlink_bridge.contract.mav_enums import MavCmd
 from mavlink_bridge.contract.vehicle_api import (
@@ -64,6 +65,7 @@ class AutopilotConfig:
     log_dir: str | None = None
     speed_factor: float = 1.0  # only stretches GCS timeouts when < 1 (the sim owns time)
     avoidance: bool = True  # run the obstacle-avoidance planner in AUTO_MISSION (CA_ENABLE switches detours)
+    system_id: int = 1  # MAV_SYS_ID: traffic avoidance's right of way between vehicles depends on it (SPEC §13)
 
 
 class Autopilot:
@@ -91,7 +93,7 @@ class Autopilot:
         if planner is None and self.config.avoidance:
             planner = AvoidancePlanner(PlannerParams.from_store(self.params))
         self.commander = Commander(self.params)
-        self.navigator = Navigator(self.params, planner, self.commander.mission_land_speed_m_s)  # type: ignore[arg-type]
+        self.navigator = Navigator(self.params, planner, self.commander.mission_land_speed_m_s, self.config.system_id)  # type: ignore[arg-type]
         self.script = script
         self.links = LinkHealth(self.config.speed_factor, wall_clock)
         self.failures = FailureInjector(self.params)  # what the estimator sees and the motors get (SYS_FAILURE_EN)
@@ -102,8 +104,8 @@ class Autopilot:
         self.sensor_failsafe = SensorFailsafe(self.params)
         self.battery = BatteryModel(self.params.get("BAT_HOVER_ENDUR"))
         self.state: VehicleState | None = None
-        self.tracking = Tracking()
-        self.truth_hash = TruthHash()
+        self.tracking = report.Tracking()
+        self.truth_hash = report.TruthHash()
         self.progress = MissionProgress()
         self.frames = 0
         self.end_reason: AutopilotEndReason | None = None
@@ -119,8 +121,7 @@ class Autopilot:
         self._truth: object | None = None  # the latest truth, for the step record (estimate vs truth)
         self._pending_control: SingleStep | None = None  # this step's cascade output, booked by after_answer
         self._motor = (0.0, 0.0, 0.0, 0.0)
-        self._next_failsafe_us = 0
-        self._next_nav_us = 0
+        self._next_failsafe_us = self._next_nav_us = 0
         autopilot_bindings(
             self.navigator, self.control, self.battery, self._apply_controller_params, self._listener_safety_radius
         ).attach(self.params)
@@ -151,8 +152,7 @@ class Autopilot:
         self._texts.append(StatusText(severity, text))
 
     def update_context(self, **changes: object) -> CommandContext:
-        """The commander's context with ``changes`` (a new object only when something changed, which wakes the
-        slow loop)."""
+        """The commander's context with ``changes`` (a new object only on a change, which wakes the slow loop)."""
         context = self._context
         if any(getattr(context, name) != value for name, value in changes.items()):
             context = self._context = replace(context, **changes)  # type: ignore[arg-type]
@@ -195,7 +195,9 @@ class Autopilot:
         self._prev_time_us = t_us
         self.frames += 1
         self.frame_detections = getattr(frame, "detections", ())
+        self.navigator.traffic.receive(getattr(frame, "traffic", ()))  # TrafficReports received with this frame
         seen = self.sensor_check.apply(self.failures.apply_to_frame(frame), self.commander.in_air)
+        self.estimator.set_landed(self.commander.landed_state is LandedState.ON_GROUND)
         state = self.estimator.update(seen)
         self._pending_truth = self._truth = frame.truth
         commander = self.commander
@@ -218,7 +220,7 @@ class Autopilot:
         set the target flight control flies until the next call (PX4: navigator and land detector at 50 Hz)."""
         commander = self.commander
         if commander.home is not self._last_home or self.navigator.frame is None:
-            self._track_home()
+            self._track_home(state)
         script = self.script
         if script is not None and script.next_at_us <= state.time_us:
             self._run_script(state)
@@ -260,14 +262,14 @@ class Autopilot:
             reason = f" ({self.commander.last_reason})" if result is not CommandResult.ACCEPTED else ""
             self._say(f"Script {step.cmd}: {result.name}{reason}")
 
-    def _track_home(self) -> None:
-        """Home moved (first fix, arming): the navigator's frame follows; listeners redraw what is about home."""
+    def _track_home(self, state: VehicleState) -> None:
+        """Home moved (first fix, arming): the navigator's frame follows, with the fix's GPS accuracy; views redraw."""
         home = self.commander.home
         self._last_home = home
         if home is not None:
-            frame = HomeFrame(home.geo, home.pos_ned_m)
-        elif self.estimator.origin is not None:
-            frame = HomeFrame(self.estimator.origin)  # before arming: home will be about here
+            frame = HomeFrame(home.geo, home.pos_ned_m, state.gps_eph_m, state.gps_epv_m)
+        elif self.estimator.origin is not None:  # before arming: home will be about here
+            frame = HomeFrame(self.estimator.origin, (0.0, 0.0, 0.0), state.gps_eph_m, state.gps_epv_m)
         else:
             return
         nav = self.navigator
@@ -343,10 +345,8 @@ class Autopilot:
     # ------------------------------------------------------------------ after the answer
     def drain_texts(self) -> list[StatusText]:
         """Events (commander, navigator, runner) since the last call."""
-        texts = self.commander.drain_texts()
-        texts += self.navigator.drain_texts()
-        texts += self.failures.drain_texts()
-        texts += self.sensor_check.drain_texts()
+        texts = self.commander.drain_texts() + self.navigator.drain_texts()
+        texts += [*self.failures.drain_texts(), *self.sensor_check.drain_texts()]
         if self._texts:
             texts += self._texts
             self._texts = []
@@ -389,7 +389,7 @@ class Autopilot:
         self.after_answer()
         if self.state is None:
             return None
-        snap = reporting.snapshot(
+        snap = report.snapshot(
             self.state, self.commander, self.navigator, self.control, self.battery, self.progress, self.estimator.origin
         )
         failed = self.failures.unhealthy_bits  # a failed motor clears the motor-outputs bit
@@ -405,10 +405,9 @@ class Autopilot:
             "wall_time_s": round(wall_time_s, 3),
             "frames": self.frames,
             "vehicle": self.airframe.name,
+            **({} if lockstep is None else {"lockstep": lockstep}),
         }
-        if lockstep is not None:
-            flight["lockstep"] = lockstep
-        return reporting.summary(
+        return report.summary(
             self.commander, self.navigator, self.battery, self.progress, self.tracking, self.truth_hash, flight
         )
 
@@ -417,4 +416,4 @@ class Autopilot:
         if not self.config.log_dir:
             return None
         summary = self.summary(wall_time_s, lockstep)
-        return reporting.write_json(Path(self.config.log_dir) / "autopilot_summary.json", summary)
+        return report.write_json(Path(self.config.log_dir) / "autopilot_summary.json", summary)

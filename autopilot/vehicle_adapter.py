@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 
-from autopilot.params import ParamError
+from autopilot.parameters.store import ParamError
 from autopilot.runner import Autopilot
 from mavlink_bridge.contract.vehicle_api import (
     AltitudeFrame,

@@ -1,4 +1,5 @@
-"""The only code that knows MAVLink: links, codec, lockstep and GCS protocols, and the typed wire contract.
+"""The only code that knows MAVLink, by role: ``lockstep`` (the sim <-> autopilot link), ``gcs_server`` (the vehicle
+side of the GCS/API links), ``gcs_client`` (the ground station), ``wire`` (codec, links, signing) and ``contract``.
 
-``frames`` and ``wire`` import no pymavlink and may be used by sim and autopilot freely.
+``contract`` imports no pymavlink and may be used by sim and autopilot freely.
 """

@@ -16,9 +16,9 @@ from pathlib import Path
 from types import FrameType
 
 from mavlink_bridge.contract.about import version_text
-from mavlink_bridge.link import LinkMode, LinkUrl, LinkUrlError, resolve_url
 from mavlink_bridge.lockstep import DEFAULT_SIM_PORT, add_spin_option
-from mavlink_bridge.lossy import loss_fraction
+from mavlink_bridge.wire.link import LinkMode, LinkUrl, LinkUrlError, resolve_url
+from mavlink_bridge.wire.lossy import loss_fraction
 from sim.end_reason import EndReason
 from sim.server import DEFAULT_VEHICLE, SimConfig, SimServer, SimSetupError, mission_vehicle
 from sim.vehicle_config import load_vehicle

@@ -4,7 +4,7 @@
 due) and the ground truth into one float64 array laid out by ``mavlink_bridge.contract.sensor_values`` (the
 bridge's compiled frame writer packs that array into the lockstep datagram), and advances the
 ``SensorModel``'s state (noise position, GPS error process, next GPS time) as its Python methods do.
-``tests/test_sim_frame_writer.py`` checks the values against the sensor model's Python methods, and the
+``tests/sim/test_sim_frame_writer.py`` checks the values against the sensor model's Python methods, and the
 geodetic conversion against pymap3d.
 """
 

@@ -55,8 +55,8 @@ N_PARAMS = 16
 _RUNNING, _COLLISION, _GROUND_IMPACT, _NONFINITE = 0, 3, 4, 6
 
 # Scratch rows used by the kernel (one (N_SCRATCH, N_STATE) array, preallocated by the caller)
-_K1, _K2, _K3, _K4, _XT, _XPREV, _OMEGA_CMD, _SF = 0, 1, 2, 3, 4, 5, 6, 7
-N_SCRATCH = 8
+_K1, _K2, _K3, _K4, _XT, _XPREV, _OMEGA_CMD, _SF, _SF_STAGE, _SF_SUM = 0, 1, 2, 3, 4, 5, 6, 7, 8, 9
+N_SCRATCH = 10
 
 _G = GRAVITY_M_S2
 
@@ -73,6 +73,7 @@ def derivative(
     wind_y: float,
     wind_z: float,
     in_contact: bool,
+    dt: float,
     xdot: np.ndarray,
     sf_frd: np.ndarray,
 ) -> float:
@@ -105,7 +106,7 @@ def derivative(
     fn = r00 * fbx + r01 * fby + r02 * fbz
     fe = r10 * fbx + r11 * fby + r12 * fbz
     fd = r20 * fbx + r21 * fby + r22 * fbz + mass_kg * _G
-    gx, gy, gz, normal = ground_reaction_ned(in_contact, fn, fe, fd, vn, ve, vp[P_MU])
+    gx, gy, gz, normal = ground_reaction_ned(in_contact, fn, fe, fd, vn, ve, mass_kg, vp[P_MU], dt)
 
     inv_m = 1.0 / mass_kg
     xdot[0] = vn
@@ -155,19 +156,21 @@ def rk4_step(
     dt: float,
     scratch: np.ndarray,
 ) -> float:
-    """One classical RK4 step of ``x`` in place (quaternion renormalised); returns the initial normal force."""
+    """One classical RK4 step of ``x`` in place (quaternion renormalised); returns the initial normal force and
+    leaves the specific force at the start of the step in ``scratch[_SF]``."""
     k1, k2, k3, k4, xt, sf = scratch[_K1], scratch[_K2], scratch[_K3], scratch[_K4], scratch[_XT], scratch[_SF]
-    normal = derivative(x, omega_cmd, mass_kg, vp, rotor_xy, rotor_dir, wind_x, wind_y, wind_z, in_contact, k1, sf)
+    sf_stage = scratch[_SF_STAGE]
+    normal = derivative(x, omega_cmd, mass_kg, vp, rotor_xy, rotor_dir, wind_x, wind_y, wind_z, in_contact, dt, k1, sf)
     h = 0.5 * dt
     for s in range(N_STATE):
         xt[s] = x[s] + h * k1[s]
-    derivative(xt, omega_cmd, mass_kg, vp, rotor_xy, rotor_dir, wind_x, wind_y, wind_z, in_contact, k2, sf)
+    derivative(xt, omega_cmd, mass_kg, vp, rotor_xy, rotor_dir, wind_x, wind_y, wind_z, in_contact, dt, k2, sf_stage)
     for s in range(N_STATE):
         xt[s] = x[s] + h * k2[s]
-    derivative(xt, omega_cmd, mass_kg, vp, rotor_xy, rotor_dir, wind_x, wind_y, wind_z, in_contact, k3, sf)
+    derivative(xt, omega_cmd, mass_kg, vp, rotor_xy, rotor_dir, wind_x, wind_y, wind_z, in_contact, dt, k3, sf_stage)
     for s in range(N_STATE):
         xt[s] = x[s] + dt * k3[s]
-    derivative(xt, omega_cmd, mass_kg, vp, rotor_xy, rotor_dir, wind_x, wind_y, wind_z, in_contact, k4, sf)
+    derivative(xt, omega_cmd, mass_kg, vp, rotor_xy, rotor_dir, wind_x, wind_y, wind_z, in_contact, dt, k4, sf_stage)
     d6 = dt / 6.0
     for s in range(N_STATE):
         x[s] += d6 * (k1[s] + 2.0 * k2[s] + 2.0 * k3[s] + k4[s])
@@ -175,6 +178,19 @@ def rk4_step(
     for s in range(6, 10):
         x[s] /= n
     return normal
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _add_impulse(x: np.ndarray, dv_n: float, dv_e: float, dv_d: float, inv_dt: float, sf_sum: np.ndarray) -> None:
+    """Add a contact's velocity change ``dv`` (NED, m/s, over one physics step) to the specific-force sum, FRD:
+    ``Rᵀ dv / dt`` (what an accelerometer feels of a touchdown or of friction stopping a slide)."""
+    if dv_n == 0.0 and dv_e == 0.0 and dv_d == 0.0:
+        return
+    w, a, b, c = x[6], x[7], x[8], x[9]
+    an, ae, ad = dv_n * inv_dt, dv_e * inv_dt, dv_d * inv_dt
+    sf_sum[0] += (1.0 - 2.0 * (b * b + c * c)) * an + 2.0 * (a * b + w * c) * ae + 2.0 * (a * c - w * b) * ad
+    sf_sum[1] += 2.0 * (a * b - w * c) * an + (1.0 - 2.0 * (a * a + c * c)) * ae + 2.0 * (b * c + w * a) * ad
+    sf_sum[2] += 2.0 * (a * c + w * b) * an + 2.0 * (b * c - w * a) * ae + (1.0 - 2.0 * (a * a + b * b)) * ad
 
 
 @njit(cache=True, error_model="numpy")
@@ -218,7 +234,7 @@ def step_vehicles(
     omega_cmd = scratch[_OMEGA_CMD]
     xprev = scratch[_XPREV]
     sf = scratch[_SF]
-    friction_dv = vp[P_MU] * _G * dt * 2.0
+    sf_sum = scratch[_SF_SUM]
     for i in range(state.shape[0]):
         if end_reason[i] != _RUNNING:
             continue
@@ -227,6 +243,8 @@ def step_vehicles(
         for j in range(4):
             omega_cmd[j] = omega_command_rad_s(motor_cmd[i, j], vp[P_OMEGA_MIN], vp[P_OMEGA_MAX])
         loaded = False
+        sf_sum[0] = sf_sum[1] = sf_sum[2] = 0.0
+        steps_done = 0
         for _ in range(substeps):
             gust_step(gust_ned, rng_state, i, gust_sigma_m_s, gust_decay)
             wx = wind_mean_ned[0] + gust_ned[i, 0]
@@ -242,9 +260,14 @@ def step_vehicles(
                     x[s] = xprev[s]
                 end_reason[i] = _NONFINITE
                 break
-            if resolve_touchdown(x, loaded, vp[P_IMPACT_SPEED], friction_dv):
+            for k in range(3):
+                sf_sum[k] += sf[k]
+            steps_done += 1
+            vn, ve, vd = x[3], x[4], x[5]
+            if resolve_touchdown(x, loaded, vp[P_IMPACT_SPEED], xprev[3], xprev[4]):
                 end_reason[i] = _GROUND_IMPACT
                 break
+            _add_impulse(x, x[3] - vn, x[4] - ve, x[5] - vd, 1.0 / dt, sf_sum)
             if obstacle_kinds.shape[0] > 0:
                 d = min_obstacle_distance_m(obstacle_kinds, obstacle_params, x[0], x[1], x[2])
                 if d < min_clearance_m[i]:
@@ -252,12 +275,18 @@ def step_vehicles(
                 if d < vp[P_COLLISION_RADIUS]:
                     end_reason[i] = _COLLISION
                     break
-        # accelerometer truth at the end state (wind of the last physics step)
+        # contact at the end state (wind of the last physics step)
         contact = x[2] >= 0.0 and x[5] >= 0.0
         wx = wind_mean_ned[0] + gust_ned[i, 0]
         wy = wind_mean_ned[1] + gust_ned[i, 1]
         wz = wind_mean_ned[2] + gust_ned[i, 2]
-        normal = derivative(x, omega_cmd, mass, vp, rotor_xy, rotor_dir, wx, wy, wz, contact, scratch[_K1], sf)
+        normal = derivative(x, omega_cmd, mass, vp, rotor_xy, rotor_dir, wx, wy, wz, contact, dt, scratch[_K1], sf)
         on_ground[i] = contact and (normal > 0.0 or loaded)
-        for k in range(3):
-            specific_force_frd[i, k] = sf[k]
+        # accelerometer truth: the mean specific force over the control step (an IMU integrates: a delta velocity
+        # over the period), contact impulses included; a run that ended keeps the end state's
+        if steps_done == substeps:
+            for k in range(3):
+                specific_force_frd[i, k] = sf_sum[k] / substeps
+        else:
+            for k in range(3):
+                specific_force_frd[i, k] = sf[k]

@@ -3,7 +3,7 @@
 Loop per control step (``control_hz``, default 250 Hz)::
 
     sensors(state, t) → values (one numba call, ``sim.frame_kernel``) → datagram (one numba call,
-    ``mavlink_bridge.frame_writer``) → send (HIL_* out)
+    ``mavlink_bridge.wire.frame_writer``) → send (HIL_* out)
     → record the previous step (truth hash, tilt, truth log: overlaps the autopilot's step)
     → wait (HIL_ACTUATOR_CONTROLS back)
     → apply (armed → motors, else 0; gripper release → payload dropped) → physics (substeps RK4)
@@ -32,10 +32,10 @@ from typing import Any, Protocol
 import numpy as np
 import yaml
 
-from mavlink_bridge.answer_kernel import A_ARMED, A_GRIPPER_RELEASE, A_MOTORS
 from mavlink_bridge.contract.wire import ObstacleDetection
-from mavlink_bridge.frame_writer import FrameWriter
 from mavlink_bridge.lockstep import DEFAULT_SPIN_S, AutopilotLost, LockstepInterrupted, LockstepServer
+from mavlink_bridge.lockstep.answer_kernel import A_ARMED, A_GRIPPER_RELEASE, A_MOTORS
+from mavlink_bridge.wire.frame_writer import FrameWriter
 from sim.end_reason import EndReason
 from sim.frame_kernel import SensorValues
 from sim.sensors import SensorModel

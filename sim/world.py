@@ -19,6 +19,7 @@ import numpy as np
 import yaml
 from numba import njit
 
+from mavlink_bridge.contract.failure_schedule import FailureScheduleError, ScheduledFailure, parse_failures
 from mavlink_bridge.contract.frames import GeoPoint
 from mavlink_bridge.contract.source_lines import YamlSyntaxError, did_you_mean, read_yaml
 
@@ -171,6 +172,8 @@ class World:
     obstacles: tuple[Obstacle, ...]
     wind: WindConfig
     payload_kg: float
+    #: failures at sim times (``failures:``); the autopilot injects them (the simulator's truth is untouched)
+    failures: tuple[ScheduledFailure, ...] = ()
 
     def obstacle_arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """Packed obstacles for the numba kernels: kinds (k,) int64 and params (k, 7) float64."""
@@ -299,8 +302,8 @@ def _home(spec: Any) -> GeoPoint:
 def load_world(source: str | Path | dict) -> World:
     """The world of a mission YAML (path, YAML text or parsed dict); ``mission:``/``fence:`` are ignored.
 
-    Accepts either a whole mission document (``home``, ``world: {obstacles, wind, payload_kg}``) or
-    a bare world mapping (``obstacles``, ``wind``, ``payload_kg``, optional ``home``).
+    Accepts either a whole mission document (``home``, ``world: {obstacles, wind, payload_kg, failures}``) or
+    a bare world mapping (``obstacles``, ``wind``, ``payload_kg``, ``failures``, optional ``home``).
     """
     if isinstance(source, dict):
         doc = source
@@ -339,7 +342,7 @@ def _world_of(doc: Any) -> World:
     if not isinstance(doc, dict):
         raise WorldConfigError(f"expected a mapping (mission or world), got {type(doc).__name__}")
     home = _home(doc["home"]) if "home" in doc else DEFAULT_HOME
-    world_keys = {"obstacles", "wind", "payload_kg", "home"}
+    world_keys = {"obstacles", "wind", "payload_kg", "home", "failures"}
     # a mission with a world, a bare world mapping, or a mission without a world
     bare = doc if set(doc) <= world_keys else {}
     world_spec = (doc["world"] or {}) if "world" in doc else bare
@@ -352,4 +355,12 @@ def _world_of(doc: Any) -> World:
         obstacles=tuple(_obstacle(i, e) for i, e in enumerate(obstacles_spec)),
         wind=_wind(w.get("wind") or {}),
         payload_kg=_num("world", "payload_kg", w.get("payload_kg", 0.0), 0.0, 50.0),
+        failures=_failures(w.get("failures")),
     )
+
+
+def _failures(spec: Any) -> tuple[ScheduledFailure, ...]:
+    try:
+        return parse_failures(spec)
+    except FailureScheduleError as exc:
+        raise WorldConfigError(str(exc)) from None

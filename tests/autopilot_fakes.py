@@ -5,12 +5,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-from autopilot.commander import Commander, CommanderInputs
+from autopilot.commander.inputs import CommanderInputs
+from autopilot.commander.state_machine import Commander
 from autopilot.estimation import VehicleState
+from autopilot.flight_tasks.setpoints import NavTarget, SetpointGenerator, SetpointLimits, TargetKind
 from autopilot.mission.param_decls import mission_param_specs
-from autopilot.nav_params import nav_param_specs
-from autopilot.params import ParamStore
-from autopilot.setpoints import NavTarget, SetpointGenerator, SetpointLimits, TargetKind
+from autopilot.parameters.nav_decls import nav_param_specs
+from autopilot.parameters.store import ParamStore
 from mavlink_bridge.contract.frames import GRAVITY_M_S2, GeoPoint, LocalNedFrame
 from mavlink_bridge.contract.vehicle_api import CommandRequest
 

@@ -14,7 +14,7 @@ from typing import Any
 
 from conftest import free_udp_port
 
-from autopilot.params import ParamError, ParamSpec, ParamStore
+from autopilot.parameters.store import ParamError, ParamSpec, ParamStore
 from mavlink_bridge.contract.vehicle_api import (
     CommandRequest,
     CommandResult,
@@ -28,8 +28,8 @@ from mavlink_bridge.contract.vehicle_api import (
     TelemetrySnapshot,
     VelocityTarget,
 )
-from mavlink_bridge.gcs_server import GcsServer
-from mavlink_bridge.mission_items import GLOBAL_FRAMES
+from mavlink_bridge.gcs_server.server import GcsServer
+from mavlink_bridge.wire.mission_items import GLOBAL_FRAMES
 
 MAV_CMD_NAV_WAYPOINT = 16
 MAV_CMD_NAV_RETURN_TO_LAUNCH = 20

@@ -16,7 +16,7 @@ from pathlib import Path
 from autopilot.launcher import stop_process
 from autopilot.mission.plan import MissionPlan
 from mavlink_bridge.contract.vehicle_api import LandedState, MissionType
-from mavlink_bridge.gcs_client import CommandFailedError, GcsClient, VehicleStatus
+from mavlink_bridge.gcs_client.client import CommandFailedError, GcsClient, VehicleStatus
 from tools.sitl import (
     STARTUP_TIMEOUT_S,
     Ports,

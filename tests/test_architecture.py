@@ -5,7 +5,10 @@
 - ``sim`` and ``autopilot`` import only the contract from the bridge, except at their I/O edges;
 - only ``mavlink_bridge`` imports pymavlink;
 - no import cycles between modules of the product;
-- no product module over the size limit unless it is listed with its reason.
+- no product module over the size limit unless it is listed with its reason;
+- packages import each other only along the arrows of ``ALLOWED_IMPORTS`` (drawn in docs/architecture.md, which the
+  test reads back): the arrows form a layering, so nothing is imported upward and no subpackage imports the top
+  level of its package (autopilot's composition and process edge).
 """
 
 from __future__ import annotations
@@ -23,15 +26,69 @@ MAX_LINES = 420
 #: Modules allowed over MAX_LINES, with the reason (reviewed; keep the list short). A ratchet: a listed module
 #: that shrinks under the limit must leave the list (the test says so).
 LONG_MODULES: dict[str, str] = {
-    "autopilot.commander": (
-        "one state machine (mode, arming, hold/takeoff/land/RTL points) that commands, failsafes and the per-mode "
-        "targets all read and write; the land detector is its own module, the flight-task targets are next"
-    ),
     "autopilot.planner.detour": (
         "the detour search: candidate generation, fence/altitude/obstacle checks and scoring over shared geometry; "
         "its types and path shapes are split out, the search itself is next"
     ),
 }
+#: The rooms of the layout: ``sim``; each subpackage of ``autopilot`` and ``mavlink_bridge``; and the top level of
+#: each of those two (its loose modules: autopilot's composition and process edge, the bridge's ``__init__``).
+#: Room -> the rooms it may import (besides itself). Every arrow is in use (the test says when one is not) and
+#: the same table is drawn in docs/architecture.md; the order below is the layering, bottom first.
+ALLOWED_IMPORTS: dict[str, frozenset[str]] = {
+    name: frozenset(targets)
+    for name, targets in {
+        "mavlink_bridge.contract": (),
+        "mavlink_bridge": (),
+        "mavlink_bridge.wire": ("mavlink_bridge.contract",),
+        "mavlink_bridge.lockstep": ("mavlink_bridge.contract", "mavlink_bridge.wire"),
+        "mavlink_bridge.gcs_server": ("mavlink_bridge.contract", "mavlink_bridge.wire"),
+        "mavlink_bridge.gcs_client": ("mavlink_bridge.contract", "mavlink_bridge.wire"),
+        "sim": ("mavlink_bridge.contract", "mavlink_bridge.lockstep", "mavlink_bridge.wire"),
+        "autopilot.tuning": (),
+        "autopilot.estimation": ("mavlink_bridge.contract",),
+        "autopilot.parameters": ("mavlink_bridge.contract",),
+        "autopilot.geofence": ("mavlink_bridge.contract",),
+        "autopilot.control": ("autopilot.parameters", "mavlink_bridge.contract"),
+        "autopilot.flight_tasks": ("autopilot.estimation", "autopilot.parameters", "mavlink_bridge.contract"),
+        "autopilot.safety": ("autopilot.estimation", "autopilot.parameters", "mavlink_bridge.contract"),
+        "autopilot.planner": ("autopilot.geofence", "autopilot.parameters", "mavlink_bridge.contract"),
+        "autopilot.mission": (
+            "autopilot.flight_tasks", "autopilot.geofence", "autopilot.parameters", "autopilot.planner",
+            "mavlink_bridge.contract",
+        ),
+        "autopilot.commander": (
+            "autopilot.estimation", "autopilot.flight_tasks", "autopilot.parameters", "autopilot.safety",
+            "mavlink_bridge.contract",
+        ),
+        "autopilot.traffic": (
+            "autopilot.parameters", "autopilot.planner", "autopilot.safety", "mavlink_bridge.contract",
+        ),
+        "autopilot.navigation": (
+            "autopilot.estimation", "autopilot.flight_tasks", "autopilot.geofence", "autopilot.mission",
+            "autopilot.parameters", "autopilot.planner", "autopilot.safety", "autopilot.traffic",
+            "mavlink_bridge.contract",
+        ),
+        "autopilot.flight_control": (
+            "autopilot.control", "autopilot.estimation", "autopilot.flight_tasks", "autopilot.navigation",
+            "autopilot.parameters",
+        ),
+        "autopilot.reporting": (
+            "autopilot.commander", "autopilot.control", "autopilot.estimation", "autopilot.flight_control",
+            "autopilot.flight_tasks", "autopilot.navigation", "autopilot.safety", "mavlink_bridge.contract",
+        ),
+        "autopilot.telemetry": (
+            "autopilot.control", "autopilot.estimation", "autopilot.flight_tasks", "autopilot.geofence",
+            "autopilot.mission", "autopilot.reporting", "mavlink_bridge.contract",
+        ),
+        "autopilot": (
+            "autopilot.commander", "autopilot.control", "autopilot.estimation", "autopilot.flight_control",
+            "autopilot.flight_tasks", "autopilot.mission", "autopilot.navigation", "autopilot.parameters",
+            "autopilot.planner", "autopilot.reporting", "autopilot.safety", "autopilot.telemetry", "autopilot.traffic",
+            "mavlink_bridge.contract", "mavlink_bridge.gcs_server", "mavlink_bridge.lockstep", "mavlink_bridge.wire",
+        ),
+    }.items()
+}  # fmt: skip
 #: Bridge internals still imported outside the I/O edges (a ratchet, like LONG_MODULES).
 KNOWN_BRIDGE_IMPORTS: set[tuple[str, str]] = set()
 
@@ -79,6 +136,59 @@ GRAPH = {module: _product_imports(module) for module in MODULES}
 
 def _top(module: str) -> str:
     return module.split(".")[0]
+
+
+def _room(module: str) -> str:
+    """The room of a module (see ALLOWED_IMPORTS): ``sim``, a subpackage, or the top level of its package."""
+    parts = module.split(".")
+    if parts[0] == "sim" or len(parts) == 1:
+        return parts[0]
+    if len(parts) == 2 and MODULES[module].name != "__init__.py":
+        return parts[0]  # a loose module at the top level
+    return ".".join(parts[:2])
+
+
+def _room_arrows() -> dict[str, set[str]]:
+    arrows: dict[str, set[str]] = {}
+    for module, deps in GRAPH.items():
+        arrows.setdefault(_room(module), set()).update(_room(d) for d in deps if _room(d) != _room(module))
+    return arrows
+
+
+def test_packages_import_each_other_only_along_the_allowed_arrows() -> None:
+    arrows = _room_arrows()
+    unknown = set(arrows) - set(ALLOWED_IMPORTS)
+    assert not unknown, f"new packages {sorted(unknown)}: give each its arrows in ALLOWED_IMPORTS and the drawing"
+    bad = sorted(
+        (module, dep)
+        for module, deps in GRAPH.items()
+        for dep in deps
+        if _room(dep) != _room(module) and _room(dep) not in ALLOWED_IMPORTS[_room(module)]
+    )
+    assert not bad, f"imports outside the allowed arrows (move the code, or argue for the arrow): {bad}"
+    unused = sorted((room, target) for room, targets in ALLOWED_IMPORTS.items() for target in targets - arrows[room])
+    assert not unused, f"allowed arrows no module uses any more: remove them here and in the drawing: {unused}"
+
+
+def test_the_allowed_arrows_are_layers_nothing_imported_upward() -> None:
+    placed: set[str] = set()
+    for room, targets in ALLOWED_IMPORTS.items():  # listed bottom first: each room imports only rooms below it
+        assert targets <= placed, f"{room} imports {sorted(targets - placed)}, which are not below it"
+        placed.add(room)
+    for room, targets in ALLOWED_IMPORTS.items():  # a package's top level is above all its subpackages
+        top = room.split(".")[0]
+        assert top == room or top not in targets, f"{room} imports the top level of {top}"
+
+
+def test_the_drawing_in_the_docs_shows_the_allowed_arrows() -> None:
+    text = (ROOT / "docs" / "architecture.md").read_text()
+    block = text.split("<!-- allowed-imports: checked by tests/test_architecture.py -->", 1)[1]
+    block = block.split("```text\n", 1)[1].split("```", 1)[0]
+    drawn = {}
+    for line in block.splitlines():
+        room, _, targets = line.partition(" -> ")
+        drawn[room.strip()] = frozenset(t.strip() for t in targets.split(",") if t.strip() not in ("", "(nothing)"))
+    assert drawn == ALLOWED_IMPORTS, "docs/architecture.md draws other arrows than ALLOWED_IMPORTS"
 
 
 def test_sim_and_autopilot_never_import_each_other() -> None:

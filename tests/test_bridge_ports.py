@@ -9,7 +9,7 @@ import pytest
 from autopilot import launcher
 from autopilot.cli import build_parser as autopilot_parser
 from autopilot.cli import link_urls
-from mavlink_bridge.link import PortInUseError, UdpLink, check_ports_free, resolve_url
+from mavlink_bridge.wire.link import PortInUseError, UdpLink, check_ports_free, resolve_url
 from sim.cli import build_parser as sim_parser
 from sim.cli import config_from_args
 

@@ -23,6 +23,7 @@ COMMANDS = [
     "tools.monitor",
     "tools.screenshot",
     "autopilot.param_schema",
+    "tools.campaign.cli",
 ]
 
 
@@ -67,7 +68,7 @@ def test_help_is_self_contained_and_complete(module_name: str, monkeypatch: pyte
             assert action.help, f"{parser.prog}: {'/'.join(action.option_strings) or action.dest} has no help"
 
 
-@pytest.mark.parametrize("command", [[], ["sim"], ["autopilot"], ["up"]])
+@pytest.mark.parametrize("command", [[], ["sim"], ["autopilot"], ["up"], ["campaign"]])
 def test_every_quadsitl_command_has_a_version(command: list[str]) -> None:
     proc = subprocess.run(
         [sys.executable, "-m", "quadsitl_cli", *command, "--version"], cwd=REPO_ROOT, capture_output=True, text=True

@@ -16,11 +16,11 @@ from pathlib import Path
 import pytest
 from conftest import REPO_ROOT
 
+from autopilot.commander.script import ScriptError, load_script
 from autopilot.mission.files import MissionFileError, load_mission_file
 from autopilot.param_schema import make_param_store
-from autopilot.params import ParamError
+from autopilot.parameters.store import ParamError
 from autopilot.preflight import InputFileError, check_autopilot_inputs
-from autopilot.scripted_commands import ScriptError, load_script
 
 DELIVERY = (REPO_ROOT / "missions" / "delivery.yaml").read_text()
 

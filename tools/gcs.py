@@ -32,9 +32,9 @@ from mavlink_bridge.contract.vehicle_api import (
     MissionType,
     StatusText,
 )
-from mavlink_bridge.gcs_client import CommandFailedError, GcsClient, GcsError, MissionUploadError, VehicleStatus
-from mavlink_bridge.link import LinkUrlError, resolve_url
-from mavlink_bridge.signing import SigningKeyError, signing_key_from_text
+from mavlink_bridge.gcs_client.client import CommandFailedError, GcsClient, GcsError, MissionUploadError, VehicleStatus
+from mavlink_bridge.wire.link import LinkUrlError, resolve_url
+from mavlink_bridge.wire.signing import SigningKeyError, signing_key_from_text
 
 DEFAULT_CONNECT = "udpin:127.0.0.1:14550"
 MISSION_STATE_COMPLETE = 5

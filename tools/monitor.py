@@ -26,8 +26,7 @@ from autopilot.telemetry import entities as ent
 from autopilot.telemetry.blueprint import monitor_blueprint
 from autopilot.telemetry.sinks import RerunSpecError, open_recording, parse_rerun_spec
 from mavlink_bridge.contract.frames import quat_from_euler
-from mavlink_bridge.link import LinkUrlError
-from mavlink_bridge.telemetry_listener import (
+from mavlink_bridge.gcs_client.telemetry_listener import (
     Attitude,
     GlobalPosition,
     LocalPosition,
@@ -38,6 +37,7 @@ from mavlink_bridge.telemetry_listener import (
     TelemetryListener,
     VehicleHeartbeat,
 )
+from mavlink_bridge.wire.link import LinkUrlError
 
 TIMELINE = "vehicle_time"
 DEFAULT_CONNECT = "udpin:127.0.0.1:14550"

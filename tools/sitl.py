@@ -7,7 +7,7 @@ For a CI suite that tests against the real processes, as the project's own SITL 
     def test_delivery(tmp_path):
         with sitl_run(tmp_path, world=Path("missions/delivery.yaml"), seed=4) as run, run.gcs_client() as gcs:
             gcs.wait_until(lambda s: s.home is not None, 120.0)
-            ...  # upload, arm, fly: mavlink_bridge.gcs_client.GcsClient
+            ...  # upload, arm, fly: mavlink_bridge.gcs_client.client.GcsClient
         assert run.sim_summary["collisions"] == 0
 
 ``python -m sim`` and ``python -m autopilot`` run with this interpreter at ``--speed max``, bind 127.0.0.1
@@ -33,7 +33,7 @@ from typing import Any
 from autopilot.estimation import DEFAULT_ESTIMATOR
 from autopilot.launcher import stop_process
 from autopilot.mission.files import load_mission_file
-from mavlink_bridge.gcs_client import GcsClient
+from mavlink_bridge.gcs_client.client import GcsClient
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 #: Wall seconds a fresh autopilot may take to be heard: a cold JIT cache compiles the controller first, which
@@ -163,6 +163,8 @@ def sitl_run(
         vehicle = load_mission_file(world).vehicle
     ports = Ports.free()
     extra = ["--estimator", estimator, *autopilot_args]  # a later --estimator in autopilot_args wins
+    if world is not None and world.suffix in (".yaml", ".yml"):  # its failures: are injected by the autopilot
+        extra += ["--world-failures", str(world)]
     api_port = None
     if api:
         api_in, api_port = free_udp_port(), free_udp_port()

@@ -21,7 +21,7 @@ def warm() -> dict[str, float]:
     timings: dict[str, float] = {}
 
     t0 = time.perf_counter()
-    from mavlink_bridge.frame_writer import FrameWriter
+    from mavlink_bridge.wire.frame_writer import FrameWriter
     from sim.batch import BatchSim
     from sim.frame_kernel import SensorValues
     from sim.obstacle_sensor import ObstacleSensor
@@ -49,7 +49,7 @@ def warm() -> dict[str, float]:
     sensors.imu_baro_mag(single)
     single.ground_truth()
     values = SensorValues(single, SensorModel(vehicle, world.home, 1))  # sim.frame_kernel
-    FrameWriter().write(values.values, single.t_us, values.fill())  # mavlink_bridge.frame_writer
+    FrameWriter().write(values.values, single.t_us, values.fill())  # mavlink_bridge.wire.frame_writer
     ObstacleSensor(world, seed=1).detect(single.pos_ned, single.q_ned_frd, 0)
     BatchSim(vehicle, 3, world=world, seed=1).step(np.full((3, 4), 0.6))
     timings["sim_s"] = time.perf_counter() - t0
@@ -72,10 +72,10 @@ def warm() -> dict[str, float]:
 
     LocalNedFrame(GeoPoint(47.0, 8.0, 400.0)).geodetic_from_ned(1.0, 2.0, -3.0)  # contract.geodetic kernels
     LocalNedFrame(GeoPoint(47.0, 8.0, 400.0)).ned_from_geodetic(47.0, 8.0, 401.0)
-    from mavlink_bridge.frame_reader import new_out, read_values
+    from mavlink_bridge.wire.frame_reader import new_out, read_values
 
     read_values(b"", new_out())  # the lockstep reader both processes use (codec.Decoder)
-    from mavlink_bridge.answer_kernel import N_ANSWER, AnswerWriter, read_answer
+    from mavlink_bridge.lockstep.answer_kernel import N_ANSWER, AnswerWriter, read_answer
 
     AnswerWriter(1, 1).write(0, (0.5, 0.5, 0.5, 0.5), True, False, True)  # the autopilot's answer
     read_answer(np.zeros(128, dtype=np.uint8), 0, 0, np.zeros(N_ANSWER), np.zeros(96, dtype=np.uint8))  # the sim's

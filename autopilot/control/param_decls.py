@@ -29,7 +29,7 @@ from autopilot.control.gains import (
     NlvgGains,
 )
 from autopilot.control.pid import Schedule
-from autopilot.params import ParamSpec
+from autopilot.parameters.store import ParamSpec
 
 TERMS = ("P", "I", "D")
 #: The shipped default gains (a gains file, ``CascadeGains.from_yaml``), written by ``tools.tune_es --ship``.

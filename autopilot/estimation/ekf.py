@@ -45,6 +45,8 @@ class EkfParams:
     no_aid_valid_s: float = 5.0  # EKF2_NOAID_TOUT: horizontal position stays valid this long without GPS
     gps_max_eph_m: float = 5.0  # EKF2_REQ_EPH: a fix with a larger eph is not used
     health_gps_s: float = 1.0  # GPS fused this long before the filter reports healthy
+    zero_vel_noise_m_s: float = 0.1  # the zero-velocity update while landed and still (PX4's ZUPT)
+    zero_vel_period_s: float = 0.2  # how often it is fused
 
 
 class _StateBuilder:
@@ -61,6 +63,7 @@ class EkfEstimator:
 
     Reads ``frame.sensor`` and ``frame.gps`` only: ``frame.truth`` is never touched. Returns None until the
     first good fix has set the local origin; then a state every step, ``valid`` once aligned and positioned.
+    :meth:`set_landed` (the land detector, each step) enables the zero-velocity update.
     """
 
     def __init__(self, params: EkfParams | None = None) -> None:
@@ -78,7 +81,8 @@ class EkfEstimator:
             (k.P_ALIGN_SAMPLES, p.align_samples), (k.P_GPS_HGT_NOISE, p.gps_hgt_noise_m),
             (k.P_GPS_RESET_S, p.gps_reset_s), (k.P_FUSE_TIMEOUT_S, p.fuse_timeout_s),
             (k.P_NOAID_S, p.no_aid_dead_reckoning_s), (k.P_NOAID_VALID_S, p.no_aid_valid_s),
-            (k.P_GPS_MAX_EPH, p.gps_max_eph_m),
+            (k.P_GPS_MAX_EPH, p.gps_max_eph_m), (k.P_ZUPT_NOISE, p.zero_vel_noise_m_s),
+            (k.P_ZUPT_PERIOD_S, p.zero_vel_period_s),
         ):  # fmt: skip
             prm[index] = value
         self._warm_up()
@@ -87,6 +91,7 @@ class EkfEstimator:
         self._version = -1
         self._status_version = -1
         self._status = _NO_DATA
+        self._landed = 0
 
     def _warm_up(self) -> None:
         """One step on scratch arrays now: the kernel's first call JIT-loads it (seconds, when not cached), which
@@ -94,7 +99,7 @@ class EkfEstimator:
         x, p, aux, _, work, out = k.new_arrays()
         nan = math.nan
         ekf_step(x, p, aux, self._prm.copy(), work, out, 0, 0.0, 0.0, -9.8, 0.0, 0.0, 0.0, 0.2, 0.0, 0.4, 0.0,
-                 0, nan, nan, nan, nan, nan, nan, nan, nan)  # fmt: skip
+                 0, nan, nan, nan, nan, nan, nan, nan, nan, 0)  # fmt: skip
 
     @property
     def origin(self) -> GeoPoint | None:
@@ -117,6 +122,18 @@ class EkfEstimator:
         """The kernel's status bits (``ekf_kernel.F_*``)."""
         return int(self._aux[k.A_FLAGS])
 
+    def set_landed(self, landed: bool) -> None:
+        """The land detector's verdict for the next updates: while landed and still, zero velocity is fused."""
+        self._landed = 1 if landed else 0
+
+    def _origin_at(self, gps: GpsSample, baro_alt_m: float) -> GeoPoint:
+        """The local origin at this fix, its altitude on the height datum (PX4: the baro on the ground at start
+        is height 0): the fix's altitude minus the height the baro says the vehicle has climbed since, so the
+        ground it started on reads 0 whatever the fix's vertical error."""
+        datum = self._aux[k.A_BARO_DATUM]
+        climbed_m = baro_alt_m - datum if math.isfinite(baro_alt_m - datum) else 0.0
+        return GeoPoint(gps.lat_deg, gps.lon_deg, gps.alt_amsl_m - climbed_m)
+
     def _usable_fix(self, gps: GpsSample) -> bool:
         return (
             gps.fix_type >= 3
@@ -133,7 +150,7 @@ class EkfEstimator:
             self._gps = gps
             if self._usable_fix(gps):
                 if self._frame is None:  # the local origin: the first good fix
-                    self._frame = LocalNedFrame(GeoPoint(gps.lat_deg, gps.lon_deg, gps.alt_amsl_m))
+                    self._frame = LocalNedFrame(self._origin_at(gps, sensor.pressure_alt_m))
                     self._prm[k.P_ECEF : k.P_ECEF + 12] = self._frame.ecef_constants
                     self._aux[k.A_HAS_ORIGIN] = 1.0
                 has_gps = 1
@@ -144,7 +161,7 @@ class EkfEstimator:
         self._version = ekf_step(
             self._x, self._p, self._aux, self._prm, self._work, self._out, sensor.time_us,
             a[0], a[1], a[2], g[0], g[1], g[2], m[0], m[1], m[2], sensor.pressure_alt_m,
-            has_gps, glat, glon, galt, gvn, gve, gvd, eph, epv,
+            has_gps, glat, glon, galt, gvn, gve, gvd, eph, epv, self._landed,
         )  # fmt: skip
         if self._frame is None:
             return None

@@ -30,6 +30,7 @@ import math
 from numba import njit
 
 from autopilot.estimation.ekf_layout import (
+    A_BARO_DATUM,
     A_BARO_OFFSET,
     A_BARO_REF_OK,
     A_FLAGS,
@@ -48,7 +49,10 @@ from autopilot.estimation.ekf_layout import (
     A_T_IMU_BAD,
     A_T_MAG,
     A_T_MAG_SEEN,
+    A_T_ZUPT,
     A_VERSION,
+    ALIGN_ACC_TOL_M_S2,
+    ALIGN_GYRO_MAX_RAD_S,
     E_ACCEL_BIAS,
     E_ATT,
     E_GYRO_BIAS,
@@ -56,6 +60,7 @@ from autopilot.estimation.ekf_layout import (
     E_POS,
     E_VEL,
     F_ALIGNED,
+    F_AT_REST,
     F_BARO_ABSENT,
     F_BARO_FUSED,
     F_BARO_REJECTED,
@@ -98,6 +103,8 @@ from autopilot.estimation.ekf_layout import (
     P_MAG_NOISE,
     P_NOAID_S,
     P_NOAID_VALID_S,
+    P_ZUPT_NOISE,
+    P_ZUPT_PERIOD_S,
     STATUS_PERIOD_S,
     W_DX,
     W_H,
@@ -207,12 +214,14 @@ def _predict(x, P, prm, work, dt, ax, ay, az, gx, gy, gz):  # pragma: no cover -
 @njit(cache=True)
 def ekf_step(
     x, P, aux, prm, work, out, t_us, ax, ay, az, gx, gy, gz, mx, my, mz, baro_alt_m,
-    has_gps, gps_lat_deg, gps_lon_deg, gps_alt_m, gvn, gve, gvd, eph_m, epv_m,
+    has_gps, gps_lat_deg, gps_lon_deg, gps_alt_m, gvn, gve, gvd, eph_m, epv_m, landed,
 ):  # fmt: skip  # pragma: no cover - numba kernel
     """One control step: align or predict, fuse what arrived, fill ``out``; returns the status version.
 
     Non-finite samples are skipped source by source (an IMU sample with a NaN skips the prediction).
     ``has_gps``: 1 when this step carries a usable 3D fix (the caller checked fix type and set the origin).
+    ``landed``: 1 while the land detector says the vehicle is on the ground (PX4's ``vehicle_land_detected``);
+    with a still IMU the velocity is observed as zero (the ZUPT, every ``P_ZUPT_PERIOD_S``, ungated).
     The version changes when a flag changes, GPS was fused, or every ``STATUS_PERIOD_S`` (the caller rebuilds
     its status then).
     """
@@ -234,9 +243,13 @@ def ekf_step(
     if not imu_ok:
         aux[A_T_IMU_BAD] = t_s
     timeout = prm[P_FUSE_TIMEOUT_S]
+    at_rest = False
     if not (old_flags & F_ALIGNED):
         if imu_ok:
             align(x, P, aux, prm, ax, ay, az, gx, gy, gz, mx, my, mz, t_s)
+        if baro_ok:  # the height datum: the baro on the ground until aligned (low-passed, ~0.2 s)
+            datum = aux[A_BARO_DATUM]
+            aux[A_BARO_DATUM] = baro_alt_m if not math.isfinite(datum) else datum + 0.02 * (baro_alt_m - datum)
     else:
         if imu_ok and not first and dt > 0.0:
             _predict(x, P, prm, work, min(dt, 0.05), ax, ay, az, gx, gy, gz)
@@ -245,9 +258,22 @@ def ekf_step(
         if has_gps == 1 and math.isfinite(gps_lat_deg + gps_lon_deg + gps_alt_m + gvn + gve + gvd):
             gps3 = out[O_RATE : O_RATE + 3]  # scratch until the output is written below
             ned_from_geodetic(prm, gps_lat_deg, gps_lon_deg, gps_alt_m, gps3)
+            was_init = int(aux[A_FLAGS]) & F_POS_INIT
             fuse_gps(x, P, aux, prm, work, t_s, gps3, gvn, gve, gvd, eph_m, epv_m)
+            if not was_init and baro_ok and math.isfinite(aux[A_BARO_DATUM]):
+                x[X_POS + 2] = aux[A_BARO_DATUM] - baro_alt_m  # the height from the datum, not the fix
             aux[A_T_GPS_SEEN] = t_s
             bump = True
+        # on the ground and still: zero velocity (PX4 EKF2's ZeroVelocityUpdate while landed and at rest)
+        if landed == 1 and imu_ok:
+            f_norm = math.sqrt(ax * ax + ay * ay + az * az)
+            w_norm = math.sqrt(gx * gx + gy * gy + gz * gz)
+            at_rest = abs(f_norm - G) <= ALIGN_ACC_TOL_M_S2 and w_norm <= ALIGN_GYRO_MAX_RAD_S
+            if at_rest and t_s - aux[A_T_ZUPT] >= prm[P_ZUPT_PERIOD_S]:
+                r_zupt = prm[P_ZUPT_NOISE] ** 2
+                for k in range(3):
+                    fuse(P, dx, work[W_PHT : W_PHT + N_E], E_VEL + k, 1.0, -x[X_VEL + k], r_zupt)
+                aux[A_T_ZUPT] = t_s
         pos_init = int(aux[A_FLAGS]) & F_POS_INIT
         # baro height: h = baro − offset, referenced to the filter height when (re)initialised
         if baro_ok and pos_init:
@@ -319,6 +345,8 @@ def ekf_step(
         flags |= F_POS_VERT_VALID
     if t_s - aux[A_T_IMU_BAD] <= timeout:
         flags |= F_IMU_BAD
+    if at_rest:
+        flags |= F_AT_REST
     aux[A_FLAGS] = flags
     if flags != old_flags:
         bump = True

@@ -26,7 +26,8 @@ P_MAG_DECL, P_ALIGN_SAMPLES, P_GPS_HGT_NOISE, P_GPS_RESET_S = 12, 13, 14, 15
 P_FUSE_TIMEOUT_S, P_NOAID_S, P_NOAID_VALID_S, P_GPS_MAX_EPH = 16, 17, 18, 19
 P_ECEF = 20  # 12 values: home ECEF, then the north, east, down rows (LocalNedFrame.ecef_constants)
 P_MAG_B_NOISE = 32
-N_PRM = 33
+P_ZUPT_NOISE, P_ZUPT_PERIOD_S = 33, 34  # zero-velocity update on the ground (PX4 EKF2's ZeroVelocityUpdate)
+N_PRM = 35
 
 # aux: alignment accumulators, timers (sim seconds), test ratios, flags
 A_T, A_ALIGN_N, A_ACC_SUM, A_MAG_SUM, A_GYR_SUM = 0, 1, 2, 5, 8
@@ -37,7 +38,9 @@ A_T_POS_REJECT, A_T_BARO_SEEN, A_T_MAG_SEEN, A_T_IMU_BAD = 24, 25, 26, 27
 A_FLAGS, A_VERSION, A_T_ALIGNED, A_T_GPS_SEEN, A_T_GPS_START = 28, 29, 30, 31, 32
 A_MAG_EARTH = 33  # 3 values: the Earth field (gauss, NED) from the alignment's strength and inclination
 A_T_BUMP = 36  # when the status version last changed
-N_AUX = 37
+A_BARO_DATUM = 37  # the baro altitude until aligned (low-passed): the height datum, the ground started on
+A_T_ZUPT = 38  # the last zero-velocity update
+N_AUX = 39
 STATUS_PERIOD_S = 0.1  # the status version changes at least this often (accuracies, test ratios)
 
 # status flag bits (aux[A_FLAGS])
@@ -58,6 +61,7 @@ F_IMU_BAD = 8192  # a non-finite IMU sample within the last FUSE_TIMEOUT
 F_MOVING = 16384  # alignment restarted: the vehicle was not still
 F_MAG_ABSENT = 32768
 F_BARO_ABSENT = 65536
+F_AT_REST = 131072  # landed (the land detector) and the IMU still: zero velocity fused
 
 # out: what a VehicleState is built from
 O_Q, O_VEL, O_POS, O_RATE, O_EULER, O_GEO, O_VALID, O_ACC_H, O_ACC_V, O_VEL_ACC = 0, 4, 7, 10, 13, 16, 19, 20, 21, 22
@@ -87,6 +91,7 @@ def new_arrays() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.nda
         aux[k] = NEVER
     for k in (A_T_BARO_SEEN, A_T_MAG_SEEN, A_T_IMU_BAD, A_T_ALIGNED, A_T_GPS_SEEN, A_T_GPS_START, A_T_BUMP):
         aux[k] = NEVER
-    for k in (A_POS_TR, A_VEL_TR, A_HGT_TR, A_MAG_TR):
+    for k in (A_POS_TR, A_VEL_TR, A_HGT_TR, A_MAG_TR, A_BARO_DATUM):
         aux[k] = math.nan
+    aux[A_T_ZUPT] = NEVER
     return x, np.eye(N_E), aux, np.zeros(N_PRM), np.zeros(N_WORK), np.zeros(N_OUT)

@@ -91,6 +91,9 @@ class Estimator(Protocol):
     @property
     def status(self) -> EstimatorStatus: ...
 
+    def set_landed(self, landed: bool) -> None:
+        """The land detector's verdict for the next :meth:`update` (an EKF fuses zero velocity while landed)."""
+
     def update(self, frame: FrameLike) -> VehicleState | None: ...
 
 

@@ -26,7 +26,7 @@ class _StateBuilder:
 
     Building a frozen slotted dataclass calls a descriptor per field (16 here, every step); assigning to a
     plain twin's slots and switching ``__class__`` (allowed: identical slot layout) gives the same frozen
-    ``VehicleState`` at a quarter of the cost (``tests/test_autopilot_estimator.py`` checks equality).
+    ``VehicleState`` at a quarter of the cost (``test_autopilot_estimator.py`` checks equality).
     """
 
     __slots__ = VehicleState.__slots__
@@ -58,6 +58,9 @@ class TruthEstimator:
     @property
     def local_frame(self) -> LocalNedFrame | None:
         return self._frame
+
+    def set_landed(self, landed: bool) -> None:
+        """The truth needs no help on the ground."""
 
     def update(self, frame: FrameLike) -> VehicleState | None:
         if frame.gps is not None:

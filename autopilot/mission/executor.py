@@ -60,7 +60,8 @@ from autopilot.mission.executor_types import (
 )
 from autopilot.mission.nav_target import ItemPhase as _Phase
 from autopilot.mission.nav_target import phase_target
-from autopilot.mission.plan import is_wpl_home_line, item_position_ned, items_match, uses_current_position
+from autopilot.mission.plan import DEFAULT_HOME_TOL, HomeTolerance, is_wpl_home_line, item_position_ned, items_match
+from autopilot.mission.plan import uses_current_position as _at_current_position
 from autopilot.mission.route_ahead import DO_ITEMS as _DO_ITEMS
 from autopilot.mission.route_ahead import SKIPPABLE as _SKIPPABLE
 from autopilot.mission.route_ahead import execution_order, next_position, route_through
@@ -80,6 +81,7 @@ class MissionExecutor:
 
     def __init__(self, home: GeoPoint, config: ExecutorConfig | None = None) -> None:
         self._frame = LocalNedFrame(home)
+        self._home_tol = DEFAULT_HOME_TOL  # how far a WPL home line may lie from home
         self.config = config or ExecutorConfig()
         self._items: list[MissionItem] = []
         self._pos_ned: list[Vec3 | None] = []
@@ -127,9 +129,9 @@ class MissionExecutor:
         self.config = config
         self._target = None
 
-    def set_home(self, home: GeoPoint) -> None:
-        """Move the local NED origin (positions of the items are recomputed)."""
-        self._frame = LocalNedFrame(home)
+    def set_home(self, home: GeoPoint, home_tol: HomeTolerance = DEFAULT_HOME_TOL) -> None:
+        """Move the local NED origin (positions of the items are recomputed); ``home_tol``: see ``is_wpl_home_line``."""
+        self._frame, self._home_tol = LocalNedFrame(home), home_tol
         self._pos_ned = [self._item_pos(it) for it in self._items]
         self._target = None
         self._version += 1
@@ -137,7 +139,7 @@ class MissionExecutor:
     def _item_pos(self, item: MissionItem) -> Vec3 | None:
         if item.command not in (MavCmd.NAV_WAYPOINT, MavCmd.NAV_LOITER_TIME, MavCmd.NAV_TAKEOFF, MavCmd.NAV_LAND):
             return None
-        if uses_current_position(item):
+        if _at_current_position(item):
             return None
         return item_position_ned(item, self._frame)
 
@@ -352,7 +354,7 @@ class MissionExecutor:
         """Run the current item's phases as far as this sample allows; True when the item is complete."""
         item = self._items[self._cur]
         cmd = item.command
-        if is_wpl_home_line(self._cur, item, self._frame.home):
+        if is_wpl_home_line(self._cur, item, self._frame.home, self._home_tol):
             return True  # MAVProxy's home entry: acknowledged, never flown to
         if cmd == MavCmd.DO_CHANGE_SPEED:
             if item.param2 > 0.0:

@@ -8,7 +8,7 @@ from enum import IntEnum
 import numpy as np
 
 from autopilot.mission.param_decls import MISSION_PARAM_DEFAULTS
-from autopilot.params import ParamStore
+from autopilot.parameters.store import ParamStore
 from mavlink_bridge.contract.frames import Vec3
 from mavlink_bridge.contract.mav_enums import MissionState
 from mavlink_bridge.contract.wire import fast_frozen_init

@@ -15,8 +15,15 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from autopilot.mission.fence import Geofence, zone_label
-from autopilot.mission.plan import alt_rel_home_m, is_wpl_home_line, item_position_ned, uses_current_position
+from autopilot.geofence.fence import Geofence, zone_label
+from autopilot.mission.plan import (
+    DEFAULT_HOME_TOL,
+    HomeTolerance,
+    alt_rel_home_m,
+    is_wpl_home_line,
+    item_position_ned,
+    uses_current_position,
+)
 from autopilot.mission.validation import MissionIssue
 from autopilot.planner.route_graph import KnownWorld
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame, Vec3
@@ -100,7 +107,12 @@ class MissionLeg:
     goal_ned_m: Vec3
 
 
-def mission_legs(items: Sequence[MissionItem], home: GeoPoint, limits: FeasibilityLimits) -> list[MissionLeg]:
+def mission_legs(
+    items: Sequence[MissionItem],
+    home: GeoPoint,
+    limits: FeasibilityLimits,
+    home_tol: HomeTolerance = DEFAULT_HOME_TOL,
+) -> list[MissionLeg]:
     """The legs of a mission in list order (takeoff climbs where it is; a DO_JUMP adds the leg back to its
     target; RTL climbs to MIS_RTL_ALT and flies home; LAND descends where it is or at its position)."""
     frame = LocalNedFrame(home)
@@ -121,7 +133,7 @@ def mission_legs(items: Sequence[MissionItem], home: GeoPoint, limits: Feasibili
             legs.append(MissionLeg(prev_seq, i, (prev[0], prev[1], -alt), (0.0, 0.0, -alt)))
             prev_seq, prev = i, (0.0, 0.0, -alt)
             continue
-        if cmd not in POSITION_COMMANDS or is_wpl_home_line(i, item, home):
+        if cmd not in POSITION_COMMANDS or is_wpl_home_line(i, item, home, home_tol):
             continue
         if cmd == MavCmd.NAV_TAKEOFF:
             prev = (prev[0], prev[1], -alt_rel_home_m(item, home))
@@ -145,18 +157,19 @@ def check_feasibility(
     fence: Geofence,
     limits: FeasibilityLimits | None = None,
     world: KnownWorld | None = None,
+    home_tol: HomeTolerance = DEFAULT_HOME_TOL,
 ) -> MissionIssue | None:
     """The first reason the mission cannot be flown with this fence from this home, or None.
 
     Checks home, then every positional item (:func:`position_issue`), then that every leg has a route
     around the fence inflated by ``limits.margin_m`` (``world``: a prebuilt :class:`KnownWorld` of the
-    same fence and margin, built here when None)."""
+    same fence and margin, built here when None; ``home_tol``: how far a WPL home line may lie from ``home``)."""
     limits = limits or FeasibilityLimits()
     if fence.violates((0.0, 0.0, 0.0)):
         return _refuse(MissionResult.INVALID, -1, "home", "home lies outside the geofence: no mission can be flown")
     frame = LocalNedFrame(home)
     for i, item in enumerate(items):
-        if item.command not in POSITION_COMMANDS or is_wpl_home_line(i, item, home):
+        if item.command not in POSITION_COMMANDS or is_wpl_home_line(i, item, home, home_tol):
             continue
         if uses_current_position(item):  # only a takeoff's altitude is known here
             if item.command != MavCmd.NAV_TAKEOFF:
@@ -170,7 +183,7 @@ def check_feasibility(
     if not fence.zones:
         return None
     world = world or KnownWorld(fence, limits.margin_m)
-    for leg in mission_legs(items, home, limits):
+    for leg in mission_legs(items, home, limits, home_tol):
         result = world.route(leg.start_ned_m, leg.goal_ned_m)
         if not result.ok:
             origin = "home" if leg.from_seq < 0 else f"item {leg.from_seq}"

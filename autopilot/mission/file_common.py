@@ -48,7 +48,7 @@ class MissionFileError(ValueError):
 
 def expand_pattern(pattern_type: str, spacing_m: float, params: dict[str, Any]) -> list[tuple[float, float, float]]:
     """Default :data:`PatternExpander`: the control engineer's parametric trajectories (SPEC §6.5)."""
-    from autopilot.trajectories import make_trajectory  # heavy module, only needed by pattern entries
+    from autopilot.flight_tasks.trajectories import make_trajectory  # heavy module, only needed by pattern entries
 
     return [(float(n), float(e), float(a)) for n, e, a in make_trajectory(pattern_type, **params).waypoints(spacing_m)]
 

@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from autopilot.mission.fence import circle_fence_items, polygon_fence_items
+from autopilot.geofence.fence import circle_fence_items, polygon_fence_items
 from autopilot.mission.file_common import MissionFileError, fence_shapes, jump_shift, leading_speed
 from autopilot.mission.plan import DEFAULT_VEHICLE, MissionPlan
 from mavlink_bridge.contract.frames import GeoPoint

@@ -8,7 +8,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from autopilot.mission.fence import circle_fence_items, polygon_fence_items
+from autopilot.geofence.fence import circle_fence_items, polygon_fence_items
 from autopilot.mission.file_common import MissionFileError, PatternExpander, speed_item
 from autopilot.mission.plan import DEFAULT_VEHICLE, MissionPlan
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame

@@ -13,7 +13,7 @@ YAML v1 extensions made here (the v1 keys keep their meaning):
   autocontinue}`` for any item the friendly forms cannot express. Positions in friendly entries
   are ``{north_m, east_m}`` about home or ``{lat_deg, lon_deg}``; ``yaw_deg`` is optional.
 - ``pattern: {type, spacing_m, accept_radius_m?, ...}``: the remaining keys go to
-  ``autopilot.trajectories.make_trajectory(type, **rest).waypoints(spacing_m)``, whose
+  ``autopilot.flight_tasks.trajectories.make_trajectory(type, **rest).waypoints(spacing_m)``, whose
   ``(north_m, east_m, alt_m)`` points become pass-through waypoints.
 - Fence polygons also take ``{vertices_lat_lon_deg: [[lat, lon], ...], group: 0}``; circles
   take ``lat_deg``/``lon_deg`` instead of ``north_m``/``east_m``; inclusion zones take ``group``.

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from autopilot.params import ParamSpec
+from autopilot.parameters.store import ParamSpec
 
 
 def mission_param_specs() -> list[ParamSpec]:

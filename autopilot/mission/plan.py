@@ -43,19 +43,50 @@ def uses_current_position(item: MissionItem) -> bool:
     return item.command in CURRENT_POSITION_OK and item.x_lat_deg == 0.0 and item.y_lon_deg == 0.0
 
 
-def is_wpl_home_line(index: int, item: MissionItem, home: GeoPoint) -> bool:
+@dataclass(frozen=True, slots=True)
+class HomeTolerance:
+    """How far (m) a WPL file's home line may lie from the estimated home and still be taken for it.
+
+    The estimated home is the vehicle's position at a GPS fix, off by that fix's error: the tolerance is
+    :data:`HOME_GATE` times the accuracy the GPS reports (eph, epv), and at least :data:`HOME_TOL_MIN_M`.
+    """
+
+    horiz_m: float = 1.0
+    vert_m: float = 1.0
+
+    @classmethod
+    def from_gps(cls, eph_m: float, epv_m: float) -> HomeTolerance:
+        """From the GPS accuracy the estimator reports with the state that set home (inf/NaN: no fix, the floor)."""
+
+        def gate(acc_m: float) -> float:
+            return max(HOME_TOL_MIN_M, HOME_GATE * acc_m) if math.isfinite(acc_m) else HOME_TOL_MIN_M
+
+        return cls(gate(eph_m), gate(epv_m))
+
+
+#: Reported GPS accuracies a home line may be off by (eph/epv are about one standard deviation).
+HOME_GATE = 3.0
+#: The smallest home-line tolerance (m): a truth estimator's home is exact, a file's numbers are rounded.
+HOME_TOL_MIN_M = 1.0
+#: The tolerance before any fix reported an accuracy.
+DEFAULT_HOME_TOL = HomeTolerance()
+
+
+def is_wpl_home_line(index: int, item: MissionItem, home: GeoPoint, tol: HomeTolerance = DEFAULT_HOME_TOL) -> bool:
     """True for an ArduPilot-style home entry sent as mission item 0 (MAVProxy's ``wp load``).
 
     MAVProxy uploads line 0 of a QGC WPL file (the home position, frame GLOBAL, altitude AMSL)
-    as item 0. It is kept so a download equals the upload, passes validation although it sits
-    on the ground, and completes at once in the executor: it is never flown to.
+    as item 0. It is recognised when it lies at the estimated home within ``tol`` (the GPS accuracy
+    at the fix that set home), horizontally and in altitude, whichever estimator flies. It is kept so a
+    download equals the upload, passes validation although it sits on the ground, and completes at once
+    in the executor: it is never flown to.
     """
-    return (
-        index == 0
-        and item.command == MavCmd.NAV_WAYPOINT
-        and item.frame in AMSL_FRAMES
-        and abs(alt_rel_home_m(item, home)) < 1.0
-    )
+    if index != 0 or item.command != MavCmd.NAV_WAYPOINT or item.frame not in AMSL_FRAMES:
+        return False
+    if abs(alt_rel_home_m(item, home)) > tol.vert_m:
+        return False
+    n, e, _ = LocalNedFrame(home).ned_from_geodetic(item.x_lat_deg, item.y_lon_deg, home.alt_amsl_m)
+    return math.hypot(n, e) <= tol.horiz_m
 
 
 def alt_rel_home_m(item: MissionItem, home: GeoPoint) -> float:

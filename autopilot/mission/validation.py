@@ -12,10 +12,16 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from autopilot.mission.fence import FenceError, geo_fence_from_items
+from autopilot.geofence.fence import FenceError, geo_fence_from_items
 from autopilot.mission.param_decls import MISSION_PARAM_DEFAULTS
-from autopilot.mission.plan import alt_rel_home_m, is_wpl_home_line, uses_current_position
-from autopilot.params import ParamStore
+from autopilot.mission.plan import (
+    DEFAULT_HOME_TOL,
+    HomeTolerance,
+    alt_rel_home_m,
+    is_wpl_home_line,
+    uses_current_position,
+)
+from autopilot.parameters.store import ParamStore
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
 from mavlink_bridge.contract.mav_enums import (
     AMSL_FRAMES,
@@ -97,7 +103,12 @@ def _check_finite(i: int, item: MissionItem) -> None:
 
 
 def _check_position(
-    i: int, item: MissionItem, home: GeoPoint | None, frame: LocalNedFrame | None, limits: MissionLimits
+    i: int,
+    item: MissionItem,
+    home: GeoPoint | None,
+    frame: LocalNedFrame | None,
+    limits: MissionLimits,
+    home_tol: HomeTolerance,
 ) -> None:
     if item.frame not in GLOBAL_FRAMES:
         raise _RefusedError(
@@ -131,7 +142,7 @@ def _check_position(
     if home is None and item.frame in AMSL_FRAMES:
         return  # an AMSL altitude is checked once home is known
     on_ground_ok = (here and item.command == MavCmd.NAV_LOITER_TIME) or (
-        home is not None and is_wpl_home_line(i, item, home)
+        home is not None and is_wpl_home_line(i, item, home, home_tol)
     )
     if item.command in _ALT_CHECKED and not on_ground_ok:
         alt = alt_rel_home_m(item, home) if home is not None else item.z_alt_m
@@ -181,7 +192,9 @@ def _check_params(i: int, item: MissionItem, items: Sequence[MissionItem], limit
             raise _RefusedError(p1, i, "param1", f"DO_JUMP loop {int(target)}..{i} contains no navigation item")
 
 
-def _check_mission_items(items: Sequence[MissionItem], home: GeoPoint | None, limits: MissionLimits) -> None:
+def _check_mission_items(
+    items: Sequence[MissionItem], home: GeoPoint | None, limits: MissionLimits, home_tol: HomeTolerance
+) -> None:
     frame = LocalNedFrame(home) if home is not None else None
     for i, item in enumerate(items):
         if item.seq != i:
@@ -200,7 +213,7 @@ def _check_mission_items(items: Sequence[MissionItem], home: GeoPoint | None, li
             )
         _check_finite(i, item)
         if item.command in POSITION_COMMANDS:
-            _check_position(i, item, home, frame, limits)
+            _check_position(i, item, home, frame, limits, home_tol)
         elif item.frame not in GLOBAL_FRAMES | {MavFrame.MISSION}:
             raise _RefusedError(
                 MissionResult.UNSUPPORTED_FRAME,
@@ -226,12 +239,16 @@ def _check_fence_items(items: Sequence[MissionItem]) -> None:
 
 
 def check_mission(
-    items: Sequence[MissionItem], home: GeoPoint | None, limits: MissionLimits | None = None
+    items: Sequence[MissionItem],
+    home: GeoPoint | None,
+    limits: MissionLimits | None = None,
+    home_tol: HomeTolerance = DEFAULT_HOME_TOL,
 ) -> MissionIssue | None:
     """The first problem of a complete upload, or None when it can be installed.
 
     With ``home`` None (no position fix yet) what needs home (MIS_DIST_MAX, AMSL altitudes) is left for the
-    check once home is known (:mod:`autopilot.mission.uploads`).
+    check once home is known (:mod:`autopilot.mission.uploads`). ``home_tol``: how far a WPL home line may lie
+    from ``home`` (:func:`autopilot.mission.plan.is_wpl_home_line`).
 
     The list's mission type is taken from its first item (an empty list is a valid "clear").
     FENCE lists are checked by parsing them into zones (:func:`geofence_from_items`).
@@ -250,7 +267,7 @@ def check_mission(
         if items[0].mission_type == MissionType.FENCE:
             _check_fence_items(items)
         elif items[0].mission_type == MissionType.MISSION:
-            _check_mission_items(items, home, limits)
+            _check_mission_items(items, home, limits, home_tol)
         else:
             raise _RefusedError(
                 MissionResult.UNSUPPORTED, 0, "mission_type", f"mission_type {items[0].mission_type!r} unsupported"

@@ -8,9 +8,11 @@ conversion is a translation by home's position about the origin (``home_origin_n
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from autopilot.mission.plan import HomeTolerance
 from mavlink_bridge.contract.frames import GeoPoint, Vec3
 
 
@@ -20,6 +22,13 @@ class HomeFrame:
 
     geo: GeoPoint
     home_origin_ned_m: Vec3 = (0.0, 0.0, 0.0)
+    gps_eph_m: float = math.inf  # the GPS accuracy (m) at the fix that set home: how far a WPL home line may lie
+    gps_epv_m: float = math.inf
+
+    @property
+    def home_tol(self) -> HomeTolerance:
+        """How far a WPL file's home line may lie from home and still be taken for it."""
+        return HomeTolerance.from_gps(self.gps_eph_m, self.gps_epv_m)
 
     def home_from_origin(self, pos_origin_ned_m: Sequence[float]) -> Vec3:
         """A position about the origin, expressed about home."""

@@ -15,13 +15,13 @@ from typing import Protocol
 
 import numpy as np
 
-from autopilot.failsafe import FailsafeAction, FailsafeEvent, FailsafeKind
+from autopilot.geofence.fence import Geofence
 from autopilot.mission.executor import MissionRoute, NavKind
 from autopilot.mission.executor import NavTarget as MissionTarget
-from autopilot.mission.fence import Geofence
 from autopilot.planner.mission_router import MissionRouter, RouteStatus, RouteStep
 from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import PlannerState
+from autopilot.safety.failsafe import FailsafeAction, FailsafeEvent, FailsafeKind
 from mavlink_bridge.contract.frames import Vec3
 from mavlink_bridge.contract.vehicle_api import Severity
 from mavlink_bridge.contract.wire import ObstacleDetection
@@ -39,6 +39,7 @@ class RoutePlanner(Protocol):
         detections: Sequence[ObstacleDetection],
         route_target_ned: Sequence[float],
         route_next_ned: Sequence[float] | np.ndarray | None = None,
+        route_items: Sequence[bool] | np.ndarray | None = None,
     ) -> object: ...
 
 
@@ -129,7 +130,12 @@ class LegRouting:
         step = self._step
         return step.route_ahead_ned_m if step is not None and len(step.route_ahead_ned_m) else None
 
-    def rejoin(self, k: int) -> int | None:
-        """A detour rejoins the handed route at point ``k``: the mission item to skip to, None if none."""
+    def ahead_items(self) -> np.ndarray | None:
+        """Which points of [goal, *:meth:`ahead`] are mission items (a detour rejoins at a reachable one)."""
+        return self.router.ahead_items if self._step is not None else None
+
+    def rejoin(self, k: int) -> tuple[int, tuple[int, ...], np.ndarray] | None:
+        """A detour rejoins the handed route at point ``k``: the mission item to skip to, the items it bypassed
+        and their positions (about home); None if it bypassed no item."""
         m = self.router.consume(k)
-        return self._seqs[m] if 0 < m < len(self._seqs) else None
+        return (self._seqs[m], self._seqs[:m], self._pts[:m]) if 0 < m < len(self._seqs) else None

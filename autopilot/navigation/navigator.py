@@ -25,8 +25,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from autopilot.estimation import VehicleState
-from autopilot.failsafe import FailsafeEvent
-from autopilot.fence_zones import planner_fence_zones
+from autopilot.flight_tasks.setpoints import NavTarget
+from autopilot.geofence.fence import Geofence
+from autopilot.geofence.planner_zones import planner_fence_zones
 from autopilot.mission.executor import (
     ActionKind,
     ExecutorConfig,
@@ -37,16 +38,17 @@ from autopilot.mission.executor import (
     VehicleSample,
 )
 from autopilot.mission.feasibility import FeasibilityLimits
-from autopilot.mission.fence import Geofence
 from autopilot.mission.uploads import UploadStore
 from autopilot.mission.validation import MissionLimits
+from autopilot.navigation.bypass import REJOINED_PAST, bypass_reason
 from autopilot.navigation.home_frame import HomeFrame
 from autopilot.navigation.leg_routing import LegRouting, RoutePlanner
 from autopilot.navigation.targets import face_along_path, mission_nav_target
-from autopilot.params import ParamStore
+from autopilot.navigation.traffic_link import TrafficLink
+from autopilot.parameters.store import ParamStore
 from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import AvoidancePlanner
-from autopilot.setpoints import NavTarget
+from autopilot.safety.failsafe import FailsafeEvent
 from mavlink_bridge.contract.frames import Vec3
 from mavlink_bridge.contract.mav_enums import MissionState
 from mavlink_bridge.contract.vehicle_api import (
@@ -98,9 +100,11 @@ class Navigator:
         params: ParamStore,
         planner: RoutePlanner | None = None,
         land_speed_m_s: Callable[[], float] | None = None,
+        system_id: int = 1,
     ) -> None:
         self.params = params
         self.planner = planner
+        self.traffic = TrafficLink(params, system_id, lambda text: self._texts.append(text))  # SPEC §13
         #: The commander's descent speed for a mission LAND now (it changes at MPC_LAND_ALT2).
         self.land_speed_m_s = land_speed_m_s or (lambda: params.get("MPC_LAND_SPEED"))
         self.uploads = UploadStore()
@@ -118,7 +122,7 @@ class Navigator:
         self._nav_faces = False  # the cached mission target's yaw is the per-step heading along the path
         self._param_version = 0
         self._detections: Sequence[ObstacleDetection] = ()
-        self._bypass_reason: dict[int, str] = {}
+        self.bypass_reasons: dict[int, str] = {}  # why each bypassed item could not be reached (the latest)
         self.apply_planner_params()
         self.apply_altitude_limits()
         self.apply_upload_limits()
@@ -171,8 +175,8 @@ class Navigator:
         self.frame = frame
         executor = self._executor()
         if executor is not None:
-            executor.set_home(frame.geo)
-        self.uploads.set_home(frame.geo)
+            executor.set_home(frame.geo, frame.home_tol)
+        self.uploads.set_home(frame.geo, frame.home_tol)
         self._sync_uploads()
 
     def _executor(self) -> MissionExecutor | None:
@@ -257,11 +261,13 @@ class Navigator:
 
     # ------------------------------------------------------------------ the step
     def update(
-        self,
-        state: VehicleState,
-        mode: FlightMode,
-        landed: bool,
-        detections: Sequence[ObstacleDetection],
+        self, state: VehicleState, mode: FlightMode, landed: bool, detections: Sequence[ObstacleDetection]
+    ) -> NavOutput:
+        """The mission's target at this step (AUTO_MISSION only), then traffic avoidance (its failsafe rides along)."""
+        return self.traffic.step(self, state, mode, landed, self._mission_update(state, mode, landed, detections))
+
+    def _mission_update(
+        self, state: VehicleState, mode: FlightMode, landed: bool, detections: Sequence[ObstacleDetection]
     ) -> NavOutput:
         """The mission's target at this step (AUTO_MISSION only), with skips past obstacles' safety volumes."""
         executor, frame = self.executor, self.frame
@@ -283,7 +289,7 @@ class Navigator:
             self._say(f"Reached item {seq}")
         for seq in out.bypassed:
             self.bypassed_seqs.append(seq)
-            why = self._bypass_reason.pop(seq, "a detour rejoined the route past it")
+            why = self.bypass_reasons.setdefault(seq, REJOINED_PAST)
             self._say(f"Bypassed item {seq}: {why}", Severity.WARNING)
         gripper = None
         for action in out.actions:
@@ -323,49 +329,41 @@ class Navigator:
     def avoid(self, state: VehicleState, target: NavTarget) -> ReferenceOverride | None:
         """Let the avoidance planner override the reference (AUTO_MISSION, POSITION target).
 
-        The planner gets the mission route from the target on (``MissionExecutor.route_ahead``, two
-        CA_LOOKAHEAD_M lengths); waypoints a detour bypassed (``rejoin_route_index``) are skipped in the
-        executor (reported reached, DO items still run).
+        The planner gets the route from the target on (``route_after_target``); items a detour passed
+        (``rejoin_route_index``: unreachable ones) are skipped in the executor, reported bypassed with the reason.
         """
         planner, frame = self.planner, self.frame
+        traffic = self.traffic.override(state.time_us, ReferenceOverride)  # wins over an obstacle detour
         if planner is None or frame is None:
-            return None
+            return traffic
         detections = self._detections
         idle_output = getattr(planner, "idle_output", None)
         if idle_output is not None:  # nothing to avoid: the output update() would give, without the route
             idle = idle_output(state.time_us, detections)
             if idle is not None:
                 self.planner_output = idle
-                return None
+                return traffic
         pos = frame.home_from_origin(state.pos_ned_m)
         goal = frame.home_from_origin(target.pos_ned_m)
         route = self._mission_route()
-        nxt: Sequence[float] | np.ndarray | None = None
         routed = self.routing.active
-        if routed:  # the via points, the target, the later legs around the fence
-            nxt = self.routing.ahead()
-        elif route is not None:
-            nxt = route.pos_ned_m[1:] if len(route.seqs) > 1 else None
-        else:
-            out = self._last_output
-            if out is not None and out.target is not None and out.target.next_pos_ned_m is not None:
-                nxt = out.target.next_pos_ned_m
-        result = planner.update(state.time_us, pos, state.vel_ned_m_s, state.q_ned_frd, detections, goal, nxt)
+        nxt, items = self.route_after_target(), self.routing.ahead_items() if routed else None  # items: mission's
+        result = planner.update(state.time_us, pos, state.vel_ned_m_s, state.q_ned_frd, detections, goal, nxt,
+                                route_items=items)  # fmt: skip
         self.planner_output = result
         k = int(getattr(result, "rejoin_route_index", 0))
-        if k > 0 and routed:  # the detour rejoins past via points (dropped) and maybe items (skipped now)
-            seq = self.routing.rejoin(k)
-            if seq is not None:
-                assert self.executor is not None
-                self.executor.skip_to(seq, state.time_us)
-        elif route is not None and 0 < k < len(route.seqs):  # the detour rejoins past waypoints: skip them now
-            assert self.executor is not None
-            self.executor.skip_to(route.seqs[k], state.time_us)
+        rejoined = self.routing.rejoin(k) if k > 0 and routed else None  # via points dropped, maybe items skipped
+        if rejoined is None and not routed and route is not None and 0 < k < len(route.seqs):
+            rejoined = (route.seqs[k], route.seqs[:k], route.pos_ned_m[:k])  # past waypoints: skip them now
+        if rejoined is not None and self.executor is not None:
+            for seq, pos_ned_m in zip(rejoined[1], rejoined[2], strict=True):
+                self.bypass_reasons[seq] = bypass_reason(self.params, self.geofence, self.planner_output, pos_ned_m)
+            self.executor.skip_to(rejoined[0], state.time_us)
         for decision in getattr(result, "decisions", ()):
             self._say(str(decision.text), Severity.NOTICE)
         setpoint = getattr(result, "setpoint", None)
-        if setpoint is None:
-            return None
+        if setpoint is None or traffic is not None:
+            return traffic
         p, v, a = setpoint.pos_ned_m, setpoint.vel_ned_m_s, setpoint.acc_ned_m_s2
         return ReferenceOverride(
             frame.origin_from_home((float(p[0]), float(p[1]), float(p[2]))),
@@ -374,6 +372,16 @@ class Navigator:
         )
 
     # ------------------------------------------------------------------ route glue
+    def route_after_target(self) -> object:
+        """After the flown target, about home (the planner's ``next``): routed legs, the route, the next waypoint."""
+        if self.routing.active:
+            return self.routing.ahead()
+        route = self._mission_route()
+        if route is not None:
+            return route.pos_ned_m[1:] if len(route.seqs) > 1 else None
+        out = self._last_output
+        return out.target.next_pos_ned_m if out is not None and out.target is not None else None
+
     def _mission_route(self) -> MissionRoute | None:
         """The executor's route when the flown target is its current positional item (None otherwise)."""
         executor, out = self.executor, self._last_output
@@ -406,6 +414,7 @@ class Navigator:
         assert self.executor is not None
         if seq < 0 or not self.executor.skip_to(seq, time_us):
             return False
-        self._bypass_reason[route.seqs[0]] = "it lies inside an obstacle's safety volume"
-        self._say(f"Skipped to item {seq}: item {route.seqs[0]} lies inside an obstacle's safety volume")
+        head = route.seqs[0]
+        self.bypass_reasons[head] = bypass_reason(self.params, self.geofence, self.planner_output, route.pos_ned_m[0])
+        self._say(f"Skipped to item {seq}: item {head} lies inside an obstacle's safety volume")
         return True

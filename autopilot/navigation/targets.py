@@ -9,11 +9,11 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+from autopilot.flight_tasks.setpoints import NavTarget, TargetKind
 from autopilot.mission.executor import MissionRoute, NavKind
 from autopilot.mission.executor import NavTarget as MissionTarget
 from autopilot.navigation.home_frame import HomeFrame
-from autopilot.params import ParamStore
-from autopilot.setpoints import NavTarget, TargetKind
+from autopilot.parameters.store import ParamStore
 from mavlink_bridge.contract.frames import Vec3
 
 #: In AUTO_MISSION the nose (forward camera) faces a route point at least this far ahead (m), none closer than

@@ -8,7 +8,7 @@ Vertical extents use NED ``down`` coordinates: ``top_down`` is the (more negativ
 
 Also the minimal fence zones (exclusion/inclusion circles and polygons, SPEC §8) the
 planner checks a path against; any object with ``violates(pos_ned)`` and
-``segment_clear(a, b, margin_m)`` (e.g. ``autopilot.mission.fence`` zones) works too.
+``segment_clear(a, b, margin_m)`` (e.g. ``autopilot.geofence.fence`` zones) works too.
 """
 
 from __future__ import annotations
@@ -162,7 +162,7 @@ def polyline_length(points: np.ndarray) -> float:
 
 
 class FenceZone(Protocol):
-    """What the planner needs of a geofence zone (``autopilot.mission.fence`` zones satisfy it)."""
+    """What the planner needs of a geofence zone (``autopilot.geofence.fence`` zones satisfy it)."""
 
     def violates(self, pos_ned: np.ndarray) -> bool: ...
 

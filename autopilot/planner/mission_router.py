@@ -25,7 +25,7 @@ from enum import Enum
 
 import numpy as np
 
-from autopilot.mission.fence import Geofence
+from autopilot.geofence.fence import Geofence
 from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import PlannerState
 from autopilot.planner.route_graph import KnownWorld, RouteResult, obstacle_discs
@@ -181,6 +181,12 @@ class MissionRouter:
                 self._vias.pop(0)
                 self._step = self._make_step(())
         return self._step
+
+    @property
+    def ahead_items(self) -> np.ndarray:
+        """Which points of [goal, *route_ahead] are mission points (the via points around the fence are not)."""
+        vias = self._step.vias_left
+        return np.concatenate((np.zeros(vias, bool), (True,), self._later_is_mission))
 
     def consume(self, n: int) -> int:
         """The reactive planner's detour rejoins the route [goal, *route_ahead] at point ``n`` (its

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from autopilot.params import ParamSpec, ParamStore
+from autopilot.parameters.store import ParamSpec, ParamStore
 
 
 def planner_param_specs() -> tuple[ParamSpec, ...]:

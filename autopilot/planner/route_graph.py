@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from autopilot.mission.fence import CircleZone, FenceZone, Geofence, PolygonZone, zone_label
+from autopilot.geofence.fence import CircleZone, FenceZone, Geofence, PolygonZone, zone_label
 
 #: Graph nodes sit this far outside the inflated boundary (so a path along a boundary never "crosses" it).
 NODE_PUSH_M = 0.05

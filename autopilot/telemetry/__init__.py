@@ -83,7 +83,7 @@ def make_listener(
         obstacles_known=framing.obstacles if framing is not None else None,
     )
     if plan is not None:
-        from autopilot.mission.fence import geofence_from_items
+        from autopilot.geofence.fence import geofence_from_items
 
         telemetry.on_world(plan.world)
         if plan.items:

@@ -28,7 +28,7 @@ import numpy as np
 import rerun as rr
 
 from autopilot.estimation.state import EstimatorStatus, VehicleState
-from autopilot.setpoints import TargetKind
+from autopilot.flight_tasks.setpoints import TargetKind
 from autopilot.telemetry import entities as ent
 from autopilot.telemetry.blueprint import Framing, flight_blueprint
 from autopilot.telemetry.estimator_errors import EstimatorErrorLog
@@ -50,7 +50,7 @@ from mavlink_bridge.contract.vehicle_api import FlightMode, Severity
 from mavlink_bridge.contract.wire import GroundTruth
 
 if TYPE_CHECKING:
-    from autopilot.reporting import StepRecord
+    from autopilot.reporting.report import StepRecord
 
 __all__ = [
     "DECIMATION",

@@ -128,7 +128,7 @@ def route_points_ned(items: Sequence[MissionItem], home: GeoPoint, *, rtl_alt_m:
 def fence_outlines(zones: Sequence[object], n_circle: int = 48) -> tuple[list[np.ndarray], list[bool]]:
     """Closed horizontal outlines (m, 2) north-east of fence zones, and whether each is an inclusion.
 
-    Zones are duck-typed like ``autopilot.mission.fence`` (``center_ne_m``, ``vertices_ne_m``) or
+    Zones are duck-typed like ``autopilot.geofence.fence`` (``center_ne_m``, ``vertices_ne_m``) or
     ``autopilot.planner.geometry`` (``center_ne``, ``vertices_ne``): a circle has a centre and
     ``radius_m``, a polygon its vertices; both have ``inclusion``.
     """

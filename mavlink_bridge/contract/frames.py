@@ -141,7 +141,7 @@ class LocalNedFrame:
     """Exact WGS-84 ↔ local NED about a home point (ECEF with a fixed tangent-plane rotation).
 
     The conversions are the compiled ones of :mod:`mavlink_bridge.contract.geodetic` (one implementation for
-    this class, the simulator and the EKF); ``tests/test_frames.py`` checks them against pymap3d.
+    this class, the simulator and the EKF); ``test_frames.py`` checks them against pymap3d.
     """
 
     __slots__ = ("_c", "_home_ecef", "_r", "home")

@@ -3,7 +3,7 @@
 The origin is 12 numbers (``LocalNedFrame.ecef_constants``): its ECEF position (m), then the north, east and
 down axes expressed in ECEF. ``LocalNedFrame`` (Python), the simulator's per-step truth and GPS
 (``sim.frame_kernel``) and the EKF's GPS fusion (``autopilot.estimation``) all call these two functions;
-``tests/test_frames.py`` checks them against pymap3d.
+``tests/mavlink_bridge/contract/test_frames.py`` checks them against pymap3d.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ WGS84_E2 = WGS84_F * (2.0 - WGS84_F)
 WGS84_B_M = WGS84_A_M * (1.0 - WGS84_F)
 WGS84_EP2 = WGS84_E2 / (1.0 - WGS84_E2)
 #: Fixed-point steps of ``geodetic_from_ned`` after Bowring's start: 1 stays < 1 mm from pymap3d from
-#: -1 km to 10 km altitude, any latitude, within 20 km of home (``tests/test_frames_geodetic_iterations.py``).
+#: -1 km to 10 km altitude, any latitude, within 20 km of home (``test_frames_geodetic_iterations.py``).
 GEODETIC_ITERATIONS = 1
 #: How many numbers describe an origin (ECEF position, then the N, E, D axes in ECEF).
 N_ORIGIN = 12

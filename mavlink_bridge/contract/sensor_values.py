@@ -2,7 +2,7 @@
 
 The simulator's compiled sensor kernel (``sim.frame_kernel``) fills one float64 array laid out by the ``V_*``
 indices below (SI units, the fields of ``SensorSample``, ``GroundTruth`` and ``GpsSample``); the bridge's
-compiled writer (``mavlink_bridge.frame_writer``) packs it into the lockstep datagram. Obstacle detections
+compiled writer (``mavlink_bridge.wire.frame_writer``) packs it into the lockstep datagram. Obstacle detections
 travel as rows laid out by the ``D_*`` columns. Neither side knows the other's code: this layout is the
 contract between them (like ``wire``'s dataclasses for the typed path).
 """

@@ -33,7 +33,7 @@ def fast_frozen_init(cls: type[_T]) -> type[_T]:
 
     The generated frozen ``__init__`` calls ``object.__setattr__(self, name, value)`` per field; this one
     calls each slot's member descriptor directly (about half the cost), so the per-step messages stay
-    cheap; ``tests/test_wire_fast_init.py`` checks the contract is kept.
+    cheap; ``tests/mavlink_bridge/contract/test_wire_fast_init.py`` checks the contract is kept.
     Frozen semantics (``FrozenInstanceError`` on assignment), ``eq``, ``hash``, ``repr`` and
     ``dataclasses.replace`` are unchanged. Only for classes without ``__post_init__`` or default factories.
     """

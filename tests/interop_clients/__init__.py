@@ -1,8 +1,9 @@
 """Third-party MAVLink clients for the interoperability tests (issue 5): where they are, how to run them.
 
-The clients need not be installed in the project's venv. ``QUADSITL_INTEROP_PYTHON`` may name an
-interpreter that has them (e.g. ``/tmp/interop/bin/python``, whose ``bin/`` also holds ``mavproxy.py``);
-otherwise the interpreter running pytest and then ``PATH`` are tried. The driver scripts in this
+The clients are dev dependencies (pinned in pyproject's ``dev`` extra, installed by ``make test``); a test whose
+client is missing fails with :data:`MISSING_CLIENT`. ``QUADSITL_INTEROP_PYTHON`` may name another interpreter that
+has them (e.g. ``/tmp/interop/bin/python``, whose ``bin/`` also holds ``mavproxy.py``); it is tried first, then the
+interpreter running pytest and then ``PATH``. The driver scripts in this
 package import nothing from quadsitl: they use the vehicle exactly as an outside application would.
 """
 
@@ -20,6 +21,11 @@ MAVSDK_DRIVER = CLIENTS_DIR / "mavsdk_fly_mission.py"
 MAVSDK_OFFBOARD_DRIVER = CLIENTS_DIR / "mavsdk_offboard_velocity.py"
 MAVSDK_MANUAL_DRIVER = CLIENTS_DIR / "mavsdk_manual_control.py"
 _PROBE_TIMEOUT_S = 60.0
+#: Why an interop test fails when its client is missing (they are dev dependencies: never skipped).
+MISSING_CLIENT = (
+    "{client} not found in this interpreter, $QUADSITL_INTEROP_PYTHON or PATH: it is a dev dependency of quadsitl; "
+    "install it with `make test` or `pip install -e '.[dev]'`"
+)
 _MAVSDK4_PROBE = "import mavsdk, sys; sys.exit(0 if int(mavsdk.__version__.split('.')[0]) >= 4 else 1)"
 
 

@@ -2,7 +2,7 @@
 
 The sim's :class:`ObstacleSensor` (stereo + ultrasonic, 10 Hz) feeds the autopilot's :class:`AvoidancePlanner`;
 a point-mass follower with speed and acceleration limits (PD on the reference plus its acceleration
-feed-forward) flies the route or the planner's detour. ``tests/test_planner_closed_loop.py`` uses
+feed-forward) flies the route or the planner's detour. ``tests/autopilot/planner/test_planner_closed_loop.py`` uses
 :func:`fly_route` and the seeded fields (:func:`random_field`, :func:`benchmark_fields`) to test the planner
 alone. The shipped route glue (route ahead, rejoin skipping, nose heading) is the navigator's: the
 ``routing`` benchmark suite flies the autopilot's :class:`~autopilot.navigation.Navigator` over seeded worlds

@@ -8,9 +8,11 @@ origin choice does not count), and the GPS receiver's fixes with the truth at th
 
 Keys: ``ekf_pos_horiz_rms_m`` vs ``gps_pos_horiz_rms_m`` (target: not worse), ``ekf_vel_rms_m_s`` (<= 0.15),
 ``ekf_att_rms_deg`` (<= 1, the rotation angle between estimate and truth), tracking error vs truth with the EKF
-and with ``--estimator truth``, ``ekf_update_us`` (the estimator's own cost per step), ``rtf_ekf`` / ``rtf_truth``
-(whole-flight real-time factor of the in-process loop, the same seed back to back) and the cost share
-``ekf_rtf_cost_fraction = 1 − rtf_ekf / rtf_truth`` (target <= 0.10); and (``estimator_mc``) the Monte Carlo.
+and with ``--estimator truth``, touchdown to disarm on each estimator and their difference ``ekf_disarm_delay_s``
+(<= 0.3 s) with the altitude reported at that disarm, ``ekf_update_us`` (the estimator's own cost per step),
+``rtf_ekf`` / ``rtf_truth`` (whole-flight real-time factor of the in-process loop, the same seed back to back) and
+the cost share ``ekf_rtf_cost_fraction = 1 − rtf_ekf / rtf_truth`` (target <= 0.10); and (``estimator_mc``) the
+Monte Carlo.
 """
 
 from __future__ import annotations
@@ -67,6 +69,14 @@ class FlightStats:
     height_m: np.ndarray = field(repr=False)  # per row: true height above the take-off point
     gps_err_ned_m: np.ndarray = field(repr=False)
     tracking_err_m: np.ndarray = field(repr=False)  # |true position − position setpoint|, 10 Hz, in the mission
+    touchdown_s: float = math.nan  # sim time the vehicle last came to rest on the ground (the sim's contact)
+    disarmed_s: float = math.nan  # sim time the autopilot disarmed after it
+    landed_alt_rel_m: float = math.nan  # the altitude above home the autopilot reports at that disarm
+
+    @property
+    def disarm_delay_s(self) -> float:
+        """Touchdown to disarm (s): the land detector's trigger time plus COM_DISARM_LAND plus the estimate's lag."""
+        return self.disarmed_s - self.touchdown_s
 
     @property
     def rtf(self) -> float:
@@ -127,6 +137,7 @@ def fly_delivery(
     max_steps = round(timeout_s * CONTROL_HZ)
     wall0, cpu0 = time.perf_counter(), time.process_time()
     steps = 0
+    touchdown_s = disarmed_s = landed_alt_rel_m = math.nan
     for steps in range(1, max_steps + 1):
         truth = sim.ground_truth()
         gps = sensors.gps(sim)
@@ -136,10 +147,13 @@ def fly_delivery(
         ap.after_answer()
         if cmd.gripper_release and sim.payload_kg > 0.0:
             sim.release_payload()
+        was_on_ground = sim.on_ground
         sim.step(cmd.motor_cmd)
         if sim.end_reason is not EndReason.RUNNING:
             break
         commander = ap.commander
+        if state_phase == 2 and sim.on_ground and not was_on_ground:
+            touchdown_s = sim.t_s  # the last touchdown counts (a touch-and-go is not a landing)
         if state_phase == 0 and ap.state is not None and ap.state.valid:
             vehicle.replace_mission(MissionType.MISSION, list(plan.items))
             vehicle.replace_mission(MissionType.FENCE, list(plan.fence))
@@ -150,6 +164,9 @@ def fly_delivery(
                 state_phase = 2
         elif state_phase == 2 and not commander.armed and commander.landed_state is LandedState.ON_GROUND:
             state_phase = 3
+            disarmed_s = frame.sensor.time_us * 1e-6
+            if ap.state is not None:
+                landed_alt_rel_m = commander.alt_rel_home_m(ap.state)
             break
         if instrument and gps is not None:
             pt = truth_frame.ned_from_geodetic(truth.lat_deg, truth.lon_deg, truth.alt_amsl_m)
@@ -196,6 +213,9 @@ def fly_delivery(
         height_m=a[:, 15],
         gps_err_ned_m=np.array(gps_rows) if gps_rows else np.zeros((0, 3)),
         tracking_err_m=np.array(tracking),
+        touchdown_s=touchdown_s,
+        disarmed_s=disarmed_s,
+        landed_alt_rel_m=landed_alt_rel_m,
     )
 
 
@@ -241,6 +261,16 @@ def run(quick: bool) -> list[BenchResult]:
                     "delivery mission: |true position − setpoint| RMS, flying on the EKF"),
         bench_result("tracking_rms_truth_m", rms(truth.tracking_err_m),
                     "the same with --estimator truth (same seed)"),
+        bench_result("ekf_touchdown_to_disarm_s", ekf.disarm_delay_s,
+                    "delivery mission: sim touchdown (ground contact) to the autopilot's disarm, flying on the EKF"),
+        bench_result("truth_touchdown_to_disarm_s", truth.disarm_delay_s,
+                    "the same with --estimator truth (same mission and seed)"),
+        bench_result("ekf_disarm_delay_s", ekf.disarm_delay_s - truth.disarm_delay_s,
+                    "ekf_touchdown_to_disarm_s − truth_touchdown_to_disarm_s: the estimator's share of the wait",
+                    "<= 0.3", ekf.disarm_delay_s - truth.disarm_delay_s <= 0.3),
+        bench_result("ekf_landed_alt_rel_m", ekf.landed_alt_rel_m,
+                    "altitude above home the autopilot reports at that disarm (on the ground)", "|x| <= 0.1",
+                    abs(ekf.landed_alt_rel_m) <= 0.1),
     ]  # fmt: skip
     # cost: the estimator's own CPU time per step (one timed flight each), and the whole-flight CPU-time RTF of
     # untimed, uninstrumented flights, EKF and truth back to back; the cost is the median over the pairs of

@@ -20,8 +20,8 @@ from mavlink_bridge.contract.vehicle_api import (
     MissionType,
     TelemetrySnapshot,
 )
-from mavlink_bridge.gcs_client import GcsClient
-from mavlink_bridge.gcs_server import GcsServer
+from mavlink_bridge.gcs_client.client import GcsClient
+from mavlink_bridge.gcs_server.server import GcsServer
 from tools.benchmarks import BenchResult
 
 

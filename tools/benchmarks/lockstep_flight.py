@@ -181,8 +181,8 @@ def autopilot_step_us(frames: int = 2000) -> tuple[float, float]:
     The frames come from the simulator's vehicle model in-process (the autopilot flies it to a
     10 m hover first); only the autopilot step is timed.
     """
+    from autopilot.commander.script import CommandScript, parse_script
     from autopilot.runner import Autopilot, AutopilotConfig
-    from autopilot.scripted_commands import CommandScript, parse_script
     from mavlink_bridge.lockstep import LockstepFrame
     from sim.sensors import SensorModel
     from sim.vehicle import VehicleSim

@@ -7,7 +7,7 @@ the real-time factor measured here bounds any whole-flight ``lockstep_rtf``.
 
 Both sides run the real processes' messaging code path per frame and nothing else: the null sim
 writes frame k with the simulator's own sensor kernel and frame writer (``sim.frame_kernel.SensorValues``,
-``mavlink_bridge.frame_writer.FrameWriter``, on a vehicle
+``mavlink_bridge.wire.frame_writer.FrameWriter``, on a vehicle
 at rest whose clock is moved on instead of integrated), sends it and waits for the answer, which it
 decodes; the null autopilot receives, decodes, builds its ``ActuatorCommand``, encodes and sends,
 with the same busy-poll (``spin_s``) as the real processes. On a shared machine the floor varies run
@@ -22,10 +22,10 @@ import time
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
 
-from mavlink_bridge.codec import Decoder, Encoder
 from mavlink_bridge.contract.wire import ActuatorCommand, GpsSample, GroundTruth, SensorSample
-from mavlink_bridge.frame_writer import FrameWriter
 from mavlink_bridge.lockstep import DEFAULT_SPIN_S, LockstepClient, LockstepFrame, LockstepServer, encode_frame
+from mavlink_bridge.wire.codec import Decoder, Encoder
+from mavlink_bridge.wire.frame_writer import FrameWriter
 from sim.frame_kernel import SensorValues
 from sim.sensors import SensorModel
 from sim.server import DEFAULT_VEHICLE

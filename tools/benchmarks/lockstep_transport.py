@@ -21,8 +21,8 @@ CONTROL_HZ = 250
 
 def datagram_sizes() -> tuple[int, int]:
     """(frame, answer) bytes of a typical lockstep step: the sim's frame without GPS or detections, the answer."""
-    from mavlink_bridge.codec import Encoder
     from mavlink_bridge.contract.wire import ActuatorCommand
+    from mavlink_bridge.wire.codec import Encoder
     from tools.benchmarks.lockstep_floor import NullSimFrames
 
     frame = NullSimFrames().datagram(1)[1]

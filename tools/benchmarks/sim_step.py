@@ -2,7 +2,7 @@
 
 In-process, no sockets: a hovering x500 in gusty wind, the sim side of one control step as
 ``sim.server`` does it — the frame's datagram (IMU/baro/mag, GPS at 10 Hz, ground truth and the
-MAVLink bytes: ``sim.frame_kernel.SensorValues`` then ``mavlink_bridge.frame_writer.FrameWriter``, one
+MAVLink bytes: ``sim.frame_kernel.SensorValues`` then ``mavlink_bridge.wire.frame_writer.FrameWriter``, one
 numba call each), the answer's decoding, physics
 (4 RK4 substeps). The reference path it replaced (``SensorModel``/``ground_truth`` dataclasses +
 ``encode_frame``, byte-identical) is measured too, part by part and as a whole step, in the same run.
@@ -16,10 +16,10 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
-from mavlink_bridge.codec import SIM_COMPONENT_ID, SIM_SYSTEM_ID, Decoder, Encoder
 from mavlink_bridge.contract.wire import ActuatorCommand
-from mavlink_bridge.frame_writer import FrameWriter
 from mavlink_bridge.lockstep import LockstepFrame, encode_frame
+from mavlink_bridge.wire.codec import SIM_COMPONENT_ID, SIM_SYSTEM_ID, Decoder, Encoder
+from mavlink_bridge.wire.frame_writer import FrameWriter
 from sim.frame_kernel import SensorValues
 from sim.sensors import SensorModel
 from sim.vehicle import VehicleSim

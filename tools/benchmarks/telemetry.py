@@ -20,8 +20,8 @@ import numpy as np
 
 from autopilot.control.cascade import ControlSample
 from autopilot.estimation import VehicleState
-from autopilot.reporting import StepRecord
-from autopilot.setpoints import NavTarget, Reference, TargetKind
+from autopilot.flight_tasks.setpoints import NavTarget, Reference, TargetKind
+from autopilot.reporting.report import StepRecord
 from autopilot.telemetry import RerunTelemetry
 from autopilot.telemetry.rerun_logger import SAVE_BATCH_ROWS, SAVE_TRAIL_POINTS
 from autopilot.telemetry.sinks import RerunSink, SinkKind, open_recording

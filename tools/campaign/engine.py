@@ -18,7 +18,8 @@ on_result=None, on_error="raise", worker_setup=None) -> list``
 - ``workers=None`` starts an embedded ``LocalCluster`` with one single-threaded worker process per core
   (``os.cpu_count()``); ``workers=N`` starts N. ``workers=1`` still goes through Dask (one code path).
   ``scheduler="tcp://HOST:PORT"`` uses a running cluster (``dask scheduler`` / ``dask worker``) instead; its
-  workers must be able to import ``fn``'s module (install quadsitl on them, same versions).
+  workers must be able to import ``fn``'s module (install quadsitl on them, same versions). An unreachable
+  scheduler, or one with no worker after 60 s, raises :class:`SchedulerError`.
 - Submission is bounded: at most ``2 x workers`` tasks are in the scheduler at a time, so a 100 000-task list
   costs no scheduler memory and Ctrl-C loses at most the running tasks.
 - ``on_result(index, result)`` (optional) is called in the caller's process as each task finishes, in
@@ -27,7 +28,7 @@ on_result=None, on_error="raise", worker_setup=None) -> list``
   out of memory) is re-run on another worker by Dask itself, up to ``distributed.scheduler.allowed-failures``
   (3) deaths; only the tasks that were running on that worker are lost and re-run.
 - ``on_error="raise"``: the first task that still fails raises :class:`TaskFailedError` naming its index
-  (the other tasks are cancelled, the cluster is closed). ``on_error="return"``: its slot in the result list
+  (the other tasks are cancelled; ``run_tasks`` closes its cluster). ``on_error="return"``: its slot in the result list
   (and the ``on_result`` call) holds a :class:`TaskFailure` instead, and the run goes on.
 - ``worker_setup`` (optional, top-level picklable callable of no argument) runs once in every worker, including
   workers that join or are restarted later (a Dask ``WorkerPlugin``): warm numba kernels there.
@@ -35,7 +36,8 @@ on_result=None, on_error="raise", worker_setup=None) -> list``
 - Ctrl-C (KeyboardInterrupt) cancels the queued tasks, closes the client and the embedded cluster and is
   re-raised; every ``on_result`` already called stays done.
 - Determinism is the task's job: derive any randomness from the payload (``numpy.random.default_rng([index,
-  seed])``), never from the worker or the order. Workers get ``PYTHONHASHSEED=0`` and ``OMP_NUM_THREADS=1``.
+  seed])``), never from the worker or the order. Embedded workers get ``PYTHONHASHSEED=0`` and
+  ``OMP_NUM_THREADS=1`` (start ``dask worker`` processes with them if a task depends on set order or threads).
 
 For several batches in a row (an optimiser's iterations) open the cluster once::
 
@@ -76,6 +78,10 @@ class TaskFailedError(RuntimeError):
         super().__init__(f"task {index} failed: {error}")
         self.index = index
         self.error = error
+
+
+class SchedulerError(RuntimeError):
+    """The ``scheduler`` address cannot be reached, or no worker joined it in time."""
 
 
 class _SetupPlugin(WorkerPlugin):
@@ -125,17 +131,28 @@ class TaskEngine:
         """Connect to the scheduler, or start the embedded LocalCluster (processes, one thread each)."""
         if self.client is not None:
             return
-        for name, value in WORKER_ENV.items():
-            os.environ.setdefault(name, value)
         if self._scheduler:
-            self.client = Client(self._scheduler, timeout="30s")
-            self.client.wait_for_workers(1, timeout=60)
+            address = self._scheduler
+            try:
+                self.client = Client(address, timeout="30s")
+            except (OSError, TimeoutError, ValueError) as exc:
+                raise SchedulerError(
+                    f"no Dask scheduler at {address} ({exc}); fix: start one (dask scheduler) or check the address"
+                ) from None
+            try:
+                self.client.wait_for_workers(1, timeout=60)
+            except TimeoutError:
+                self.close()
+                raise SchedulerError(
+                    f"the scheduler at {address} has no worker after 60 s; fix: start some (dask worker {address})"
+                ) from None
         else:
             self._cluster = LocalCluster(
                 n_workers=self._workers or default_workers(),
                 threads_per_worker=1,
                 processes=True,
-                dashboard_address=None,
+                dashboard_address=":0",  # its HTTP routes on a free port (never a clash on 8787) ...
+                scheduler_kwargs={"dashboard": False},  # ... and no dashboard (it needs bokeh)
                 silence_logs=logging.ERROR,
                 env=dict(WORKER_ENV),
             )

@@ -22,7 +22,7 @@ import numpy as np
 from scipy import stats
 
 from autopilot.control.gains import CascadeGains
-from autopilot.metrics import T_PEAK_ATTITUDE_S, T_PEAK_POSITION_S, iae, itae, itse
+from autopilot.tuning.metrics import T_PEAK_ATTITUDE_S, T_PEAK_POSITION_S, iae, itae, itse
 from tools.experiments.feedback_noise import FeedbackNoise
 from tools.experiments.paper_pipeline import STEP_CHANNELS, STRUCTURES, WIND_GUST_M_S, WIND_MEAN_NED_M_S
 from tools.experiments.references import make_reference

@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from autopilot.control.gains import CascadeGains
-from autopilot.metrics import T_PEAK_ATTITUDE_S, T_PEAK_POSITION_S, iae, itae, itse, rms
 from autopilot.tuning import CentralEsConfig
+from autopilot.tuning.metrics import T_PEAK_ATTITUDE_S, T_PEAK_POSITION_S, iae, itae, itse, rms
 from tools.experiments.references import make_reference
 from tools.experiments.rollout import (
     MassChangeTrace,

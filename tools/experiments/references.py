@@ -1,4 +1,4 @@
-"""Route references for the tracking experiments, from ``autopilot.trajectories`` (SPEC §6.5).
+"""Route references for the tracking experiments, from ``autopilot.flight_tasks.trajectories`` (SPEC §6.5).
 
 The trajectory is sampled once on the control grid; the returned callable maps a control time to the
 precomputed sample (no per-step numpy work in the rollout loop).
@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from autopilot.trajectories import make_trajectory
+from autopilot.flight_tasks.trajectories import make_trajectory
 from tools.experiments.rollout import Reference, ReferenceSample
 
 #: the paper's storm route: takeoff at 20 s of 140 s

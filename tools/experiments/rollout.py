@@ -31,7 +31,7 @@ import numpy as np
 from autopilot.control.airframe import Airframe, load_airframe
 from autopilot.control.cascade import CascadeController
 from autopilot.control.gains import CascadeGains, CascadeLimits
-from autopilot.metrics import es_cost
+from autopilot.tuning.metrics import es_cost
 from sim.batch import BatchSim
 from sim.vehicle_config import VehicleConfig, load_vehicle
 from sim.world import WindConfig, World, empty_world
@@ -370,7 +370,7 @@ def run_mass_change(
 
 
 def mean_square_cost(error: np.ndarray, t_s: np.ndarray, diverged: np.ndarray, t0_s: float = 0.0) -> np.ndarray:
-    """ES cost J = 1/(tf − t0) ∫_{t0}^{tf} e² dt per vehicle (SPEC §6.3, ``autopilot.metrics.es_cost``);
+    """ES cost J = 1/(tf − t0) ∫_{t0}^{tf} e² dt per vehicle (SPEC §6.3, ``autopilot.tuning.metrics.es_cost``);
     +inf where the rollout diverged. ``error`` is (m, T) sampled at ``t_s`` (T,)."""
     with np.errstate(invalid="ignore", over="ignore"):
         j = es_cost(np.nan_to_num(error, nan=0.0, posinf=0.0, neginf=0.0), t_s, t0_s=max(t0_s, float(t_s[0])))

@@ -64,8 +64,8 @@ class StepExperiment:
 
 @dataclass(frozen=True, slots=True)
 class TrackExperiment:
-    """Follow ``route`` (``autopilot.trajectories``, e.g. "lissajous") for ``duration_s`` with the whole cascade;
-    cost: mean of the squared position-error norm (m²) over the route."""
+    """Follow ``route`` (``autopilot.flight_tasks.trajectories``, e.g. "lissajous") for ``duration_s`` with the
+    whole cascade; cost: mean of the squared position-error norm (m²) over the route."""
 
     route: str
     duration_s: float

@@ -1,0 +1,1 @@
+"""The commander (SPEC §3, §8): arming, flight modes and landed state; scripted commands at fixed sim times."""

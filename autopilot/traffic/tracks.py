@@ -1,0 +1,138 @@
+"""The track table: received traffic reports, checked, about home, aged out and extrapolated (SPEC §13).
+
+One track per ``(source, target_id)``: the newest report wins, an older or duplicate one is ignored. Positions are
+converted once per report to NED about home with the one geodetic conversion (:class:`LocalNedFrame`) and
+extrapolated with the reported velocity (constant velocity: the receiver reports at 1 Hz). A report that is not
+a finite, plausible position and velocity is rejected with a one-line reason and changes nothing.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame, Vec3
+from mavlink_bridge.contract.traffic import TrafficReport, TrafficSource
+
+#: Plausibility bounds of a report (anything outside is garbage, not traffic).
+MAX_SPEED_H_M_S = 350.0
+MAX_SPEED_V_M_S = 100.0
+ALT_RANGE_M = (-1000.0, 30000.0)
+#: A report stamped this far after the autopilot's clock is rejected (the simulator owns time).
+MAX_FUTURE_US = 1_000_000
+
+TrackKey = tuple[TrafficSource, int]
+
+
+@dataclass(frozen=True, slots=True)
+class TrafficTrack:
+    """One target: its last report, its position about home at that time, and its velocity (NED)."""
+
+    source: TrafficSource
+    target_id: int
+    callsign: str
+    pos_home_ned_m: Vec3  # at t_us
+    vel_ned_m_s: Vec3
+    t_us: int
+
+    @property
+    def key(self) -> TrackKey:
+        return (self.source, self.target_id)
+
+    @property
+    def name(self) -> str:
+        """How texts name it: the callsign, else the class and id."""
+        if self.callsign.strip():
+            return self.callsign.strip()
+        return f"UAV {self.target_id}" if self.source is TrafficSource.UAV else f"ICAO {self.target_id:06X}"
+
+    def position_at(self, t_us: int) -> Vec3:
+        """Position about home at ``t_us``, extrapolated along the reported velocity."""
+        dt = (t_us - self.t_us) * 1e-6
+        p, v = self.pos_home_ned_m, self.vel_ned_m_s
+        return (p[0] + v[0] * dt, p[1] + v[1] * dt, p[2] + v[2] * dt)
+
+
+def report_problem(report: object, now_us: int, own_system_id: int) -> str | None:
+    """Why a report cannot be used (one line), or None when it can."""
+    if not isinstance(report, TrafficReport):
+        return f"not a TrafficReport: {type(report).__name__}"
+    r = report
+    who = f"traffic report {r.source.name if isinstance(r.source, TrafficSource) else r.source}/{r.target_id}"
+    if not isinstance(r.source, TrafficSource):
+        return f"{who}: unknown source {r.source!r}"
+    if not isinstance(r.target_id, int) or r.target_id < 0:
+        return f"{who}: target id must be a non-negative integer"
+    if r.source is TrafficSource.UAV and r.target_id == own_system_id:
+        return f"{who}: reports this vehicle itself"
+    numbers = (r.lat_deg, r.lon_deg, r.alt_amsl_m, r.vel_n_m_s, r.vel_e_m_s, r.vel_d_m_s)
+    if not all(isinstance(x, int | float) and math.isfinite(x) for x in numbers):
+        return f"{who}: position or velocity is not finite"
+    if not (-90.0 <= r.lat_deg <= 90.0 and -180.0 <= r.lon_deg <= 180.0):
+        return f"{who}: latitude/longitude out of range ({r.lat_deg}, {r.lon_deg})"
+    if not (ALT_RANGE_M[0] <= r.alt_amsl_m <= ALT_RANGE_M[1]):
+        return f"{who}: altitude {r.alt_amsl_m:g} m out of range"
+    if math.hypot(r.vel_n_m_s, r.vel_e_m_s) > MAX_SPEED_H_M_S or abs(r.vel_d_m_s) > MAX_SPEED_V_M_S:
+        return f"{who}: implausible velocity"
+    if not isinstance(r.t_us, int) or r.t_us < 0 or r.t_us > now_us + MAX_FUTURE_US:
+        return f"{who}: time {r.t_us} is not a past simulator time"
+    return None
+
+
+class TrackTable:
+    """The tracks in force, about home. Pure: the caller gives the time and the reports."""
+
+    def __init__(self, own_system_id: int, max_tracks: int = 50) -> None:
+        self.own_system_id = own_system_id
+        self.max_tracks = max_tracks  # PX4's ADSB_LIST_MAX upper bound
+        self._reports: dict[TrackKey, TrafficReport] = {}
+        self._tracks: dict[TrackKey, TrafficTrack] = {}
+        self._frame: LocalNedFrame | None = None
+
+    def set_home(self, home: GeoPoint) -> None:
+        """Home moved: every track is converted again about the new home."""
+        if self._frame is not None and self._frame.home == home:
+            return
+        self._frame = LocalNedFrame(home)
+        self._tracks = {key: self._track(report) for key, report in self._reports.items()}
+
+    def _track(self, r: TrafficReport) -> TrafficTrack:
+        assert self._frame is not None
+        pos = self._frame.ned_from_geodetic(r.lat_deg, r.lon_deg, r.alt_amsl_m)
+        vel = (float(r.vel_n_m_s), float(r.vel_e_m_s), float(r.vel_d_m_s))
+        return TrafficTrack(r.source, r.target_id, r.callsign, pos, vel, r.t_us)
+
+    def update(self, now_us: int, reports: Iterable[object], max_age_s: float) -> tuple[list[str], list[TrafficTrack]]:
+        """Take new reports and drop stale tracks; returns (rejections, dropped tracks)."""
+        rejected: list[str] = []
+        max_age_us = int(max_age_s * 1e6)
+        for report in reports:
+            problem = report_problem(report, now_us, self.own_system_id)
+            if problem is None and now_us - report.t_us > max_age_us:  # type: ignore[attr-defined]
+                problem = f"traffic report {report.target_id}: older than NAV_TRAFF_AGE_S"  # type: ignore[attr-defined]
+            if problem is not None:
+                rejected.append(problem)
+                continue
+            assert isinstance(report, TrafficReport)
+            key = (report.source, report.target_id)
+            old = self._reports.get(key)
+            if old is not None and old.t_us >= report.t_us:
+                continue  # not newer than what we hold
+            if old is None and len(self._reports) >= self.max_tracks:
+                rejected.append(f"traffic report {report.target_id}: track table full ({self.max_tracks})")
+                continue
+            self._reports[key] = report
+            if self._frame is not None:
+                self._tracks[key] = self._track(report)
+        dropped = [t for k, t in self._tracks.items() if now_us - self._reports[k].t_us > max_age_us]
+        for track in dropped:
+            del self._tracks[track.key], self._reports[track.key]
+        for key in [k for k, r in self._reports.items() if now_us - r.t_us > max_age_us]:
+            del self._reports[key]  # stale before home was known
+        return rejected, dropped
+
+    @property
+    def tracks(self) -> tuple[TrafficTrack, ...]:
+        """Tracks in force, in key order (deterministic)."""
+        return tuple(self._tracks[k] for k in sorted(self._tracks))

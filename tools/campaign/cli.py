@@ -1,0 +1,125 @@
+"""``quadsitl campaign``: run a campaign file on Dask, or replay one of its cases (SPEC §14, docs/campaigns.md).
+
+::
+
+    quadsitl campaign FILE.yaml --out DIR [--workers N | --scheduler tcp://HOST:PORT] [--resume]
+    quadsitl campaign replay DIR CASE [--mode sitl|inproc]
+
+Exit status of a run: 0 every case passed, 1 the campaign finished with cases that did not pass, 2 a refused
+campaign file or output folder, 130 interrupted (Ctrl-C or SIGTERM; what was done is written, ``--resume``
+completes it).
+Replay: 0 the truth hash matched the row's, 1 it did not, 2 no such case.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+from pathlib import Path
+
+from mavlink_bridge.contract.about import version_text
+
+EXIT_OK = 0
+EXIT_FAILED_CASES = 1
+EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The parser of ``quadsitl campaign FILE.yaml ...`` (``replay`` has its own)."""
+    p = argparse.ArgumentParser(
+        prog="quadsitl campaign",
+        description="Fly many seeded variations of a mission on Dask distributed; one results table and a report.",
+        epilog="Replay a case: quadsitl campaign replay DIR CASE. Schema and cluster recipes: docs/campaigns.md",
+    )
+    p.add_argument("--version", action="version", version=version_text("quadsitl campaign"))
+    p.add_argument("campaign", type=Path, help="campaign file (YAML)")
+    p.add_argument("--out", type=Path, required=True, help="output folder (results.parquet, summary.json, report.md)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None, help="LocalCluster worker processes (default: the cores)")
+    where.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT", help="a running Dask scheduler")
+    p.add_argument("--resume", action="store_true", help="fly only the cases DIR has no row for yet")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    return p
+
+
+def _replay_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="quadsitl campaign replay",
+        description="Re-fly one case of a campaign from its results row, with a Rerun recording; check its truth hash.",
+    )
+    p.add_argument("--version", action="version", version=version_text("quadsitl campaign replay"))
+    p.add_argument("dir", type=Path, help="the campaign's output folder")
+    p.add_argument("case", type=int, help="case id")
+    p.add_argument("--mode", choices=("sitl", "inproc"), default=None, help="default: the mode the case ran in")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = sys.argv[1:] if argv is None else list(argv)
+    if args[:1] == ["replay"]:
+        return replay(_replay_parser().parse_args(args[1:]))
+    return run(build_parser().parse_args(args))
+
+
+def run(args: argparse.Namespace) -> int:
+    from tools.campaign.engine import SchedulerError
+    from tools.campaign.runner import CampaignDirError, run_campaign
+    from tools.campaign.spec import CampaignFileError, load_campaign
+
+    if args.workers is not None and args.workers < 1:
+        print("quadsitl campaign: --workers must be >= 1", file=sys.stderr)
+        return EXIT_USAGE
+    previous = signal.signal(signal.SIGTERM, _interrupt)  # a CI cancel or a kill: stop as cleanly as Ctrl-C
+    try:
+        spec = load_campaign(args.campaign)
+        outcome = run_campaign(
+            spec,
+            args.out,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            resume=args.resume,
+            progress=not args.no_progress,
+        )
+    except (CampaignFileError, CampaignDirError, SchedulerError) as exc:
+        print(f"quadsitl campaign: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    summary_path = args.out / "summary.json"
+    summary = json.loads(summary_path.read_text()) if summary_path.is_file() else {}
+    done = summary.get("cases_done", 0)
+    print(
+        f"campaign {spec.name}: {done}/{spec.cases} cases ({outcome.flown} flown now, {outcome.skipped} already done)"
+    )
+    if summary:
+        low, high = summary["pass_rate_ci95"]
+        rate = summary["pass_rate"]
+        print(f"pass rate {rate:.1%} [{low:.1%}, {high:.1%}] 95 % exact; status {summary['status_counts']}")
+        print(f"results: {args.out / 'results.parquet'}\nreport:  {args.out / 'report.md'}")
+    if outcome.interrupted:
+        print(f"interrupted: resume with  quadsitl campaign {args.campaign} --out {args.out} --resume", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    return EXIT_OK if summary and summary["passed"] == spec.cases else EXIT_FAILED_CASES
+
+
+def _interrupt(signum: int, _frame: object) -> None:
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
+def replay(args: argparse.Namespace) -> int:
+    from tools.campaign.replay import ReplayError, replay_case
+
+    try:
+        result = replay_case(args.dir, args.case, mode=args.mode)
+    except ReplayError as exc:
+        print(f"quadsitl campaign replay: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    print(result.text)
+    return EXIT_OK if result.matched else EXIT_FAILED_CASES
+
+
+if __name__ == "__main__":
+    sys.exit(main())

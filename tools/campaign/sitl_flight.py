@@ -1,0 +1,186 @@
+"""One campaign case as a real lockstep flight: ``python -m tools.campaign.sitl_flight CASE_DIR [--rerun PATH]``.
+
+The campaign task starts this supervisor in a new session (its own process group) and kills the group at the
+case's deadline. It starts the autopilot (``python -m autopilot``, script + resolved params of the case, a
+GCS link on free loopback ports), uploads the fence and the mission through the bundled ground-station client
+(``mavlink_bridge.gcs_client.client.GcsClient``) *before* the simulator exists, then starts the simulator
+(``python -m sim --speed max --duration-s SIM_TIME``): the lockstep begins with the mission on board, arm and
+mission start come from the script at fixed sim times, and the simulator ends the flight at exactly
+``sim_time_s``, so the whole flight (and its truth hash) is a function of the case's files alone. The ground
+station stays on the link to collect STATUSTEXTs (failsafes). ``CASE_DIR/flight.json`` gets both summaries,
+the texts and any error. A watchdog kills the whole group if the parent (the Dask worker) disappears.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+REPO_ROOT = Path(__file__).resolve().parent.parent.parent
+#: Wall seconds the autopilot may take to answer its GCS link (imports and the cached numba kernels).
+STARTUP_S = 120.0
+FLIGHT_FILE = "flight.json"
+#: ``quadsitl sim``'s status when the vehicle ended the run (collision, ground impact): the summary says why.
+SIM_EXIT_VEHICLE_ENDED = 4
+
+
+def _watch_parent(parent: int) -> None:
+    """Kill this process group when ``parent`` (the Dask worker that started us) is gone. Its pid is passed in,
+    not read here: a worker killed while this interpreter was still importing would already be replaced."""
+
+    def watch() -> None:
+        while True:
+            time.sleep(0.5)
+            if os.getppid() != parent:
+                os.killpg(os.getpgrp(), signal.SIGKILL)
+
+    threading.Thread(target=watch, daemon=True, name="parent-watchdog").start()
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _start(args: list[str], log: Path) -> subprocess.Popen[bytes]:
+    env = dict(os.environ, PYTHONUNBUFFERED="1", PYTHONHASHSEED="0")
+    with open(log, "ab") as out:
+        return subprocess.Popen([sys.executable, "-m", *args], cwd=REPO_ROOT, env=env, stdout=out, stderr=out)
+
+
+def _stop(proc: subprocess.Popen[bytes] | None, timeout_s: float = 20.0) -> int | None:
+    if proc is None:
+        return None
+    from autopilot.launcher import stop_process
+
+    return stop_process(proc, timeout_s)
+
+
+def _read(path: Path) -> dict[str, Any]:
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def _tail(path: Path, n: int = 4) -> str:
+    try:
+        return " | ".join(path.read_text(errors="replace").strip().splitlines()[-n:])
+    except OSError:
+        return ""
+
+
+def _wait_for_autopilot(gcs: Any, ap: subprocess.Popen[bytes], case_dir: Path) -> None:
+    """Until the autopilot's GCS link is heard; an autopilot that exits (a refused input) ends the wait at once."""
+    from mavlink_bridge.gcs_client.errors import GcsTimeoutError
+
+    deadline = time.monotonic() + STARTUP_S
+    while True:
+        try:
+            gcs.wait_heartbeat(1.0)
+            return
+        except GcsTimeoutError:
+            if ap.poll() is not None:
+                raise RuntimeError(f"autopilot exited {ap.returncode}: {_tail(case_dir / 'autopilot.log')}") from None
+            if time.monotonic() > deadline:
+                raise
+
+
+def fly(case_dir: Path, rerun: str | None = None) -> dict[str, Any]:
+    """Fly the case in ``case_dir`` (``case.json`` + the files of :func:`tools.campaign.cases.write_case_files`)."""
+    from autopilot.mission.files import load_mission_file
+    from mavlink_bridge.contract.vehicle_api import MissionType
+    from mavlink_bridge.gcs_client.client import GcsClient
+
+    case = json.loads((case_dir / "case.json").read_text())
+    world = case_dir / "world.yaml"
+    sim_port, gcs_port, gcs_target = _free_port(), _free_port(), _free_port()
+    ap_args = [
+        "autopilot", "--sim", f"udpout:127.0.0.1:{sim_port}", "--api", "off",
+        "--gcs", f"udpin:127.0.0.1:{gcs_port}", "--gcs-target", f"udpout:127.0.0.1:{gcs_target}",
+        "--vehicle", case["vehicle"], "--estimator", case["estimator"], "--params", str(case_dir / "params.yaml"),
+        "--script", str(case_dir / "script.yaml"), "--world-failures", str(world), "--log-dir", str(case_dir),
+        "--connect-timeout-s", str(STARTUP_S),
+        "--sim-timeout-s", "30",
+    ]  # fmt: skip
+    if rerun:
+        ap_args += ["--rerun", rerun, "--rerun-world", str(world)]
+    sim_args = [
+        "sim", "--listen", f"udp:127.0.0.1:{sim_port}", "--world", str(world), "--vehicle", case["vehicle"],
+        "--seed", str(case["sim_seed"]), "--speed", "max", "--duration-s", f"{case['sim_time_s']!r}",
+        "--log-dir", str(case_dir), "--autopilot-timeout-s", "30", "--start-timeout-s", str(STARTUP_S),
+    ]  # fmt: skip
+    for stale in ("sim_summary.json", "autopilot_summary.json"):
+        (case_dir / stale).unlink(missing_ok=True)
+    texts: list[str] = []
+    error = ""
+    ap = sim = None
+    gcs = None
+    try:
+        ap = _start(ap_args, case_dir / "autopilot.log")
+        plan = load_mission_file(world)
+        gcs = GcsClient(f"udpin:127.0.0.1:{gcs_target}", timeout_s=20.0)
+        _wait_for_autopilot(gcs, ap, case_dir)
+        gcs.upload_mission(plan.fence, MissionType.FENCE)  # first: the mission is checked against it
+        gcs.upload_mission(plan.items, MissionType.MISSION)
+        serial = gcs.statustext_serial
+        sim = _start(sim_args, case_dir / "sim.log")
+        while sim.poll() is None:
+            gcs.pump(0.2)
+            texts += [t.text for t in gcs.statustexts_since(serial)]
+            serial = gcs.statustext_serial
+            if ap.poll() is not None:
+                error = f"autopilot exited {ap.returncode} during the flight: {_tail(case_dir / 'autopilot.log')}"
+                break
+        gcs.pump(0.3)  # the last texts
+        texts += [t.text for t in gcs.statustexts_since(serial)]
+    except Exception as exc:
+        error = f"{type(exc).__name__}: {exc}"
+    finally:
+        sim_rc = _stop(sim)
+        ap_rc = _stop(ap)
+        if gcs is not None:
+            gcs.close()
+    if not error and sim_rc not in (0, SIM_EXIT_VEHICLE_ENDED, None):  # a crash is a flight, not an error
+        error = f"sim exited {sim_rc}: {_tail(case_dir / 'sim.log')}"
+    sim_summary = _read(case_dir / "sim_summary.json")
+    if not error and not sim_summary:
+        error = f"the simulator wrote no summary: {_tail(case_dir / 'sim.log')}"
+    return {
+        "error": error,
+        "sim": sim_summary,
+        "autopilot": _read(case_dir / "autopilot_summary.json"),
+        "texts": texts,
+        "exit_codes": {"sim": sim_rc, "autopilot": ap_rc},
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m tools.campaign.sitl_flight", description=__doc__.split("\n")[0])
+    parser.add_argument("case_dir", type=Path)
+    parser.add_argument("--rerun", default=None, help="autopilot --rerun (e.g. save:PATH.rrd)")
+    parser.add_argument("--parent-pid", type=int, default=None, help="kill the flight when this process is gone")
+    args = parser.parse_args(argv)
+    _watch_parent(args.parent_pid if args.parent_pid is not None else os.getppid())
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # run the finally blocks: children stopped
+    t0 = time.monotonic()
+    result = fly(args.case_dir, args.rerun)
+    result["wall_s"] = time.monotonic() - t0
+    (args.case_dir / FLIGHT_FILE).write_text(json.dumps(result, indent=1) + "\n")
+    return 0 if not result["error"] else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
