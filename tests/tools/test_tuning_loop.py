@@ -69,7 +69,7 @@ def test_per_airframe_defaults_fly_that_airframe(tmp_path: Path) -> None:
         assert "tools.tune_es --ship" in path.read_text()
         ap = Autopilot(AutopilotConfig(vehicle=name))
         assert gains_from_params(ap.params.values()) == shipped_gains(name)
-        store = make_param_store(airframe=name)
+        store = make_param_store(payload_nominal_kg=ap.airframe.payload_nominal_kg, airframe=name)
         assert store.values() == ap.params.values()
     assert default_gains_path("quad250") == DEFAULT_GAINS_PATH  # no own file: the generic set
     assert gains_from_params(make_param_store(airframe="quad250").values()) == shipped_gains()
