@@ -86,7 +86,7 @@ class Autopilot:
         self.config = config or AutopilotConfig()
         self.airframe = airframe or load_airframe(self.config.vehicle)
         self.params = params or make_param_store(
-            self.config.params_file, payload_nominal_kg=self.airframe.payload_nominal_kg
+            self.config.params_file, payload_nominal_kg=self.airframe.payload_nominal_kg, airframe=self.airframe.name
         )
         self.estimator = estimator or make_estimator(self.config.estimator)
         self.listener = listener
