@@ -56,12 +56,7 @@ def in_process(payloads: Sequence[LoopRollout]) -> list[LoopOutcome]:
 
 def engine_mapper(engine: TaskEngine, label: str | None = None) -> Mapper:
     """The :data:`Mapper` on an open campaign engine session (one ordered map over its worker processes)."""
-    calls = iter(range(1 << 62))
-
-    def run(payloads: Sequence[LoopRollout]) -> list[LoopOutcome]:
-        return engine.run(fly_route, list(payloads), key=f"loop-rollout-{next(calls)}", progress_label=label)
-
-    return run
+    return engine.mapper(fly_route, key="loop-rollout", progress_label=label)
 
 
 @dataclass(frozen=True, slots=True)

@@ -20,7 +20,6 @@ above that PID on the same cost ("best kept").
 from __future__ import annotations
 
 import csv
-import itertools
 import json
 import time
 from collections.abc import Callable, Sequence
@@ -119,12 +118,7 @@ def in_process(tasks: Sequence[ExperimentRollout]) -> list[ExperimentTerms]:
 def engine_rollouts(engine: TaskEngine) -> RolloutMap:
     """The :data:`RolloutMap` on an open campaign-engine session: one ordered map per cost evaluation (an ES
     iteration's experiments side by side on the workers); the same numbers as :func:`in_process`."""
-    calls = itertools.count()
-
-    def run(tasks: Sequence[ExperimentRollout]) -> list[ExperimentTerms]:
-        return engine.run(fly_experiment, list(tasks), key=f"es-rollout-{next(calls)}")
-
-    return run
+    return engine.mapper(fly_experiment, key="es-rollout")
 
 
 def cost_terms(
