@@ -53,18 +53,20 @@ _GROUPS = (
 )
 
 
-def param_groups(payload_nominal_kg: float = 0.0) -> list[tuple[str, list[ParamSpec]]]:
-    """The parameters grouped by the component that declares them (payload default from the airframe)."""
-    groups = [(title, list(factory())) for title, factory in _GROUPS]
+def param_groups(payload_nominal_kg: float = 0.0, airframe: str | None = None) -> list[tuple[str, list[ParamSpec]]]:
+    """The parameters grouped by the component that declares them (payload default and, when it has its own
+    gains file, the controller gains' defaults from the airframe)."""
+    groups = [(title, list(factory())) for title, factory in _GROUPS[:-1]]
+    groups.append((_GROUPS[-1][0], controller_param_specs(airframe)))
     groups.append(("Payload", payload_param_specs(payload_nominal_kg)))
     return groups
 
 
-def all_param_specs(payload_nominal_kg: float = 0.0) -> list[ParamSpec]:
+def all_param_specs(payload_nominal_kg: float = 0.0, airframe: str | None = None) -> list[ParamSpec]:
     """Every parameter of the autopilot. Raises ParamError when two components declare the same name."""
     specs: list[ParamSpec] = []
     owner: dict[str, str] = {}
-    for title, group in param_groups(payload_nominal_kg):
+    for title, group in param_groups(payload_nominal_kg, airframe):
         for spec in group:
             if spec.name in owner:
                 raise ParamError(f"parameter {spec.name} declared by both '{owner[spec.name]}' and '{title}'")
@@ -73,13 +75,16 @@ def all_param_specs(payload_nominal_kg: float = 0.0) -> list[ParamSpec]:
     return specs
 
 
-def make_param_store(params_file: str | Path | None = None, *, payload_nominal_kg: float = 0.0) -> ParamStore:
+def make_param_store(
+    params_file: str | Path | None = None, *, payload_nominal_kg: float = 0.0, airframe: str | None = None
+) -> ParamStore:
     """A ParamStore with every parameter at its default, then ``params_file`` applied: YAML ``NAME: value``
     pairs, or a gains file as ``tools.tune_es`` writes it (:data:`PARAM_FILE_FORMATS`).
 
-    ``payload_nominal_kg`` (the airframe's) is the default of ``PLD_MASS_KG``.
+    ``payload_nominal_kg`` (the airframe's) is the default of ``PLD_MASS_KG``; ``airframe`` picks the controller
+    gains' defaults (its own file if shipped, ``autopilot.control.param_decls.default_gains_path``).
     """
-    store = ParamStore(all_param_specs(payload_nominal_kg))
+    store = ParamStore(all_param_specs(payload_nominal_kg, airframe))
     if params_file is not None:
         store.load_file(params_file, PARAM_FILE_FORMATS)
     return store

@@ -2,8 +2,9 @@
 
 Every frame (250 Hz): [failures] -> [stale-data check] -> estimator -> setpoints -> [avoidance] -> cascade ->
 [motor failures] -> ActuatorCommand. At 50 Hz and after any command: failsafes (10 Hz), navigator, commander.
-The answer goes out *before* the bookkeeping (``after_answer``), while the sim integrates; docs/architecture.md:
-what each module owns, reads and emits; ``frame_traffic``: this frame's traffic reports (SPEC §13)."""
+The answer goes out *before* the bookkeeping (:meth:`Autopilot.after_answer`), while the simulator integrates.
+The runner only composes and steps the modules; ``docs/architecture.md`` says what each owns, reads and emits.
+"""
 
 from __future__ import annotations
 
@@ -35,7 +36,6 @@ from autopilot.safety.link_health import LinkHealth
 from autopilot.safety.sensor_validation import StaleSensorCheck
 from mavlink_bridge.contract.frames import GeoPoint, Vec3
 from mavlink_bridge.contract.mav_enums import MavCmd
-from mavlink_bridge.contract.traffic import TrafficReport
 from mavlink_bridge.contract.vehicle_api import (
     CommandRequest,
     CommandResult,
@@ -86,13 +86,14 @@ class Autopilot:
         self.config = config or AutopilotConfig()
         self.airframe = airframe or load_airframe(self.config.vehicle)
         self.params = params or make_param_store(
-            self.config.params_file, payload_nominal_kg=self.airframe.payload_nominal_kg
+            self.config.params_file, payload_nominal_kg=self.airframe.payload_nominal_kg, airframe=self.airframe.name
         )
         self.estimator = estimator or make_estimator(self.config.estimator)
         self.listener = listener
         if planner is None and self.config.avoidance:
             planner = AvoidancePlanner(PlannerParams.from_store(self.params))
         self.commander = Commander(self.params)
+        self.commander.rtl.await_route = True  # the navigator routes every return (navigation.return_routing)
         self.navigator = Navigator(self.params, planner, self.commander.mission_land_speed_m_s, self.config.system_id)  # type: ignore[arg-type]
         self.script = script
         self.links = LinkHealth(self.config.speed_factor, wall_clock)
@@ -110,7 +111,6 @@ class Autopilot:
         self.frames = 0
         self.end_reason: AutopilotEndReason | None = None
         self.frame_detections: tuple[ObstacleDetection, ...] = ()
-        self.frame_traffic: tuple[TrafficReport, ...] = ()
         self._texts: list[StatusText] = []
         self._context = CommandContext()
         self._prev_time_us: int | None = None
@@ -195,8 +195,8 @@ class Autopilot:
             self._dt_s = (t_us - self._prev_time_us) * 1e-6
         self._prev_time_us = t_us
         self.frames += 1
-        self.frame_detections, self.frame_traffic = getattr(frame, "detections", ()), getattr(frame, "traffic", ())
-        self.navigator.traffic.receive(self.frame_traffic)
+        self.frame_detections = getattr(frame, "detections", ())
+        self.navigator.traffic.receive(getattr(frame, "traffic", ()))  # TrafficReports received with this frame
         seen = self.sensor_check.apply(self.failures.apply_to_frame(frame), self.commander.in_air)
         self.estimator.set_landed(self.commander.landed_state is LandedState.ON_GROUND)
         state = self.estimator.update(seen)
@@ -227,8 +227,8 @@ class Autopilot:
             self._run_script(state)
         if state.time_us >= self._next_failsafe_us:
             self._run_failsafes(state)
-        landed = commander.landed_state is LandedState.ON_GROUND
-        nav = self.navigator.update(state, commander.mode, landed, self.frame_detections)
+        on_ground, rtl_goal = commander.landed_state is LandedState.ON_GROUND, commander.rtl.return_goal_ned_m
+        nav = self.navigator.update(state, commander.mode, on_ground, self.frame_detections, rtl_goal)
         if nav.reached:
             self.progress.add(nav.reached)
         if nav.gripper_release is not None:
@@ -310,12 +310,12 @@ class Autopilot:
         self.update_context(failsafe_reasons=frozenset(kind.value for kind in self.failsafe.active))
 
     def _control(self, state: VehicleState, target: NavTarget) -> tuple[float, float, float, float]:
-        fc, commander = self.control, self.commander
+        fc, commander, nav = self.control, self.commander, self.navigator
         if target.kind is TargetKind.IDLE:
             return fc.idle(state, target, commander.armed, self._dt_s)
         fc.reference_for(state, target, self._dt_s)
-        if commander.mode is FlightMode.AUTO_MISSION and target.kind is TargetKind.POSITION:
-            override = self.navigator.avoid(state, target)
+        if target.kind is TargetKind.POSITION and (commander.mode is FlightMode.AUTO_MISSION or nav.returns.active):
+            override = nav.avoid(state, target, self.frame_detections)  # each frame's: the sensor runs at 10 Hz
             if override is not None:
                 fc.override(override)
         out = self._pending_control = fc.control(state)

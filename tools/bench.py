@@ -1,6 +1,10 @@
 """``make bench``: run every benchmark suite, print one table, write ``bench/results.json``.
 
-Usage: ``python -m tools.bench [--quick] [--only SUITE ...] [--out PATH]``.
+Usage: ``python -m tools.bench [--quick] [--only SUITE ...] [--out PATH] [--workers N] [--scheduler ADDR]``.
+The Monte Carlo suites (routing, estimator_mc, es_tuning; campaign sizes its own clusters) run their cases on
+the campaign engine (:mod:`tools.campaign.engine`): ``--workers N`` sizes its embedded LocalCluster (default: one
+per core),
+``--scheduler tcp://HOST:PORT`` uses a running Dask cluster; the numbers do not depend on either.
 Numbers are measured in one run on one machine; compare ratios, not absolutes.
 ``--quick`` is a smoke check with noisier numbers: it only prints the table (``--out PATH`` writes them
 elsewhere), so the committed ``bench/results.json`` always holds a full run.
@@ -10,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import inspect
 import json
 import pkgutil
 import platform
@@ -19,6 +24,7 @@ from pathlib import Path
 
 from tools import benchmarks
 from tools.benchmarks import BenchResult
+from tools.campaign.engine import SchedulerError
 
 #: The committed results of a full run; a ``--quick`` run never writes here.
 FULL_RESULTS = Path("bench/results.json")
@@ -54,14 +60,28 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--merge", action="store_true", help="keep the keys of suites not run now from an existing --out file"
     )
+    parser.add_argument(
+        "--workers", type=int, default=None, help="Monte Carlo suites: engine worker processes (default: the cores)"
+    )
+    parser.add_argument(
+        "--scheduler", default=None, help="Monte Carlo suites: a running Dask scheduler (tcp://HOST:PORT)"
+    )
     args = parser.parse_args(argv)
+    if args.workers is not None and args.workers < 1:
+        parser.error(f"--workers must be >= 1, got {args.workers}")
     names = args.only or _suites()
+    engine = {"workers": args.workers, "scheduler": args.scheduler}
     rows: list[tuple[str, BenchResult]] = []
     for name in names:
         module = importlib.import_module(f"tools.benchmarks.{name}")
         t0 = time.perf_counter()
         print(f"[bench] {name} ...", file=sys.stderr, flush=True)
-        rows += [(name, r) for r in module.run(quick=args.quick)]
+        takes_engine = "workers" in inspect.signature(module.run).parameters  # the Monte Carlo suites
+        try:
+            rows += [(name, r) for r in module.run(quick=args.quick, **(engine if takes_engine else {}))]
+        except SchedulerError as exc:
+            print(f"tools.bench: {name}: {exc}", file=sys.stderr)
+            return 2
         print(f"[bench] {name} done in {time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
     _print_table(rows)
     if args.out is None and args.quick:

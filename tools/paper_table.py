@@ -3,6 +3,11 @@
 Usage::
 
     python -m tools.paper_table [--out results/paper] [--quick] [--vehicle x500] [--iterations N] [--restarts R]
+        [--workers N | --scheduler tcp://HOST:PORT]
+
+The extremum-seeking rollouts (every tune's cost evaluations: one task per experiment) run on the campaign engine
+(:mod:`tools.campaign.engine`): an embedded LocalCluster of ``--workers`` processes (default: one per core), or a
+running Dask cluster at ``--scheduler``. The tasks do not depend on either, so neither do the numbers.
 
 Writes into ``--out``:
 
@@ -30,6 +35,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from tools.campaign.engine import SchedulerError, TaskEngine
 from tools.experiments.noisy_eval import hover_metrics, route_metrics, step_metrics, tradeoff_point
 from tools.experiments.noisy_pipeline import noisy_config, tune_noisy_pair
 from tools.experiments.paper_pipeline import (
@@ -47,7 +53,7 @@ from tools.experiments.paper_pipeline import (
 )
 from tools.experiments.paper_plots import plot_mass_change, plot_steps, plot_tracking, plot_tradeoff
 from tools.experiments.rollout import StepTrace
-from tools.experiments.tuner import plot_convergence
+from tools.experiments.tuner import RolloutMap, engine_rollouts, in_process, plot_convergence
 
 #: the paper's claims (section 4 and Table 1) for the honest comparison
 PAPER_CLAIMS = {"IAE": 0.91, "ITSE": 0.85, "lissajous_att": 0.5, "lissajous_pos": 0.85}
@@ -283,16 +289,19 @@ def step_shape(traces: dict[str, StepTrace]) -> dict[str, dict[str, dict[str, fl
     }
 
 
-def noisy_setting(settings: PaperSettings, vehicle: str, out: Path, log) -> tuple[dict[str, Any], dict[str, Any]]:
-    """The noisy effort-aware setting: λ sweep (tuning both structures per λ), held-out-seed evaluation of the
-    headline λ (×1): Table 1 with overshoot/settling, routes, hover; returns (table part, extras part)."""
+def noisy_setting(
+    settings: PaperSettings, vehicle: str, out: Path, log, rollouts: RolloutMap = in_process
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The noisy effort-aware setting: λ sweep (tuning both structures per λ, rollouts mapped by ``rollouts``),
+    held-out-seed evaluation of the headline λ (×1): Table 1 with overshoot/settling, routes, hover; returns
+    (table part, extras part)."""
     att_cfg = noisy_config("attitude", vehicle)
     noise, seeds = att_cfg.noise, att_cfg.eval_seeds
     durations = {"attitude": settings.step_duration_attitude_s, "position": settings.step_duration_position_s}
     sweep = []
     pairs = {}
     for scale in settings.effort_scales:
-        pair = tune_noisy_pair(vehicle, scale, settings.noisy_iterations, log, settings.tune_step_scale)
+        pair = tune_noisy_pair(vehicle, scale, settings.noisy_iterations, log, settings.tune_step_scale, rollouts)
         pairs[scale] = pair
         point = tradeoff_point(pair.gains, vehicle, noise, seeds, settings.hover_s, settings.step_duration_position_s)
         sweep.append({"effort_scale": scale, **point})
@@ -348,7 +357,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--vehicle", default="x500", help="vehicle for tuning, steps and routes")
     parser.add_argument("--iterations", type=int, default=None, help="NLVG ES iterations (PID: equal rollouts)")
     parser.add_argument("--restarts", type=int, default=None, help="ES restarts")
+    parser.add_argument(
+        "--workers", type=int, default=None, help="ES rollout worker processes (campaign engine; default: the cores)"
+    )
+    parser.add_argument("--scheduler", default=None, help="run the ES rollouts on a running Dask scheduler")
     args = parser.parse_args(argv)
+    if args.workers is not None and args.workers < 1:
+        parser.error(f"--workers must be >= 1, got {args.workers}")
     settings = PaperSettings.quick() if args.quick else PaperSettings()
     if args.iterations is not None:
         settings = replace(settings, nlvg_iterations=args.iterations)
@@ -361,7 +376,22 @@ def main(argv: list[str] | None = None) -> int:
     def log(msg: str) -> None:
         print(f"[paper {time.perf_counter() - t_start:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
-    pair = tune_both(settings, log)
+    try:
+        engine = TaskEngine(workers=args.workers, scheduler=args.scheduler)
+        engine.start()
+    except SchedulerError as exc:
+        print(f"tools.paper_table: {exc}", file=sys.stderr)
+        return 2
+    with engine:
+        log(f"ES rollouts on the campaign engine: {engine.n_workers} worker(s)")
+        return _paper(args, settings, out, log, engine_rollouts(engine), t_start)
+
+
+def _paper(
+    args: argparse.Namespace, settings: PaperSettings, out: Path, log, rollouts: RolloutMap, t_start: float
+) -> int:
+    """Tune both structures (ES rollouts mapped by ``rollouts``), fly every table of the paper, write them."""
+    pair = tune_both(settings, log, rollouts)
     for s in STRUCTURES:
         pair.gains[s].to_yaml(out / f"gains_{s}.yaml")
     for (level, s), outcome in pair.outcomes.items():
@@ -381,7 +411,7 @@ def main(argv: list[str] | None = None) -> int:
     log("portability done")
     payload, payload_traces = payload_table(pair, settings)
     log("payload change done")
-    noisy_table, noisy_extras = noisy_setting(settings, args.vehicle, out, log)
+    noisy_table, noisy_extras = noisy_setting(settings, args.vehicle, out, log, rollouts)
 
     plot_steps(step_traces, ("phi", "theta"), out / "step_attitude.png", degrees=True)
     plot_steps(step_traces, ("x", "y"), out / "step_position.png", degrees=False)

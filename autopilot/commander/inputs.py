@@ -40,7 +40,8 @@ class CommandContext:
 @dataclass(frozen=True, slots=True)
 class CommanderInputs:
     """Everything the commander reads at one step: the estimate, the last thrust, the estimator's local frame,
-    the :class:`CommandContext` and, in AUTO_MISSION, the navigator's target (about the origin)."""
+    the :class:`CommandContext` and the navigator's target (about the origin): in AUTO_MISSION the mission's, in
+    AUTO_RTL's return leg the routed point to fly toward (a via point, home, or the hold point with no route)."""
 
     state: VehicleState
     thrust_ratio: float  # last collective thrust / hover thrust (land detector)

@@ -284,7 +284,8 @@ class Commander(CommandHandling):
             self.enter_land(self._state)
             self.land.blind = True
             return
-        if event.action is FailsafeAction.RTL and self.home is not None:
+        no_way_home = event.kind is FailsafeKind.NO_ROUTE and self.mode is FlightMode.AUTO_RTL  # land, not RTL again
+        if event.action is FailsafeAction.RTL and self.home is not None and not no_way_home:
             self.request_mode(FlightMode.AUTO_RTL)
         elif event.action in (FailsafeAction.RTL, FailsafeAction.LAND):
             self.request_mode(FlightMode.AUTO_LAND)
@@ -330,7 +331,8 @@ class Commander(CommandHandling):
         if mode is FlightMode.AUTO_RTL:
             home = self.home
             assert home is not None  # RTL is entered only with a home
-            target = self.rtl.target(state, home.pos_ned_m, self.params, self._speeds(), self.hold, self.land)
+            routed = self._mission_target.pos_ned_m if self._mission_target is not None else None  # the navigator's
+            target = self.rtl.target(state, home.pos_ned_m, self.params, self._speeds(), self.hold, self.land, routed)
             return target if target is not None else self._land_target(state)
         if mode is FlightMode.AUTO_MISSION and self._mission_target is not None:
             return self._mission_target

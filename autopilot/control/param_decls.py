@@ -7,9 +7,11 @@ CH ∈ {X, Y, Z, ROLL, PITCH, YAW}; ``NV_<CH>_DLT1`` / ``_DLT2`` for δ1/δ2; ``
 ``NV_POS_I_MAX``, ``NV_ATT_I_MAX``, ``NV_POS_TSCALE``, ``NV_ATT_TSCALE``. Gains are dimensionless in each
 loop's normalised time (pid.py), so one set flies every wheelbase.
 
-Defaults of the gains and δ: the shipped ES-tuned NLVG-PID gains in :data:`DEFAULT_GAINS_PATH`
-(``autopilot/control/default_gains.yaml``, written by ``python -m tools.tune_es --ship``; the file records the
-command and seeds that produced it). A missing or malformed file is an error, never a silent fallback.
+Defaults of the gains and δ: the airframe's own ES-tuned gains, ``autopilot/control/airframe_gains/<name>.yaml``
+(:func:`airframe_gains_path`, written by ``python -m tools.tune_es --ship --vehicle <name>``, tuned on that
+airframe's own closed loop with the EKF), else the generic set :data:`DEFAULT_GAINS_PATH`
+(``autopilot/control/default_gains.yaml``). Each file records the command and seeds that produced it. A
+malformed file is an error, never a silent fallback.
 """
 
 from __future__ import annotations
@@ -32,6 +34,8 @@ from autopilot.parameters.store import ParamSpec
 TERMS = ("P", "I", "D")
 #: The shipped default gains (a gains file, ``CascadeGains.from_yaml``), written by ``tools.tune_es --ship``.
 DEFAULT_GAINS_PATH = Path(__file__).resolve().parent / "default_gains.yaml"
+#: Per-airframe default gains (``<airframe>.yaml``), written by ``tools.tune_es --ship --vehicle <airframe>``.
+AIRFRAME_GAINS_DIR = Path(__file__).resolve().parent / "airframe_gains"
 _LIMIT_PARAMS: tuple[tuple[str, str, float, float, str, str, float], ...] = (
     # name, CascadeLimits field, min, max, unit, description, scale (param value × scale = field value)
     ("MPC_TILTMAX_DEG", "tilt_max_rad", 5.0, 80.0, "deg", "maximum tilt of the thrust vector", math.pi / 180),
@@ -57,16 +61,28 @@ def delta_param_name(channel: str, which: int) -> str:
     return f"NV_{channel.upper()}_DLT{which}"
 
 
+def airframe_gains_path(airframe: str) -> Path:
+    """Where ``airframe``'s own default gains live (the file may not exist: then the generic set flies it)."""
+    return AIRFRAME_GAINS_DIR / f"{airframe}.yaml"
+
+
+def default_gains_path(airframe: str | None = None) -> Path:
+    """The gains file that gives ``airframe``'s defaults: its own if shipped, else :data:`DEFAULT_GAINS_PATH`."""
+    own = airframe_gains_path(airframe) if airframe else None
+    return own if own is not None and own.is_file() else DEFAULT_GAINS_PATH
+
+
 @cache
-def shipped_gains() -> CascadeGains:
-    """The shipped default gains (:data:`DEFAULT_GAINS_PATH`); ValueError naming the file if it is unusable."""
-    return CascadeGains.from_yaml(DEFAULT_GAINS_PATH)
+def shipped_gains(airframe: str | None = None) -> CascadeGains:
+    """The default gains of ``airframe`` (:func:`default_gains_path`); ValueError naming the file if unusable."""
+    return CascadeGains.from_yaml(default_gains_path(airframe))
 
 
-def controller_param_specs() -> list[ParamSpec]:
-    """Every controller parameter with default (gains and δ: :func:`shipped_gains`), range, unit and description."""
+def controller_param_specs(airframe: str | None = None) -> list[ParamSpec]:
+    """Every controller parameter with default (gains and δ: :func:`shipped_gains` of ``airframe``), range,
+    unit and description."""
     specs: list[ParamSpec] = []
-    shipped = shipped_gains()
+    shipped = shipped_gains(airframe)
     for ch in CHANNELS:
         g = getattr(shipped, ch)
         for t, term in enumerate(TERMS):

@@ -7,6 +7,7 @@ from enum import IntEnum
 
 import numpy as np
 
+from autopilot.flight_tasks.rtl import return_alt_m
 from autopilot.mission.param_decls import MISSION_PARAM_DEFAULTS
 from autopilot.parameters.store import ParamStore
 from mavlink_bridge.contract.frames import Vec3
@@ -18,7 +19,8 @@ _NAN = float("nan")
 
 @dataclass(frozen=True, slots=True)
 class ExecutorConfig:
-    """Executor settings (MIS_ACC_RAD, MIS_ALT_ACC_RAD, MIS_CRUISE_SPD, MIS_RTL_ALT; defaults: theirs)."""
+    """Executor settings (MIS_ACC_RAD, MIS_ALT_ACC_RAD, MIS_CRUISE_SPD, MIS_RTL_ALT capped below GF_MAX_VER_DIST;
+    defaults: theirs)."""
 
     accept_radius_m: float = MISSION_PARAM_DEFAULTS["MIS_ACC_RAD"]
     alt_accept_m: float = MISSION_PARAM_DEFAULTS["MIS_ALT_ACC_RAD"]
@@ -31,7 +33,7 @@ class ExecutorConfig:
             accept_radius_m=params.get("MIS_ACC_RAD"),
             alt_accept_m=params.get("MIS_ALT_ACC_RAD"),
             cruise_speed_m_s=params.get("MIS_CRUISE_SPD"),
-            rtl_alt_m=params.get("MIS_RTL_ALT"),
+            rtl_alt_m=return_alt_m(params.get),  # MIS_RTL_ALT, below the fence ceiling
         )
 
 

@@ -15,6 +15,7 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+from autopilot.flight_tasks.rtl import return_alt_m
 from autopilot.geofence.fence import Geofence, zone_label
 from autopilot.mission.plan import (
     DEFAULT_HOME_TOL,
@@ -38,7 +39,7 @@ class FeasibilityLimits:
     ceiling_m: float = math.inf  # GF_MAX_VER_DIST: highest altitude above home
     max_hor_dist_m: float = math.inf  # GF_MAX_HOR_DIST: furthest horizontal distance from home
     margin_m: float = 3.0  # CA_FENCE_MARG_M: the route keeps this far from fence boundaries
-    rtl_alt_m: float = 30.0  # MIS_RTL_ALT: a return climbs to this altitude (at least) before flying home
+    rtl_alt_m: float = 30.0  # MIS_RTL_ALT (below GF_MAX_VER_DIST): a return climbs to this altitude (at least)
     takeoff_alt_m: float = 10.0  # MIS_TAKEOFF_ALT: where the first leg starts when the mission has no takeoff
 
     @classmethod
@@ -50,7 +51,7 @@ class FeasibilityLimits:
             ceiling_m=ver if ver > 0.0 else math.inf,
             max_hor_dist_m=hor if hor > 0.0 else math.inf,
             margin_m=get("CA_FENCE_MARG_M"),
-            rtl_alt_m=get("MIS_RTL_ALT"),
+            rtl_alt_m=return_alt_m(get),
             takeoff_alt_m=get("MIS_TAKEOFF_ALT"),
         )
 

@@ -39,10 +39,12 @@ class RoutePlanner(Protocol):
         detections: Sequence[ObstacleDetection],
         route_target_ned: Sequence[float],
         route_next_ned: Sequence[float] | np.ndarray | None = None,
+        route_items: Sequence[bool] | np.ndarray | None = None,
     ) -> object: ...
 
 
-#: Executor targets whose leg is routed around the fence (a takeoff or a landing is vertical).
+#: Executor targets whose leg is routed around the fence (a takeoff or a landing is vertical); a commander's
+#: return (AUTO_RTL) is routed as a RETURN target too (:mod:`autopilot.navigation.return_routing`).
 ROUTED_KINDS = frozenset({NavKind.WAYPOINT, NavKind.LOITER, NavKind.RETURN})
 
 
@@ -94,8 +96,11 @@ class LegRouting:
         mission_route: Callable[[], MissionRoute | None],
         planner_output: object | None,
         say: Callable[[str, Severity], None],
+        label: str = "",
     ) -> tuple[MissionTarget, FailsafeEvent | None]:
-        """The target to fly now and, once, the no-route failsafe (CA_NOROUTE_ACT after CA_NOROUTE_T)."""
+        """The target to fly now and, once, the no-route failsafe (CA_NOROUTE_ACT after CA_NOROUTE_T).
+        ``label`` names the target in messages (default ``item <seq>``; a return's is ``home``)."""
+        label = label or f"item {target.seq}"
         if target.kind not in ROUTED_KINDS:
             if self._key is not None:
                 self.reset()
@@ -110,13 +115,13 @@ class LegRouting:
                 self._pts, self._seqs = np.array((target.pos_ned_m,), float), (target.seq,)
         state = getattr(planner_output, "state", PlannerState.CLEAR)
         obstacles: Sequence[object] = getattr(planner_output, "obstacles", ())
-        step = self.router.update(time_us, pos_home_ned_m, self._pts, key, obstacles, state, f"item {target.seq}")
+        step = self.router.update(time_us, pos_home_ned_m, self._pts, key, obstacles, state, label)
         for text in step.texts:
             say(text, Severity.WARNING if step.status is RouteStatus.NO_ROUTE else Severity.INFO)
         failsafe = None
         if step.action is not None:
             failsafe = FailsafeEvent(FailsafeKind.NO_ROUTE, FailsafeAction(step.action),
-                                     f"Failsafe: no route to item {target.seq}: {step.reason}")  # fmt: skip
+                                     f"Failsafe: no route to {label}: {step.reason}")  # fmt: skip
         if step is not self._step or target is not self._src:
             self._step, self._src = step, target
             goal = step.goal_ned_m
@@ -129,7 +134,12 @@ class LegRouting:
         step = self._step
         return step.route_ahead_ned_m if step is not None and len(step.route_ahead_ned_m) else None
 
-    def rejoin(self, k: int) -> int | None:
-        """A detour rejoins the handed route at point ``k``: the mission item to skip to, None if none."""
+    def ahead_items(self) -> np.ndarray | None:
+        """Which points of [goal, *:meth:`ahead`] are mission items (a detour rejoins at a reachable one)."""
+        return self.router.ahead_items if self._step is not None else None
+
+    def rejoin(self, k: int) -> tuple[int, tuple[int, ...], np.ndarray] | None:
+        """A detour rejoins the handed route at point ``k``: the mission item to skip to, the items it bypassed
+        and their positions (about home); None if it bypassed no item."""
         m = self.router.consume(k)
-        return self._seqs[m] if 0 < m < len(self._seqs) else None
+        return (self._seqs[m], self._seqs[:m], self._pts[:m]) if 0 < m < len(self._seqs) else None

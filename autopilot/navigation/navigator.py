@@ -8,7 +8,8 @@ PX4's navigator in spirit: it owns what the vehicle is asked to fly in AUTO_MISS
   :class:`AvoidancePlanner` and the route glue between them (the route handed to the planner, waypoints a
   detour bypassed or that lie inside an obstacle's safety volume skipped, the nose along the path).
 - Routes (issue 13): uploads accepted before home is known and checked once it is (:class:`UploadStore`);
-  legs routed around the fence and known obstacles (:class:`LegRouting`); bypassed items reported as such.
+  legs routed around the fence and known obstacles (:class:`LegRouting`); bypassed items reported as such;
+  the commander's AUTO_RTL leg home routed the same way (:class:`ReturnRouting`, issue 22).
 - Emits: one :class:`NavOutput` per step (the commander's mission target, items reached, gripper actions)
   and, while avoiding, a :class:`ReferenceOverride` for the setpoint generator; status texts.
 
@@ -20,7 +21,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
@@ -40,14 +41,17 @@ from autopilot.mission.executor import (
 from autopilot.mission.feasibility import FeasibilityLimits
 from autopilot.mission.uploads import UploadStore
 from autopilot.mission.validation import MissionLimits
+from autopilot.navigation.bypass import REJOINED_PAST, bypass_reason
 from autopilot.navigation.home_frame import HomeFrame
 from autopilot.navigation.leg_routing import LegRouting, RoutePlanner
+from autopilot.navigation.outputs import NOTHING as _NOTHING
+from autopilot.navigation.outputs import NavOutput, ReferenceOverride
+from autopilot.navigation.return_routing import ReturnRouting
 from autopilot.navigation.targets import face_along_path, mission_nav_target
 from autopilot.navigation.traffic_link import TrafficLink
 from autopilot.parameters.store import ParamStore
 from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import AvoidancePlanner
-from autopilot.safety.failsafe import FailsafeEvent
 from mavlink_bridge.contract.frames import Vec3
 from mavlink_bridge.contract.mav_enums import MissionState
 from mavlink_bridge.contract.vehicle_api import (
@@ -58,37 +62,12 @@ from mavlink_bridge.contract.vehicle_api import (
     Severity,
     StatusText,
 )
-from mavlink_bridge.contract.wire import ObstacleDetection, fast_frozen_init
+from mavlink_bridge.contract.wire import ObstacleDetection
 
 #: The planner gets the mission route this many CA_LOOKAHEAD_M past its target (the detour rejoins on it and
 #: checks it after the rejoin), at most this many points.
 ROUTE_AHEAD_LOOKAHEADS = 2.0
 ROUTE_MAX_POINTS = 64
-
-
-@fast_frozen_init
-@dataclass(frozen=True, slots=True)
-class NavOutput:
-    """What the navigator asks for at one step (targets about the estimator origin)."""
-
-    mission_target: NavTarget | None  # None: the mission flies nothing now (or the mode is not AUTO_MISSION)
-    reached: tuple[int, ...] = ()  # items reached at this step
-    gripper_release: bool | None = None  # a DO_GRIPPER action at this step: True release, False grab
-    bypassed: tuple[int, ...] = ()  # items flown around (a detour rejoined past them), never reached
-    failsafe: FailsafeEvent | None = None  # no route for CA_NOROUTE_T: CA_NOROUTE_ACT (once)
-
-
-@fast_frozen_init
-@dataclass(frozen=True, slots=True)
-class ReferenceOverride:
-    """The avoidance planner's reference for this step (about the estimator origin), replacing the route's."""
-
-    pos_ned_m: Vec3
-    vel_ned_m_s: Vec3
-    acc_ned_m_s2: Vec3
-
-
-_NOTHING = NavOutput(None)
 
 
 class Navigator:
@@ -109,6 +88,7 @@ class Navigator:
         self.uploads = UploadStore()
         self.geofence = Geofence()  # the uploaded FENCE about home (empty until home is known)
         self.routing = LegRouting(PlannerParams.from_store(params))
+        self.returns = ReturnRouting(self.routing)
         self.executor: MissionExecutor | None = None
         self.bypassed_seqs: list[int] = []
         self.frame: HomeFrame | None = None  # home about the origin (before arming: the origin itself)
@@ -121,7 +101,7 @@ class Navigator:
         self._nav_faces = False  # the cached mission target's yaw is the per-step heading along the path
         self._param_version = 0
         self._detections: Sequence[ObstacleDetection] = ()
-        self._bypass_reason: dict[int, str] = {}
+        self.bypass_reasons: dict[int, str] = {}  # why each bypassed item could not be reached (the latest)
         self.apply_planner_params()
         self.apply_altitude_limits()
         self.apply_upload_limits()
@@ -241,6 +221,7 @@ class Navigator:
         """Entering AUTO_MISSION starts (or resumes) the mission; leaving it pauses the mission."""
         executor = self.executor
         self.routing.reset()
+        self.returns.reset()
         if executor is None:
             return
         if mode is FlightMode.AUTO_MISSION and executor.state is not MissionState.ACTIVE:
@@ -260,17 +241,33 @@ class Navigator:
 
     # ------------------------------------------------------------------ the step
     def update(
-        self, state: VehicleState, mode: FlightMode, landed: bool, detections: Sequence[ObstacleDetection]
+        self,
+        state: VehicleState,
+        mode: FlightMode,
+        landed: bool,
+        detections: Sequence[ObstacleDetection],
+        return_goal_ned_m: Vec3 | None = None,
     ) -> NavOutput:
-        """The mission's target at this step (AUTO_MISSION only), then traffic avoidance (its failsafe rides along)."""
-        return self.traffic.step(self, state, mode, landed, self._mission_update(state, mode, landed, detections))
+        """The mission's target at this step (AUTO_MISSION; in AUTO_RTL the routed point toward ``return_goal_ned_m``,
+        the commander's point above home about the origin), then traffic avoidance (its failsafe rides along)."""
+        out = self._mission_update(state, mode, landed, detections, return_goal_ned_m)
+        return self.traffic.step(self, state, mode, landed, out)
 
     def _mission_update(
-        self, state: VehicleState, mode: FlightMode, landed: bool, detections: Sequence[ObstacleDetection]
+        self,
+        state: VehicleState,
+        mode: FlightMode,
+        landed: bool,
+        detections: Sequence[ObstacleDetection],
+        return_goal_ned_m: Vec3 | None,
     ) -> NavOutput:
-        """The mission's target at this step (AUTO_MISSION only), with skips past obstacles' safety volumes."""
+        """The mission's target at this step (AUTO_MISSION), with skips past obstacles' safety volumes; in AUTO_RTL
+        the routed point toward ``return_goal_ned_m`` (the commander's point above home, about the origin)."""
         executor, frame = self.executor, self.frame
         self._detections = detections
+        if mode is FlightMode.AUTO_RTL and frame is not None:
+            nav_target, failsafe = self.returns.target(state, frame, return_goal_ned_m, self.planner_output, self._say)
+            return NavOutput(nav_target, failsafe=failsafe) if nav_target is not None else _NOTHING
         if executor is None or frame is None or mode is not FlightMode.AUTO_MISSION:
             return _NOTHING
         pos = frame.home_from_origin(state.pos_ned_m)
@@ -288,7 +285,7 @@ class Navigator:
             self._say(f"Reached item {seq}")
         for seq in out.bypassed:
             self.bypassed_seqs.append(seq)
-            why = self._bypass_reason.pop(seq, "a detour rejoined the route past it")
+            why = self.bypass_reasons.setdefault(seq, REJOINED_PAST)
             self._say(f"Bypassed item {seq}: {why}", Severity.WARNING)
         gripper = None
         for action in out.actions:
@@ -325,18 +322,18 @@ class Navigator:
         """The planned leg around the fence (and known obstacles) about home, (n, 3), for drawing; None if none."""
         return self.routing.path_home_ned_m
 
-    def avoid(self, state: VehicleState, target: NavTarget) -> ReferenceOverride | None:
-        """Let the avoidance planner override the reference (AUTO_MISSION, POSITION target).
-
-        The planner gets the mission route from the target on (``MissionExecutor.route_ahead``, two
-        CA_LOOKAHEAD_M lengths); waypoints a detour bypassed (``rejoin_route_index``) are skipped in the
-        executor (reported reached, DO items still run).
-        """
+    def avoid(
+        self, state: VehicleState, target: NavTarget, detections: Sequence[ObstacleDetection] | None = None
+    ) -> ReferenceOverride | None:
+        """Let the avoidance planner override the reference (a POSITION target of AUTO_MISSION or an RTL's return)
+        with this frame's ``detections`` (None: the latest :meth:`update`'s). The planner gets the route from the
+        target on (``route_after_target``); items a detour passed (``rejoin_route_index``: unreachable ones) are
+        skipped in the executor, reported bypassed with the reason."""
         planner, frame = self.planner, self.frame
         traffic = self.traffic.override(state.time_us, ReferenceOverride)  # wins over an obstacle detour
         if planner is None or frame is None:
             return traffic
-        detections = self._detections
+        detections = self._detections if detections is None else detections
         idle_output = getattr(planner, "idle_output", None)
         if idle_output is not None:  # nothing to avoid: the output update() would give, without the route
             idle = idle_output(state.time_us, detections)
@@ -347,18 +344,18 @@ class Navigator:
         goal = frame.home_from_origin(target.pos_ned_m)
         route = self._mission_route()
         routed = self.routing.active
-        nxt = self.route_after_target()
-        result = planner.update(state.time_us, pos, state.vel_ned_m_s, state.q_ned_frd, detections, goal, nxt)
+        nxt, items = self.route_after_target(), self.routing.ahead_items() if routed else None  # items: mission's
+        result = planner.update(state.time_us, pos, state.vel_ned_m_s, state.q_ned_frd, detections, goal, nxt,
+                                route_items=items)  # fmt: skip
         self.planner_output = result
         k = int(getattr(result, "rejoin_route_index", 0))
-        if k > 0 and routed:  # the detour rejoins past via points (dropped) and maybe items (skipped now)
-            seq = self.routing.rejoin(k)
-            if seq is not None:
-                assert self.executor is not None
-                self.executor.skip_to(seq, state.time_us)
-        elif route is not None and 0 < k < len(route.seqs):  # the detour rejoins past waypoints: skip them now
-            assert self.executor is not None
-            self.executor.skip_to(route.seqs[k], state.time_us)
+        rejoined = self.routing.rejoin(k) if k > 0 and routed else None  # via points dropped, maybe items skipped
+        if rejoined is None and not routed and route is not None and 0 < k < len(route.seqs):
+            rejoined = (route.seqs[k], route.seqs[:k], route.pos_ned_m[:k])  # past waypoints: skip them now
+        if rejoined is not None and self.executor is not None:
+            for seq, pos_ned_m in zip(rejoined[1], rejoined[2], strict=True):
+                self.bypass_reasons[seq] = bypass_reason(self.params, self.geofence, self.planner_output, pos_ned_m)
+            self.executor.skip_to(rejoined[0], state.time_us)
         for decision in getattr(result, "decisions", ()):
             self._say(str(decision.text), Severity.NOTICE)
         setpoint = getattr(result, "setpoint", None)
@@ -414,6 +411,7 @@ class Navigator:
         assert self.executor is not None
         if seq < 0 or not self.executor.skip_to(seq, time_us):
             return False
-        self._bypass_reason[route.seqs[0]] = "it lies inside an obstacle's safety volume"
-        self._say(f"Skipped to item {seq}: item {route.seqs[0]} lies inside an obstacle's safety volume")
+        head = route.seqs[0]
+        self.bypass_reasons[head] = bypass_reason(self.params, self.geofence, self.planner_output, route.pos_ned_m[0])
+        self._say(f"Skipped to item {seq}: item {head} lies inside an obstacle's safety volume")
         return True

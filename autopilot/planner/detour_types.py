@@ -54,6 +54,7 @@ class DetourLimits:
     alt_ceiling_m: float
     fences: tuple[FenceZone, ...] = ()
     cruise_m_s: float = 5.0  # detour speed when the vehicle flies slower (e.g. starts from a hover)
+    fence_margin_m: float = 0.0  # CA_FENCE_MARG_M: a waypoint this near a fence boundary is not rejoined at
 
 
 @dataclass(frozen=True, slots=True)
@@ -64,6 +65,10 @@ class DetourPlan:
     target, k = the k-th waypoint after it), of the waypoint that ends the route leg the detour
     rejoins: once the detour is flown, the route resumes toward it (the waypoints before it were
     bypassed). ``continuation_ned`` is the route after the rejoin point that was checked clear.
+    ``stops_at_rejoin``: the detour ends at a reachable waypoint at rest (the route after it was not clear
+    for the stopping distance), so the next leg starts from a hover. ``prefix_route_index``: the detour first
+    follows the route through its points up to this one (reachable items before the obstacle; -1: none), which
+    the vehicle reaches on the way and which are therefore not bypassed.
     """
 
     side: DetourSide
@@ -77,6 +82,8 @@ class DetourPlan:
     rejoin_route_index: int = 0
     continuation_ned: np.ndarray = field(default_factory=lambda: np.empty((0, 3)))
     sample_times_s: np.ndarray = field(default_factory=lambda: np.empty(0))  # time of each sample on the path
+    stops_at_rejoin: bool = False
+    prefix_route_index: int = -1
 
 
 @dataclass(frozen=True, slots=True)

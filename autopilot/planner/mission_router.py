@@ -182,6 +182,12 @@ class MissionRouter:
                 self._step = self._make_step(())
         return self._step
 
+    @property
+    def ahead_items(self) -> np.ndarray:
+        """Which points of [goal, *route_ahead] are mission points (the via points around the fence are not)."""
+        vias = self._step.vias_left
+        return np.concatenate((np.zeros(vias, bool), (True,), self._later_is_mission))
+
     def consume(self, n: int) -> int:
         """The reactive planner's detour rejoins the route [goal, *route_ahead] at point ``n`` (its
         ``rejoin_route_index``): the via points before it are dropped; returns how many points of the mission's

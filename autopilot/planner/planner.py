@@ -70,7 +70,9 @@ class AvoidancePlanner:
         self._last_try_us = -(10**18)
         self._unchecked: set[int] = set()  # obstacles changed since the active detour was last checked
         self._rejoin_wp: tuple[float, float, float] | None = None  # waypoint the last detour resumes toward
+        self._passes: list[tuple[float, float, float]] = []  # route points the last detour flies through first
         self._searches = 0  # detour searches run (plan_detour calls)
+        self._route_items: tuple[bool, ...] | None = None  # this update's route rows that are mission items
 
     @property
     def state(self) -> PlannerState:
@@ -112,6 +114,7 @@ class AvoidancePlanner:
             alt_ceiling_m=min(self._alt_ceiling_m, p.ceiling_m),
             fences=self._fences,
             cruise_m_s=min(p.cruise_m_s, p.v_max_m_s),
+            fence_margin_m=p.fence_margin_m,
         )
 
     def _clear(self, state: PlannerState) -> None:
@@ -129,6 +132,7 @@ class AvoidancePlanner:
         detections: Iterable[ObstacleDetection],
         route_target_ned: Sequence[float],
         route_next_ned: Sequence[float] | np.ndarray | None = None,
+        route_items: Sequence[bool] | np.ndarray | None = None,
     ) -> PlannerOutput:
         """One planner step at sim time ``time_us`` with the vehicle state and this step's detections.
 
@@ -139,7 +143,9 @@ class AvoidancePlanner:
         benchmark passes two look-ahead lengths; with sparse delivery legs the next waypoint is enough,
         dense expanded patterns need many). A rejoin point past the route's last waypoint is clamped to
         it. The detour may rejoin past some of them: ``PlannerOutput.rejoin_route_index`` says how many
-        to skip.
+        to skip. ``route_items`` flags which of those points are mission items (None: all of them; via
+        points around the fence are not): a detour rejoins *at* a reachable item, never past it, so only
+        unreachable ones (inside a safety volume or the fence margin) are ever skipped.
         """
         pos = np.asarray(pos_ned, float)
         vel = np.asarray(vel_ned, float)
@@ -149,7 +155,11 @@ class AvoidancePlanner:
         if route_next_ned is not None:
             route = np.vstack((route, np.asarray(route_next_ned, float).reshape(-1, 3)))
         full_route = route
-        route = route[self._route_skip(route) :]
+        skip = self._route_skip(route)
+        route = route[skip:]
+        self._route_items = (
+            None if route_items is None else tuple(bool(f) for f in route_items)[skip : skip + len(route)]
+        )
         decisions: list[AvoidanceDecision] = []
         threat: Threat | None = None
         searches = self._searches
@@ -195,7 +205,11 @@ class AvoidancePlanner:
         wp = self._rejoin_wp
         if wp is None:
             return 0
-        for i, row in enumerate(route.tolist()):
+        rows = route.tolist()
+        head = rows[0]
+        if any(abs(head[0] - p[0]) + abs(head[1] - p[1]) + abs(head[2] - p[2]) < 1e-6 for p in self._passes):
+            return 0  # the caller's target is one the detour flies through: reached on the way, nothing skipped yet
+        for i, row in enumerate(rows):
             if abs(row[0] - wp[0]) + abs(row[1] - wp[1]) + abs(row[2] - wp[2]) < 1e-6:
                 if i == 0:
                     self._rejoin_wp = None  # the caller's target is the rejoined leg's end: consumed
@@ -306,15 +320,19 @@ class AvoidancePlanner:
     ) -> None:
         self._last_try_us = time_us
         self._searches += 1
-        result = plan_detour(pos, vel, route, threat.obstacle, self.map.arrays, self.limits())
+        result = plan_detour(pos, vel, route, threat.obstacle, self.map.arrays, self.limits(), self._route_items)
         distance = float(threat.obstacle.signed_distance(pos[None, :])[0])
         if result.plan is not None:
             self._state, self._plan, self._path = PlannerState.DETOUR, result.plan, result.plan.path
             self._t0_us = time_us
             wp = route[result.plan.rejoin_route_index]
             self._rejoin_wp = (float(wp[0]), float(wp[1]), float(wp[2]))
+            passes = route[: result.plan.prefix_route_index + 1].tolist()
+            self._passes = [(p[0], p[1], p[2]) for p in passes]
             side = result.plan.side
         else:
+            # an abandoned detour rejoins nowhere: the items it would have flown through or past stay the caller's
+            self._rejoin_wp, self._passes = None, []
             if self._state is not PlannerState.HOLD:
                 self._path = brake_path(pos, vel, self.params.a_max_m_s2)
                 self._t0_us = time_us

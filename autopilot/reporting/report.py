@@ -266,8 +266,9 @@ def summary(
         "items_total": len(nav.mission),
         "items_reached": len(set(reached)),
         "reached_seqs": list(reached),
-        "items_bypassed": len(set(nav.bypassed_seqs)),  # flown around (a detour rejoined past them), not reached
+        "items_bypassed": len(set(nav.bypassed_seqs)),  # unreachable (inside a safety volume or the fence margin)
         "bypassed_seqs": list(nav.bypassed_seqs),
+        "bypass_reasons": {str(seq): nav.bypass_reasons.get(seq, "") for seq in sorted(set(nav.bypassed_seqs))},
         "mission_state": nav.mission_state.name,
         "mode": commander.mode.name,
         "mode_history": [{"t_s": t / 1e6, "mode": m.name} for t, m in commander.mode_history],

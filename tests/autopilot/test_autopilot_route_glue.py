@@ -46,7 +46,7 @@ class ScriptedPlanner:
     routes: list[tuple[tuple[float, ...], np.ndarray | None]] = field(default_factory=list)
 
     def update(  # type: ignore[no-untyped-def]
-        self, time_us, pos_ned, vel_ned, q_ned_frd, detections, route_target_ned, route_next_ned=None
+        self, time_us, pos_ned, vel_ned, q_ned_frd, detections, route_target_ned, route_next_ned=None, route_items=None
     ) -> _Output:
         nxt = None if route_next_ned is None else np.array(route_next_ned, float).reshape(-1, 3)
         self.routes.append((tuple(route_target_ned), nxt))
@@ -119,6 +119,8 @@ def test_waypoint_inside_an_obstacle_safety_volume_is_never_targeted() -> None:
     loop, _, track = _fly(planner, points)
     assert loop.ap.progress.reached_seqs == [0, 1, 3, 4] and loop.ap.navigator.bypassed_seqs == [2]
     assert any("Skipped to item 3" in t for t in loop.texts), loop.texts
-    assert "Bypassed item 2: it lies inside an obstacle's safety volume" in loop.texts
+    reason = "Bypassed item 2: it lies inside obstacle 7's safety volume (0.5 m inside it, CA_RSAFE_M"
+    assert any(t.startswith(reason) for t in loop.texts), loop.texts
+    assert loop.ap.summary(0.0)["bypass_reasons"]["2"].startswith(reason.removeprefix("Bypassed item 2: "))
     assert all(math.dist(r[0][:2], (8.0, 14.0)) > 1e-3 for r in planner.routes)  # never handed as target
     assert float(np.min(np.hypot(track[:, 0] - 8.0, track[:, 1] - 14.0))) > 4.0

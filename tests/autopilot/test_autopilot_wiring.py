@@ -45,7 +45,7 @@ def test_gain_change_in_flight_shows_in_the_diagnostics_next_step() -> None:
     loop = SimLoop("x500")
     loop.take_off(10.0, settle_s=2.0)
     vehicle, diag = loop.vehicle, loop.ap.control.controller.diagnostics  # type: ignore[union-attr]
-    shipped = shipped_gains()  # the defaults: a variable gain, k_p(|e|) between its k1 and k2
+    shipped = shipped_gains("x500")  # the defaults: a variable gain, k_p(|e|) between its k1 and k2
     for col, ch in ((Z, shipped.z), (ROLL, shipped.roll)):
         assert min(ch.k1[0], ch.k2[0]) - 1e-9 <= diag.kp[0, col] <= max(ch.k1[0], ch.k2[0]) + 1e-9
     for name, value in (("NV_Z_P_K1", 7.0), ("NV_Z_P_K2", 7.0), ("NV_ROLL_P_K1", 11.0), ("NV_ROLL_P_K2", 11.0)):

@@ -32,8 +32,8 @@ GOOD = "name: t\nbase: hop.yaml\ncases: 3\nseed: 1\n"
         (GOOD + "vary:\n  world.payload_kg: {gauss: [0, 1]}\n", 6, ["unknown distribution 'gauss'"]),
         (GOOD + "vary:\n  vehicle: {choice: [x500, x900]}\n", 6, ["unknown name 'x900'"]),
         (GOOD + "vary:\n  params: {choice: [default, no_such_gains.yaml]}\n", 6, ["no such file 'no_such_gains.yaml'"]),
-        (GOOD + "vary:\n  failures: {choice: [[{at_s: 4, inject: gps_of}]]}\n", 6, ["unknown 'gps_of'"]),
-        (GOOD + "vary:\n  failures: {choice: [[{at_s: 4, inject: motor_off}]]}\n", 6, ["motor: 1-4"]),
+        (GOOD + "vary:\n  failures: {choice: [[{at_s: 4, inject: gps_of}]]}\n", 6, ["unknown failure 'gps_of'"]),
+        (GOOD + "vary:\n  failures: {choice: [[{at_s: 4, inject: gps_off, motor: 2}]]}\n", 6, ["only motor_off"]),
         (GOOD + "vary:\n  wind: {uniform: [0, 1]}\n", 6, ["unknown input", "dotted path"]),
         (GOOD + "pass_if: {landed: yes-ish}\n", 5, ["expected true or false"]),
         (GOOD + "pass_if:\n  colisions: 0\n", 6, ["unknown column", "did you mean 'collisions'?"]),
@@ -78,10 +78,10 @@ def test_materialised_files_carry_the_drawn_values(tmp_path: Path) -> None:
     world = yaml.safe_load(files.world_yaml)
     assert world["world"]["wind"]["north_m_s"] == case.overrides[0][1]  # bit for bit through YAML
     assert world["vehicle"] == "x500"
+    assert world["world"]["failures"] == [{"at_s": 12, "inject": "motor_off", "motor": 2}]  # the world file's key
     script = yaml.safe_load(files.script_yaml)
-    assert script[0] == {"at_s": 3.0, "cmd": "arm"} and script[1]["cmd"] == "mission_start"
-    assert {"at_s": 12.0, "cmd": "inject_failure", "unit": "motor", "type": "off", "instance": 2} in script
-    assert yaml.safe_load(files.params_yaml) == {"SYS_FAILURE_EN": 1.0}
+    assert script == [{"at_s": 3.0, "cmd": "arm"}, {"at_s": 3.5, "cmd": "mission_start"}]
+    assert yaml.safe_load(files.params_yaml) == {}  # the autopilot enables injection for a world with failures
 
 
 def test_pass_rules() -> None:

@@ -2,17 +2,16 @@
 
 A case depends only on (campaign file, k): never on the order cases run in or the machine. Draw order: the
 simulator's seed first, then the base file (when ``base`` is a list), then every ``vary`` entry in the file's
-order. :func:`materialise` writes everything a flight reads into the case's folder (``world.yaml`` with the
-overrides (and ``failures:`` once world files take that key, see :func:`world_files_take_failures`),
-``params.yaml`` fully resolved, ``script.yaml`` with the scripted arm, mission
-start and injected failures), so a case can be re-flown from its files or from its results row alone.
+order. :func:`materialise` writes everything a flight reads into the case's folder: ``world.yaml`` with the
+overrides and the case's ``failures:`` in its ``world:`` (the autopilot injects them at their sim times),
+``params.yaml`` fully resolved, ``script.yaml`` with the scripted arm and mission start. A case can be re-flown
+from its files or from its results row alone.
 """
 
 from __future__ import annotations
 
 import functools
 import json
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -20,7 +19,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from tools.campaign.spec import FAILURE_TYPES, FAILURE_UNITS, CampaignSpec, Distribution, resolve_path
+from tools.campaign.spec import CampaignSpec, Distribution, resolve_path
 
 SEED_LIMIT = 2**31 - 1
 MISSION_START_DELAY_S = 0.5
@@ -163,26 +162,13 @@ def check_params(value: Any, campaign_path: Path) -> None:
 
 
 def check_failures(value: Any) -> None:
-    """A failures list: ``[{at_s: S, inject: UNIT_TYPE, motor: N}]`` (motor 1-4 for motor failures)."""
-    if not isinstance(value, list):
-        raise CaseInputError(f"failures: expected a list of {{at_s, inject}}, got {value!r}")
-    for i, entry in enumerate(value):
-        if (
-            not isinstance(entry, dict)
-            or not {"at_s", "inject"} <= set(entry)
-            or set(entry) - {"at_s", "inject", "motor"}
-        ):
-            raise CaseInputError(f"failures[{i}]: expected {{at_s: S, inject: gps_off, motor: N}}, got {entry!r}")
-        at_s = entry["at_s"]
-        if isinstance(at_s, bool) or not isinstance(at_s, int | float) or not math.isfinite(at_s) or at_s < 0:
-            raise CaseInputError(f"failures[{i}].at_s: expected sim seconds >= 0, got {at_s!r}")
-        unit, _, kind = str(entry["inject"]).rpartition("_")
-        if unit not in FAILURE_UNITS or kind not in FAILURE_TYPES:
-            known = ", ".join(f"{u}_{t}" for u in FAILURE_UNITS for t in FAILURE_TYPES)
-            raise CaseInputError(f"failures[{i}].inject: unknown {entry['inject']!r}; known: {known}")
-        motor = entry.get("motor", 0)
-        if (unit == "motor") != ("motor" in entry) or not isinstance(motor, int) or not 0 <= motor <= 4:
-            raise CaseInputError(f"failures[{i}]: motor failures need 'motor: 1-4' (0 = all), others none")
+    """A failures list as the world file's ``failures:`` takes it (``[{at_s: S, inject: gps_off, motor: N}]``)."""
+    from mavlink_bridge.contract.failure_schedule import FailureScheduleError, parse_failures
+
+    try:
+        parse_failures(value, ("failures",))
+    except FailureScheduleError as exc:
+        raise CaseInputError(str(exc)) from None
 
 
 def resolved_params(params_file: str | None, vehicle: str) -> dict[str, float]:
@@ -214,24 +200,20 @@ def materialise(spec: CampaignSpec, case: Case) -> CaseFiles:
     for dotted, value in case.overrides:
         set_path(doc, dotted, value, base)
     doc["vehicle"] = case.vehicle
-    failures = case.failures
-    in_world = world_files_take_failures()
-    scripted = [] if in_world else failures
-    if in_world:
-        doc["failures"] = failures
+    world = doc.get("world")
+    if not isinstance(world, dict):
+        world = doc["world"] = {}
+    world["failures"] = case.failures  # the world file's schedule: the autopilot injects them (docs/failures.md)
     params_file = None if case.params == "default" else str(resolve_path(case.params, Path(spec.path)) or case.params)
     params = resolved_params(params_file, case.vehicle)
-    if failures:
-        params["SYS_FAILURE_EN"] = 1.0
     steps = [
         {"at_s": spec.arm_at_s, "cmd": "arm"},
         {"at_s": spec.arm_at_s + MISSION_START_DELAY_S, "cmd": "mission_start"},
-        *(_failure_step(f) for f in scripted),
     ]
     return CaseFiles(
         world_yaml=yaml.safe_dump(doc, sort_keys=False),
         params_yaml=yaml.safe_dump(dict(sorted(params.items())), sort_keys=False) if params else "{}\n",
-        script_yaml=yaml.safe_dump(sorted(steps, key=lambda s: s["at_s"]), sort_keys=False),
+        script_yaml=yaml.safe_dump(steps, sort_keys=False),
     )
 
 
@@ -244,37 +226,6 @@ def _encounter_files(spec: CampaignSpec, case: Case) -> CaseFiles:
     params = resolved_params(params_file, case.vehicle)
     params_yaml = yaml.safe_dump(dict(sorted(params.items())), sort_keys=False) if params else "{}\n"
     return CaseFiles(world_yaml=world, params_yaml=params_yaml, script_yaml="[]\n")
-
-
-@functools.cache
-def world_files_take_failures() -> bool:
-    """Whether this build's world/mission loaders accept a top-level ``failures:`` list (the world-file key of
-    issue 21). When they do, a case's failures go into its world file; until then they are scheduled the
-    documented way, as MAV_CMD_INJECT_FAILURE steps of the autopilot's ``--script`` at the same sim times."""
-    import tempfile
-
-    from autopilot.mission.files import MissionFileError, load_mission_file
-    from sim.world import WorldConfigError, load_world
-
-    doc = {"name": "probe", "mission": [{"takeoff": {"alt_m": 5}}], "failures": []}
-    with tempfile.NamedTemporaryFile("w", suffix=".yaml") as tmp:
-        tmp.write(yaml.safe_dump(doc))
-        tmp.flush()
-        try:
-            load_world(tmp.name)
-            load_mission_file(tmp.name)
-        except (WorldConfigError, MissionFileError):
-            return False
-    return True
-
-
-def _failure_step(failure: dict[str, Any]) -> dict[str, Any]:
-    """A ``failures:`` entry as the autopilot script's MAV_CMD_INJECT_FAILURE step at that sim time."""
-    unit, _, kind = str(failure["inject"]).rpartition("_")
-    step: dict[str, Any] = {"at_s": float(failure["at_s"]), "cmd": "inject_failure", "unit": unit, "type": kind}
-    if "motor" in failure:
-        step["instance"] = int(failure["motor"])
-    return step
 
 
 def write_case_files(files: CaseFiles, case_dir: Path) -> dict[str, Path]:

@@ -49,6 +49,7 @@ For several batches in a row (an optimiser's iterations) open the cluster once::
 from __future__ import annotations
 
 import contextlib
+import itertools
 import logging
 import os
 import uuid
@@ -170,6 +171,18 @@ class TaskEngine:
         if cluster is not None:
             with contextlib.suppress(Exception):
                 cluster.close(timeout=20)
+
+    def mapper(
+        self, fn: Callable[[Any], Any], *, key: str, progress_label: str | None = None
+    ) -> Callable[[Sequence[Any]], list[Any]]:
+        """``fn`` mapped in input order on this engine, one call per batch (keys ``{key}-0``, ``{key}-1``, ...):
+        the shape the tuners' rollout maps take, the same numbers as mapping ``fn`` in this process."""
+        calls = itertools.count()
+
+        def run(payloads: Sequence[Any]) -> list[Any]:
+            return self.run(fn, list(payloads), key=f"{key}-{next(calls)}", progress_label=progress_label)
+
+        return run
 
     @property
     def n_workers(self) -> int:

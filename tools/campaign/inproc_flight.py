@@ -7,7 +7,8 @@ obstacle sensor's detections at its rate, decoded by the autopilot's ``Decoder``
 ``Autopilot.step``, its answer written (``AnswerWriter``) and read back by the sim (``read_answer``: motor
 commands as float32, as on the wire), then the physics step. The mission and fence are handed to the autopilot
 before the first step (the sitl mode uploads them before the simulator starts), the script arms and starts the
-mission at fixed sim times, and the run ends at ``sim_time_s`` like ``sim --duration-s``. The truth hash is the
+mission at fixed sim times (the world's ``failures:`` merged in, as ``autopilot --world-failures`` does), and
+the run ends at ``sim_time_s`` like ``sim --duration-s``. The truth hash is the
 simulator's (sha256 of the state after every control step), so a case flies to the same hash in both modes.
 The wall-clock deadline is checked every simulated second (a step cannot be interrupted in-process).
 """
@@ -24,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from autopilot.commander.script import CommandScript, load_script
+from autopilot.commander.script import CommandScript, failure_steps, load_script, merged
 from autopilot.mission.files import load_mission_file
 from autopilot.runner import Autopilot, AutopilotConfig
 from autopilot.vehicle_adapter import VehicleAdapter
@@ -119,7 +120,11 @@ def fly(case_dir: Path, deadline_s: float | None = None, rerun: str | None = Non
     config = AutopilotConfig(
         vehicle=case["vehicle"], estimator=case["estimator"], params_file=str(case_dir / "params.yaml")
     )
-    ap = Autopilot(config, script=CommandScript(load_script(case_dir / "script.yaml")))
+    ap = Autopilot(
+        config, script=CommandScript(merged(load_script(case_dir / "script.yaml"), failure_steps(world.failures)))
+    )
+    if world.failures:  # as ``autopilot --world-failures``: a world that schedules failures enables the injection
+        ap.params.set("SYS_FAILURE_EN", 1.0)
     if rerun:
         from autopilot.telemetry import make_listener
 

@@ -111,7 +111,8 @@ def fly(case_dir: Path, rerun: str | None = None) -> dict[str, Any]:
         "autopilot", "--sim", f"udpout:127.0.0.1:{sim_port}", "--api", "off",
         "--gcs", f"udpin:127.0.0.1:{gcs_port}", "--gcs-target", f"udpout:127.0.0.1:{gcs_target}",
         "--vehicle", case["vehicle"], "--estimator", case["estimator"], "--params", str(case_dir / "params.yaml"),
-        "--script", str(case_dir / "script.yaml"), "--log-dir", str(case_dir), "--connect-timeout-s", str(STARTUP_S),
+        "--script", str(case_dir / "script.yaml"), "--world-failures", str(world), "--log-dir", str(case_dir),
+        "--connect-timeout-s", str(STARTUP_S),
         "--sim-timeout-s", "30",
     ]  # fmt: skip
     if rerun:

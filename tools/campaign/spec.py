@@ -34,8 +34,6 @@ from mavlink_bridge.contract.source_lines import YamlSource, YamlSyntaxError, di
 MODES = ("sitl", "inproc")
 RUN_KEYS = ("vehicle", "params", "failures")
 DISTRIBUTIONS = ("uniform", "choice", "randint")
-FAILURE_UNITS = ("gps", "baro", "mag", "gyro", "accel", "motor")
-FAILURE_TYPES = ("off", "stuck", "ok")
 #: Row columns ``pass_if`` may test: booleans compare equal, numbers are an upper bound unless ``{min: x}``.
 PASS_KEYS = {
     "landed": bool,

@@ -21,7 +21,7 @@ from autopilot.control.gains import CascadeGains
 from tools.experiments.gain_vector import Structure
 from tools.experiments.paper_pipeline import equal_budget_iterations
 from tools.experiments.tune_config import StepExperiment, TuneConfig, load_tune_config
-from tools.experiments.tuner import TuneOutcome, tune
+from tools.experiments.tuner import RolloutMap, TuneOutcome, in_process, tune
 
 CONFIG_DIR = Path(__file__).resolve().parent
 NOISY_LEVELS = ("attitude", "position")
@@ -53,10 +53,12 @@ def tune_noisy_pair(
     iterations: int | None = None,
     log: Callable[[str], None] = print,
     step_scale: float = 1.0,
+    rollouts: RolloutMap = in_process,
 ) -> NoisyPair:
     """Tune PID then NLVG (warm-started at that PID) per level, attitude first; see the module docstring.
 
-    ``step_scale`` < 1 (smoke tests): step durations scaled, route experiments left out."""
+    ``step_scale`` < 1 (smoke tests): step durations scaled, route experiments left out. ``rollouts`` flies the
+    ES cost evaluations (in this process, or on the campaign engine: the same numbers)."""
     base = {s: CascadeGains.fixed_pid() for s in ("pid", "nlvg")}
     outcomes: dict[tuple[str, str], TuneOutcome] = {}
     j_warm: dict[str, float] = {}
@@ -71,8 +73,8 @@ def tune_noisy_pair(
         pid_cfg = pid_twin(cfg)
         dims = {s: c.parametrisation().space().dim for s, c in (("nlvg", cfg), ("pid", pid_cfg))}
         pid_iters = equal_budget_iterations(dims["nlvg"], dims["pid"], cfg.es.restarts, cfg.es.iterations)
-        pid = tune(replace(pid_cfg, base_gains=base["pid"]).with_budget(iterations=pid_iters))
-        nlvg = tune(replace(cfg, base_gains=base["nlvg"], warm_start=pid.gains))
+        pid = tune(replace(pid_cfg, base_gains=base["pid"]).with_budget(iterations=pid_iters), rollouts=rollouts)
+        nlvg = tune(replace(cfg, base_gains=base["nlvg"], warm_start=pid.gains), rollouts=rollouts)
         j_warm[level] = float(nlvg.result.j_history[0, 0])
         for s, out in (("pid", pid), ("nlvg", nlvg)):
             outcomes[(level, s)] = out

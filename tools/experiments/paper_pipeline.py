@@ -36,7 +36,7 @@ from tools.experiments.rollout import (
     run_tracking,
 )
 from tools.experiments.tune_config import TuneConfig, load_tune_config
-from tools.experiments.tuner import TuneOutcome, tune
+from tools.experiments.tuner import RolloutMap, TuneOutcome, in_process, tune
 
 CONFIG_DIR = Path(__file__).resolve().parent
 LEVELS = ("attitude", "position")
@@ -110,8 +110,11 @@ def equal_budget_iterations(nlvg_dim: int, pid_dim: int, restarts: int, nlvg_ite
     return math.ceil(nlvg_rollouts / (restarts * (2 * pid_dim + 1))) - 1
 
 
-def tune_both(settings: PaperSettings, log: Callable[[str], None] = print) -> TunedPair:
-    """Tune attitude then position, for PID and NLVG alike (same method, budget >= for the PID)."""
+def tune_both(
+    settings: PaperSettings, log: Callable[[str], None] = print, rollouts: RolloutMap = in_process
+) -> TunedPair:
+    """Tune attitude then position, for PID and NLVG alike (same method, budget >= for the PID); ``rollouts``
+    flies the ES cost evaluations (in this process, or on the campaign engine: the same numbers)."""
     gains: dict[str, CascadeGains] = {}
     outcomes: dict[tuple[str, str], TuneOutcome] = {}
     base = {s: CascadeGains.fixed_pid() for s in STRUCTURES}
@@ -133,7 +136,7 @@ def tune_both(settings: PaperSettings, log: Callable[[str], None] = print) -> Tu
                 experiments=exps,
                 es=replace(cfg.es, iterations=iters[s], restarts=settings.restarts, seed=settings.seed),
             )
-            out = tune(cfg)
+            out = tune(cfg, rollouts=rollouts)
             outcomes[(level, s)] = out
             base[s] = out.gains
             log(

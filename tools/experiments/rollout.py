@@ -145,7 +145,7 @@ def _controller(vehicle: str, gains: CascadeGains, m: int, dt_s: float, limits: 
     return CascadeController(_airframe(vehicle), gains, n=m, dt_s=dt_s, limits=limits)
 
 
-class _Chatter:
+class MotorChatter:
     """Running RMS of the motor-command rate (1/s) per vehicle, the yaw mode (rotor_yaw_dir) projected out."""
 
     def __init__(self, vehicle: str, n: int, dt_s: float) -> None:
@@ -203,7 +203,7 @@ def run_step(
     ctrl = _controller(vehicle, gains, n, sim.control_dt_s, limits)
     n_steps = round(duration_s * sim.control_hz)
     stream = None if noise is None else NoiseStream(noise, seeds, m, n_steps, sim.control_dt_s)
-    chatter = _Chatter(vehicle, n, sim.control_dt_s)
+    chatter = MotorChatter(vehicle, n, sim.control_dt_s)
     t_s = np.arange(n_steps + 1) / sim.control_hz  # sample 0 is the step instant (response 0)
     response = np.zeros((n, n_steps + 1))
     diverged = np.zeros(n, dtype=bool)
@@ -279,7 +279,7 @@ def run_tracking(
     ctrl = _controller(vehicle, gains, n, sim.control_dt_s, limits)
     n_steps = round(duration_s * sim.control_hz)
     stream = None if noise is None else NoiseStream(noise, seeds, m, n_steps, sim.control_dt_s)
-    chatter = _Chatter(vehicle, n, sim.control_dt_s)
+    chatter = MotorChatter(vehicle, n, sim.control_dt_s)
     n_rec = n_steps // record_every
     t_s = np.empty(n_rec)
     pos_err = np.empty((n, n_rec, 3))

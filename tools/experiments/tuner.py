@@ -10,8 +10,11 @@ averaged over the training seeds, on the TRUE error::
 
 (λ = ``effort_weight``, chatter = RMS motor-command rate in 1/s, yaw mode excluded; μ = ``overshoot_weight``),
 the steps flown in the config's ``wind`` if it has one.
-With λ = μ = 0 and no noise this is the paper's J. A ``warm_start`` gain set (a tuned PID, k1 = k2) adds one
-restart that starts there, so the NLVG never ends above that PID on the same cost ("best kept").
+With λ = μ = 0 and no noise this is the paper's J. Each cost evaluation is one rollout task per experiment
+(:func:`fly_experiment`), mapped in order in this process or on the campaign engine (:func:`engine_rollouts`,
+``tools.paper_table --workers/--scheduler``): the tasks are the same either way, so are the numbers.
+A ``warm_start`` gain set (a tuned PID, k1 = k2) adds one restart that starts there, so the NLVG never ends
+above that PID on the same cost ("best kept").
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from __future__ import annotations
 import csv
 import json
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -29,11 +32,13 @@ import numpy as np
 from autopilot.control.gains import CascadeGains
 from autopilot.tuning import CentralEsConfig, EsResult, central_es, perturbation_es
 from autopilot.tuning.es_result import IterationCallback
-from sim.world import empty_world
+from sim.world import World, empty_world
+from tools.campaign.engine import TaskEngine
+from tools.experiments.feedback_noise import FeedbackNoise
 from tools.experiments.gain_vector import GainParametrisation
 from tools.experiments.references import make_reference
 from tools.experiments.rollout import mean_square_cost, run_step, run_tracking
-from tools.experiments.tune_config import TrackExperiment, TuneConfig
+from tools.experiments.tune_config import StepExperiment, TrackExperiment, TuneConfig
 
 
 @dataclass(frozen=True, slots=True)
@@ -62,66 +67,99 @@ class CostTerms:
     total: np.ndarray
 
 
-def cost_terms(config: TuneConfig, gains: CascadeGains, m: int, seeds: Sequence[int]) -> CostTerms:
-    """Fly ``config``'s experiments for ``m`` gain sets on every seed of ``seeds``; the seed-averaged terms."""
-    ns = len(seeds)
+@dataclass(frozen=True, slots=True)
+class ExperimentRollout:
+    """One experiment of a tuning cost flown by a batch of ``m`` gain sets on every seed: a campaign-engine task."""
+
+    vehicle: str
+    gains: CascadeGains
+    m: int
+    experiment: StepExperiment | TrackExperiment
+    noise: FeedbackNoise | None
+    seeds: tuple[int, ...]
+    world: World | None
+
+
+@dataclass(frozen=True, slots=True)
+class ExperimentTerms:
+    """An experiment's raw cost parts per seed and gain set (n_seeds, m): mean e² (inf when diverged), chatter²
+    ((1/s)²) and, for a step, overshoot² (None for a route)."""
+
+    mse: np.ndarray
+    chatter_sq: np.ndarray
+    overshoot_sq: np.ndarray | None
+
+
+#: flies experiment rollouts and returns their terms in input order (:func:`in_process` or :func:`engine_rollouts`)
+RolloutMap = Callable[[Sequence[ExperimentRollout]], list[ExperimentTerms]]
+
+
+def fly_experiment(task: ExperimentRollout) -> ExperimentTerms:
+    """Fly one :class:`ExperimentRollout` (top level and picklable: the engine's task function)."""
+    exp, ns, m = task.experiment, len(task.seeds), task.m
+    if isinstance(exp, TrackExperiment):
+        tt = run_tracking(task.vehicle, task.gains, make_reference(exp.route, exp.duration_s), exp.duration_s, m=m,
+                          world=task.world, noise=task.noise, seeds=task.seeds)  # fmt: skip
+        with np.errstate(invalid="ignore", over="ignore"):
+            mse = np.mean(np.sum(tt.pos_err_ned**2, axis=2), axis=1)
+        mse = np.where(tt.diverged | ~np.isfinite(mse), np.inf, mse).reshape(ns, m)
+        return ExperimentTerms(mse, (tt.chatter**2).reshape(ns, m), None)
+    tr = run_step(task.vehicle, task.gains, exp.channel, exp.amplitude, exp.duration_s, m=m, noise=task.noise,
+                  seeds=task.seeds, world=task.world)  # fmt: skip
+    mse = mean_square_cost(tr.error, tr.t_s, tr.diverged, exp.t0_s).reshape(ns, m)
+    return ExperimentTerms(mse, (tr.chatter**2).reshape(ns, m), (tr.overshoot**2).reshape(ns, m))
+
+
+def in_process(tasks: Sequence[ExperimentRollout]) -> list[ExperimentTerms]:
+    """The :data:`RolloutMap` of small runs and tests: every rollout in this process, one after the other."""
+    return [fly_experiment(t) for t in tasks]
+
+
+def engine_rollouts(engine: TaskEngine) -> RolloutMap:
+    """The :data:`RolloutMap` on an open campaign-engine session: one ordered map per cost evaluation (an ES
+    iteration's experiments side by side on the workers); the same numbers as :func:`in_process`."""
+    return engine.mapper(fly_experiment, key="es-rollout")
+
+
+def cost_terms(
+    config: TuneConfig, gains: CascadeGains, m: int, seeds: Sequence[int], rollouts: RolloutMap = in_process
+) -> CostTerms:
+    """Fly ``config``'s experiments for ``m`` gain sets on every seed of ``seeds`` (one rollout task per
+    experiment, mapped by ``rollouts``); the seed-averaged terms, summed in the experiments' order."""
     tracking = np.zeros(m)
     chatter_sq = np.zeros(m)
     overshoot_sq = np.zeros(m)
     world = None if config.wind is None else replace(empty_world(), wind=config.wind)
-    for exp in config.experiments:
-        if isinstance(exp, TrackExperiment):
-            tt = run_tracking(
-                config.vehicle,
-                gains,
-                make_reference(exp.route, exp.duration_s),
-                exp.duration_s,
-                m=m,
-                world=world,
-                noise=config.noise,
-                seeds=seeds,
-            )
-            with np.errstate(invalid="ignore", over="ignore"):
-                mse = np.mean(np.sum(tt.pos_err_ned**2, axis=2), axis=1)
-            mse = np.where(tt.diverged | ~np.isfinite(mse), np.inf, mse).reshape(ns, m)
-            tracking += exp.weight * mse.mean(axis=0)
-            chatter_sq += (tt.chatter**2).reshape(ns, m).mean(axis=0) / len(config.experiments)
-            continue
-        tr = run_step(
-            config.vehicle,
-            gains,
-            exp.channel,
-            exp.amplitude,
-            exp.duration_s,
-            m=m,
-            noise=config.noise,
-            seeds=seeds,
-            world=world,
-        )
-        mse = mean_square_cost(tr.error, tr.t_s, tr.diverged, exp.t0_s).reshape(ns, m)
-        tracking += exp.weight * mse.mean(axis=0)
-        chatter_sq += (tr.chatter**2).reshape(ns, m).mean(axis=0) / len(config.experiments)
-        overshoot_sq += (tr.overshoot**2).reshape(ns, m).mean(axis=0)
+    tasks = [ExperimentRollout(config.vehicle, gains, m, exp, config.noise, tuple(seeds), world)
+             for exp in config.experiments]  # fmt: skip
+    for exp, terms in zip(config.experiments, rollouts(tasks), strict=True):
+        tracking += exp.weight * terms.mse.mean(axis=0)
+        chatter_sq += terms.chatter_sq.mean(axis=0) / len(config.experiments)
+        if terms.overshoot_sq is not None:
+            overshoot_sq += terms.overshoot_sq.mean(axis=0)
     with np.errstate(invalid="ignore"):
         total = tracking + config.effort_weight * chatter_sq + config.overshoot_weight * overshoot_sq
     return CostTerms(tracking, chatter_sq, overshoot_sq, np.where(np.isfinite(total), total, np.inf))
 
 
-def step_cost(config: TuneConfig, param: GainParametrisation):
+def step_cost(config: TuneConfig, param: GainParametrisation, rollouts: RolloutMap = in_process):
     """The batched cost J(K (m, d)) -> (m,) of ``config``'s step experiments on its training seeds."""
 
     def cost(k: np.ndarray) -> np.ndarray:
-        return cost_terms(config, param.gains(k), k.shape[0], config.seeds).total
+        return cost_terms(config, param.gains(k), k.shape[0], config.seeds, rollouts).total
 
     return cost
 
 
-def tune(config: TuneConfig, on_iteration: IterationCallback | None = None) -> TuneOutcome:
+def tune(
+    config: TuneConfig, on_iteration: IterationCallback | None = None, rollouts: RolloutMap = in_process
+) -> TuneOutcome:
     """Run ES as configured: restart 0 starts at ``warm_start`` when given, the next at the base gains when
-    ``start_from_base`` (as many as there are restarts), the others at random."""
+    ``start_from_base`` (as many as there are restarts), the others at random. ``rollouts`` flies each cost
+    evaluation's experiments (in this process, or on the campaign engine: the same numbers)."""
     param = config.parametrisation()
     space = param.space()
-    cost = step_cost(config, param)
+    cost = step_cost(config, param, rollouts)
     starts = []
     if config.warm_start is not None:
         starts.append(param.vector(config.warm_start))
@@ -137,9 +175,11 @@ def tune(config: TuneConfig, on_iteration: IterationCallback | None = None) -> T
     return TuneOutcome(config, result, param.single(result.k_best), wall)
 
 
-def evaluate(config: TuneConfig, gains: Sequence[CascadeGains]) -> list[dict[str, float]]:
+def evaluate(
+    config: TuneConfig, gains: Sequence[CascadeGains], rollouts: RolloutMap = in_process
+) -> list[dict[str, float]]:
     """``config``'s cost terms of each gain set on the held-out ``eval_seeds`` (one batch)."""
-    terms = cost_terms(config, CascadeGains.stacked(list(gains)), len(gains), config.eval_seeds)
+    terms = cost_terms(config, CascadeGains.stacked(list(gains)), len(gains), config.eval_seeds, rollouts)
     return [
         {
             "J": float(terms.total[i]),
