@@ -125,7 +125,7 @@ def _print(rows: list[dict[str, object]], summary: dict[str, object], problems: 
     print(f"\nsummary:   {out_dir / 'summary.json'}")
     if summary.get("recording"):
         files = " ".join(str(p) for p in summary["recording"])  # type: ignore[union-attr]
-        print(f"recording: open every part together with: .venv/bin/rerun {files}")
+        print(f"recording: one per autopilot; open them with: .venv/bin/rerun {files}")
 
 
 def main(argv: list[str] | None = None) -> int:
