@@ -20,7 +20,7 @@ import itertools
 import json
 import math
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from autopilot.mission.files import MissionFileError, load_fleet_missions
@@ -62,7 +62,7 @@ class _Vehicle:
     status: VehicleStatus | None = None
     progress: tuple[int, int, bool] = (-1, -1, False)  # (items reached, landed state, armed) last seen changing
     progress_at_sim_s: float | None = None
-    samples: list[tuple[float, float, float]] = field(default_factory=list)
+    geo: tuple[float, float, float] | None = None  # latest reported lat_deg, lon_deg, alt AMSL (m)
 
 
 def fleet_plans(path: str) -> list[MissionPlan]:
@@ -140,8 +140,7 @@ def _follow(vehicles: list[_Vehicle], link: FleetLink, args: argparse.Namespace,
                 else:
                     _judge(v, link, args.stall_s)
                 if status.lat_deg is not None and status.home is not None and status.alt_rel_m is not None:
-                    v.samples.append((status.lat_deg, status.lon_deg or 0.0, status.home.alt_amsl_m + status.alt_rel_m))
-                    del v.samples[:-1]  # the latest only: separation is sampled pairwise below
+                    v.geo = (status.lat_deg, status.lon_deg or 0.0, status.home.alt_amsl_m + status.alt_rel_m)
                 bars.update(i, v)
             min_sep_m = min(min_sep_m, _separation_now_m(vehicles))
             if time.monotonic() >= deadline:
@@ -216,12 +215,12 @@ def _summary(v: _Vehicle, t0: float) -> FlySummary:
 def _separation_now_m(vehicles: list[_Vehicle]) -> float:
     """The smallest distance between two vehicles' centres (their own latest position reports) while one of the
     two is armed; inf when fewer than two are known."""
-    live = [v for v in vehicles if v.samples and v.status is not None]
+    live = [v for v in vehicles if v.geo is not None and v.status is not None]
     best = math.inf
     if len(live) < 2:
         return best
     frame = LocalNedFrame(live[0].plan.home)
-    ned = [frame.ned_from_geodetic(*v.samples[-1]) for v in live]
+    ned = [frame.ned_from_geodetic(*v.geo) for v in live if v.geo is not None]
     for (a, pa), (b, pb) in itertools.combinations(zip(live, ned, strict=True), 2):
         if a.status is not None and b.status is not None and (a.status.armed or b.status.armed):
             best = min(best, math.dist(pa, pb))
