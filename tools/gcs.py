@@ -467,9 +467,13 @@ def main(argv: list[str] | None = None) -> int:
         key = signing_key_from_text(args.signing_key) if args.signing_key else None
         url = connect_url(args.connect, args.instance)
         if args.command == "fly" and (fleet := _fleet_plans(args)):
+            from tools import gcs as importable  # run as a script, this module is __main__, not tools.gcs
             from tools.gcs_fleet import cmd_fly_fleet  # a fleet world: every vehicle over the one GCS port
 
-            print(cmd_fly_fleet(url, fleet, args))
+            try:
+                print(cmd_fly_fleet(url, fleet, args))
+            except importable.GcsScriptError as exc:  # the fleet module raises tools.gcs's own class
+                raise GcsScriptError(str(exc)) from exc
             return 0
         with GcsClient(url, target_system=args.system, signing_key=key, timeout_s=args.timeout_step_s) as client:
             try:

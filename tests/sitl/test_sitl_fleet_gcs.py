@@ -124,7 +124,8 @@ def test_one_gcs_port_flies_every_vehicle_and_one_killed_mid_flight_fails_alone(
         _stop(up)
     output = "".join(lines)
     assert gcs.returncode == 1, output
-    assert "1 of 3 vehicles failed: charlie: no telemetry from the vehicle" in output, output
+    assert "gcs: error: 1 of 3 vehicles failed: charlie: no telemetry from the vehicle" in output, output
+    assert "Traceback" not in output, output
     summary = json.loads((tmp_path / "gcs.json").read_text())
     rows = {row["name"]: row for row in summary["vehicles"]}
     assert [rows[n]["sys_id"] for n in ("alpha", "bravo", "charlie")] == [1, 2, 3]
