@@ -92,6 +92,13 @@ def add_autopilot_options(p: argparse.ArgumentParser) -> None:
         metavar="MISSION.yaml",
         help="draw this mission's route, fence and true obstacles in the recording (never given to the planner)",
     )
+    p.add_argument(
+        "--rerun-fleet",
+        default=None,
+        metavar="NAME:NORTH_M:EAST_M:RECORDING_ID",
+        help="record as vehicle NAME of a fleet (quadsitl up sets it): entities under its name, positions about "
+        "the world's home (this vehicle's home at NORTH_M, EAST_M), the fleet's shared recording id",
+    )
     p.add_argument("--signing-key", default=None, metavar="TEXT", help="MAVLink 2 signing key of the GCS and API links")
     p.add_argument(
         "--require-signing", action="store_true", help="reject unsigned or wrongly signed messages on GCS and API links"
@@ -163,16 +170,44 @@ def link_urls(args: argparse.Namespace) -> dict[str, str]:
     }
 
 
+def parse_rerun_fleet(text: str) -> tuple[str, tuple[float, float, float], str]:
+    """``NAME:NORTH_M:EAST_M:RECORDING_ID`` -> (name, home offset NED m, recording id); ValueError says why."""
+    parts = text.split(":", 3)
+    try:
+        if len(parts) != 4 or not parts[0] or "/" in parts[0] or not parts[3]:
+            raise ValueError
+        offset = (float(parts[1]), float(parts[2]), 0.0)
+    except ValueError:
+        raise ValueError(f"--rerun-fleet {text!r}: expected NAME:NORTH_M:EAST_M:RECORDING_ID") from None
+    return parts[0], offset, parts[3]
+
+
 def _make_listener(
-    spec: str, vehicle: str, world: str | None, safety_radius_m: float, rtl_alt_m: float | None = None
+    spec: str,
+    vehicle: str,
+    world: str | None,
+    safety_radius_m: float,
+    rtl_alt_m: float | None = None,
+    fleet: str | None = None,
 ) -> object | None:
     """The Rerun telemetry listener for ``--rerun`` (None for ``off``); ``world`` is drawn only."""
     if spec == "off":
         return None
     from autopilot.telemetry import make_listener  # imports rerun: only when a recording is asked for
 
+    if fleet is None:
+        return make_listener(
+            spec, vehicle=vehicle, mission_file=world, safety_radius_m=safety_radius_m, rtl_alt_m=rtl_alt_m
+        )
+    name, offset, recording_id = parse_rerun_fleet(fleet)
     return make_listener(
-        spec, vehicle=vehicle, mission_file=world, safety_radius_m=safety_radius_m, rtl_alt_m=rtl_alt_m
+        spec,
+        vehicle=vehicle,
+        safety_radius_m=safety_radius_m,
+        rtl_alt_m=rtl_alt_m,
+        recording_id=recording_id,
+        fleet_name=name,
+        home_offset_ned_m=offset,
     )
 
 
@@ -218,6 +253,7 @@ def main(argv: list[str] | None = None) -> int:
             args.rerun_world,
             autopilot.params.get("CA_RSAFE_M"),
             autopilot.params.get("MIS_RTL_ALT"),
+            args.rerun_fleet,
         )
         client = LockstepClient(
             urls["sim"],

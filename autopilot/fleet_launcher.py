@@ -26,11 +26,13 @@ from __future__ import annotations
 
 import argparse
 import copy
+import hashlib
 import os
 import signal
 import subprocess
 import sys
 import time
+import uuid
 from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType
@@ -69,6 +71,7 @@ class VehicleLinks:
     gcs_port: int
     api_local_port: int | None  # None: --api off
     api_port: int
+    home_ne_m: tuple[float, float] | None = None  # about the world's home; None: given as lat_deg/lon_deg
 
     @property
     def sys_id(self) -> int:
@@ -123,6 +126,7 @@ def plan_links(args: argparse.Namespace, entries: list[dict[str, Any]], default_
             gcs_port=gcs_port,
             api_local_port=API_LOCAL_PORT + block + i if api_on else None,
             api_port=API_PORT + block + min(i, API_PORT_LAST_OFFSET),
+            home_ne_m=home_offset_ne_m(e),
         )
         for i, e in enumerate(entries)
     ]
@@ -132,6 +136,31 @@ def plan_links(args: argparse.Namespace, entries: list[dict[str, Any]], default_
     if taken:
         raise LinkUrlError(f"ports {taken} would be used twice by this fleet; fix: another --instance or --listen port")
     return plan
+
+
+_RECORDING_NAMESPACE = uuid.UUID("6f1d2c3a-9b4e-4f5a-8c7d-0e1f2a3b4c5d")
+
+
+def fleet_recording_id(world_path: str | Path, seed: int) -> str:
+    """The Rerun recording id shared by every part of one fleet run: a UUID of the world file's bytes and the seed."""
+    digest = hashlib.sha256(Path(world_path).read_bytes()).hexdigest()
+    return str(uuid.uuid5(_RECORDING_NAMESPACE, f"{digest}:{int(seed)}"))
+
+
+def home_offset_ne_m(entry: dict[str, Any]) -> tuple[float, float] | None:
+    """A ``vehicles:`` entry's ``home: {north_m, east_m}`` about the world's home (None: given otherwise)."""
+    home = entry.get("home")
+    if not isinstance(home, dict) or not ({"north_m", "east_m"} & set(home)):
+        return None
+    try:
+        return float(home.get("north_m", 0.0)), float(home.get("east_m", 0.0))
+    except (TypeError, ValueError):
+        return None  # the simulator's check refuses the file and says why
+
+
+def _world_recording(spec: str) -> str | None:
+    """The simulator's part of a fleet recording, beside the autopilots': ``save:PATH.rrd`` -> ``PATH_world.rrd``."""
+    return _rerun_for(spec, "world").removeprefix("save:") if spec.startswith("save:") else None
 
 
 def _rerun_for(spec: str, name: str) -> str:
@@ -148,6 +177,10 @@ def commands(args: argparse.Namespace, plan: list[VehicleLinks]) -> tuple[list[s
     base = copy.copy(args)
     base.vehicle = args.vehicle or plan[0].airframe
     sim, _ = launcher.commands(base)
+    recording_id = fleet_recording_id(args.world, args.seed) if args.rerun != "off" else ""
+    world_rrd = _world_recording(args.rerun)
+    if world_rrd is not None:
+        sim += ["--recording", world_rrd, "--recording-id", recording_id]
     autopilots = []
     for v in plan:
         one = copy.copy(args)
@@ -160,7 +193,16 @@ def commands(args: argparse.Namespace, plan: list[VehicleLinks]) -> tuple[list[s
         one.rerun = _rerun_for(args.rerun, v.name)
         one.log_dir = str(Path(args.log_dir) / v.name) if args.log_dir else None
         _, ap = launcher.commands(one)
-        autopilots.append([*ap, "--sys-id", str(v.sys_id)])
+        ap += ["--sys-id", str(v.sys_id)]
+        if args.rerun != "off":  # one recording: under its name, about the world's home, the fleet's id
+            if v.home_ne_m is None:
+                raise LinkUrlError(
+                    f"vehicle {v.name}: a fleet recording (--rerun) needs its home as north_m/east_m about the "
+                    "world's home; fix: home: {north_m: N, east_m: E}, or --rerun off"
+                )
+            north_m, east_m = v.home_ne_m
+            ap += ["--rerun-fleet", f"{v.name}:{north_m!r}:{east_m!r}:{recording_id}"]
+        autopilots.append(ap)
     return sim, autopilots  # the sim's --vehicle is the airframe of entries without their own
 
 

@@ -114,6 +114,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--check", action="store_true", help="only check the world and vehicle files, then exit (0 fine, 2 refused)"
     )
+    p.add_argument(
+        "--recording",
+        type=Path,
+        default=None,
+        metavar="PATH.rrd",
+        help="a fleet world: write its traffic and per-pair separations to this Rerun recording (quadsitl up sets it)",
+    )
+    p.add_argument("--recording-id", default="", metavar="ID", help="the recording id of --recording")
     p.add_argument("-v", "--verbose", action="store_true", help="log lockstep events")
     return p
 
@@ -150,6 +158,8 @@ def config_from_args(args: argparse.Namespace) -> SimConfig:
         start_timeout_s=args.start_timeout_s,
         sensor_noise=not args.no_sensor_noise,
         truth_log=args.truth_log,
+        recording=args.recording,
+        recording_id=args.recording_id,
         lockstep_spin_s=args.lockstep_spin_us * 1e-6,
         loss_fraction=args.sim_loss,
         traffic_range_m=args.traffic_range_m,

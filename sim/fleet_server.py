@@ -38,6 +38,7 @@ from sim.server import DEFAULT_VEHICLE, SUMMARY_FILE, SimConfig, SimSetupError, 
 from sim.traffic import MannedProximity, ScriptedTraffic, TrafficReceiver
 from sim.vehicle_config import load_vehicle
 from sim.world import load_world
+from sim.world_recording import WorldRecorder
 
 log = logging.getLogger(__name__)
 _MAV_AUTOPILOT_INVALID = 8
@@ -141,6 +142,13 @@ class FleetServer:
             raise SimSetupError(str(exc)) from exc
         self.receiver = receiver
         self.proximity = MannedProximity(receiver.traffic, self.sim.n)
+        self.recorder = (
+            WorldRecorder(
+                [v.name for v in self.fleet.vehicles], receiver.traffic, config.recording, config.recording_id
+            )
+            if config.recording is not None
+            else None
+        )
         base = LinkUrl.parse(config.listen_url)
         n = self.sim.n
         self.writers = [FrameWriter(v.sys_id) for v in self.fleet.vehicles]
@@ -276,6 +284,8 @@ class FleetServer:
                 physics0 = time.perf_counter()
                 sim.step()
                 self.proximity.update(sim.t_s, sim.pos_ned)
+                if self.recorder is not None:
+                    self.recorder.sample(sim.t_us, sim.pos_ned)
                 physics_s += time.perf_counter() - physics0
                 unrecorded = True
                 if cfg.speed is not None:
@@ -292,6 +302,8 @@ class FleetServer:
             cpu_s = time.process_time() - cpu0
             for server in self.servers:
                 server.close()
+            if self.recorder is not None:
+                self.recorder.write()
         return self._summary(end, wall_s, (wait_s, sleep_s, physics_s, cpu_s))
 
     def _summary(self, end: EndReason, wall_s: float, timing: tuple[float, float, float, float]) -> FleetSummary:

@@ -71,6 +71,8 @@ class SimConfig:
     resend_timeout_s: float = 0.02  # ceiling of the adaptive resend timeout (wall s)
     sensor_noise: bool = True
     truth_log: Path | None = None  # .npz of the truth state at control rate
+    recording: Path | None = None  # a fleet world: the world part of the run's Rerun recording (.rrd)
+    recording_id: str = ""  # that recording's id (the autopilots' own)
     lockstep_spin_s: float = DEFAULT_SPIN_S  # busy-poll for the answer before sleeping (0 = never)
     loss_fraction: float = 0.0  # > 0: the lockstep drops this share of datagrams each way (seeded; --sim-loss)
     traffic_range_m: float = DEFAULT_TRAFFIC_RANGE_M  # a fleet world's receivers report targets this close (3D)

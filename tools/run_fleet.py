@@ -5,8 +5,10 @@ Starts ``quadsitl up --world W`` (``--speed max``) on a free ``--instance`` bloc
 and starts them ``--stagger-s`` sim seconds apart and waits until every one has landed), stops every process and
 prints one row per vehicle. Everything lands in ``runs/fleet-<timestamp>/`` (or ``--out-dir``): ``sim_summary.json``
 (the simulator's truth: contacts, closest approaches), ``<name>/autopilot_summary.json``, ``gcs_summary.json``,
-``summary.json``, ``up.log`` and the recordings (``--rerun``, default ``save:<out-dir>/flight.rrd``: each autopilot
-writes ``flight_<name>.rrd``, about its own home; docs/traffic.md).
+``summary.json``, ``up.log`` and one Rerun recording in several files (``--rerun``, default
+``save:<out-dir>/flight.rrd``: each autopilot writes ``flight_<name>.rrd`` under its vehicle's name, the simulator
+``flight_world.rrd`` (traffic, separation per pair), all with one recording id and about the world's home; open them
+together with ``rerun <out-dir>/*.rrd``; docs/traffic.md).
 
 Exit status: 0 every vehicle flew its mission and landed with no contact, 1 a flight failed, 2 bad arguments,
 3 the SITL processes died or the wall-clock limit was hit.
@@ -124,8 +126,8 @@ def _print(rows: list[dict[str, object]], summary: dict[str, object], problems: 
         print(f"run_fleet: error: {line}" if not line.startswith("    ") else line, file=sys.stderr)
     print(f"\nsummary:   {out_dir / 'summary.json'}")
     if summary.get("recording"):
-        files = " ".join(str(p) for p in summary["recording"])  # type: ignore[union-attr]
-        print(f"recording: one per autopilot; open them with: .venv/bin/rerun {files}")
+        print(f"recording: one recording in {len(summary['recording'])} files (one per autopilot + the world)")  # type: ignore[arg-type]
+        print(f"           open it with: .venv/bin/rerun {out_dir}/*.rrd")
 
 
 def main(argv: list[str] | None = None) -> int:

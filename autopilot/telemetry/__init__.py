@@ -40,12 +40,16 @@ def make_listener(
     recording_id: str | None = None,
     rate_3d_hz: float = 25.0,
     rtl_alt_m: float | None = None,
+    fleet_name: str | None = None,
+    home_offset_ned_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
 ) -> RerunTelemetry | None:
     """The Rerun listener for a ``--rerun`` value (None for ``off``). Raises :class:`RerunSpecError`.
 
     ``vehicle`` names the airframe drawn (rotor positions); ``mission_file`` (YAML/.plan/.waypoints)
     draws its route and fence about its home, and its ``world:`` obstacles as the *true* obstacles
     (which the autopilot itself never uses). Raises ``MissionFileError`` for a bad mission file.
+    ``fleet_name``: this autopilot flies vehicle ``fleet_name`` of a fleet: its entities go under its name and
+    its positions about the world's home (``home_offset_ned_m``, :mod:`autopilot.telemetry.fleet_recording`).
     """
     sink = parse_rerun_spec(spec)
     if sink.kind is SinkKind.OFF:
@@ -60,8 +64,13 @@ def make_listener(
         route = route_points_ned(plan.items, plan.home, rtl_alt_m=rtl_alt_m)
         framing = Framing.of_route(route, obstacles)
     # one blueprint: framed on the route now when it is known, else on the first uploaded mission
-    rec = open_recording(sink, flight_blueprint(framing) if framing is not None else None, recording_id=recording_id)
+    blueprint = flight_blueprint(framing) if framing is not None and fleet_name is None else None
+    rec = open_recording(sink, blueprint, recording_id=recording_id)
     assert rec is not None
+    if fleet_name is not None:
+        from autopilot.telemetry.fleet_recording import VehicleRecording
+
+        rec = VehicleRecording(rec, fleet_name, home_offset_ned_m)  # type: ignore[assignment]
     live = sink.kind is SinkKind.CONNECT
     rotors = None
     if vehicle:
@@ -78,7 +87,7 @@ def make_listener(
         rate_3d_hz=rate_3d_hz,
         batch_rows=LIVE_BATCH_ROWS if live else SAVE_BATCH_ROWS,
         trail_segment_points=LIVE_TRAIL_POINTS if live else SAVE_TRAIL_POINTS,
-        blueprint_sent=framing is not None,
+        blueprint_sent=framing is not None or fleet_name is not None,
         rtl_alt_m=rtl_alt_m,
         obstacles_known=framing.obstacles if framing is not None else None,
     )
