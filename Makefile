@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: venv run test bench lint paper interop screenshot clean
+.PHONY: venv run run-fleet test bench lint paper interop screenshot clean
 
 # The first setup takes about 2.5 min (pip ~1.5 min, then the kernel compile ~1 min); it says what it does.
 $(STAMP): pyproject.toml
@@ -22,6 +22,11 @@ venv: $(STAMP)
 
 run: venv
 	$(BIN)/python -m tools.run_delivery --speed max
+
+# A fleet end to end: missions/depot_fleet.yaml (four x500s from one depot, crossing routes, a helicopter), one
+# simulator, one autopilot per vehicle, the ground station flying all of them (docs/traffic.md).
+run-fleet: venv
+	$(BIN)/python -m tools.run_fleet --world missions/depot_fleet.yaml --speed max
 
 test: venv
 	$(BIN)/python -m pytest -q

@@ -35,7 +35,7 @@ from sim.end_reason import EndReason
 from sim.fleet import FleetSim
 from sim.fleet_world import FleetSpec, load_fleet
 from sim.server import DEFAULT_VEHICLE, SUMMARY_FILE, SimConfig, SimSetupError, mission_vehicle
-from sim.traffic import ScriptedTraffic, TrafficReceiver
+from sim.traffic import MannedProximity, ScriptedTraffic, TrafficReceiver
 from sim.vehicle_config import load_vehicle
 from sim.world import load_world
 
@@ -67,6 +67,8 @@ class FleetVehicleSummary:
     foreign_datagrams: int
     invalid_answers: int
     traffic_reports: int  # reports its receiver sent (UTM + ADS-B)
+    min_manned_distance_m: float | None  # closest 3D approach to a scripted aircraft (None: none flew)
+    nmac_at_s: float | None  # first NMAC with a scripted aircraft (sim.traffic.NMAC_HOR_M/VER_M; None: none)
 
 
 @dataclass(frozen=True, slots=True)
@@ -81,6 +83,7 @@ class FleetSummary:
     speed: float | None
     collisions: int  # vehicles that ended in a COLLISION (obstacles or each other)
     vehicle_contacts: int  # pairs of vehicles that touched
+    manned_nmacs: int  # vehicles that came inside the NMAC volume of a scripted aircraft
     frames: int  # control steps
     sim_step_us: float  # mean wall time per step in the sim's own work (physics, sensors, datagrams, hashes)
     physics_us: float  # of which the batched physics and contacts
@@ -137,6 +140,7 @@ class FleetServer:
         except ValueError as exc:
             raise SimSetupError(str(exc)) from exc
         self.receiver = receiver
+        self.proximity = MannedProximity(receiver.traffic, self.sim.n)
         base = LinkUrl.parse(config.listen_url)
         n = self.sim.n
         self.writers = [FrameWriter(v.sys_id) for v in self.fleet.vehicles]
@@ -271,6 +275,7 @@ class FleetServer:
                     break
                 physics0 = time.perf_counter()
                 sim.step()
+                self.proximity.update(sim.t_s, sim.pos_ned)
                 physics_s += time.perf_counter() - physics0
                 unrecorded = True
                 if cfg.speed is not None:
@@ -304,6 +309,7 @@ class FleetServer:
             clearance = float(batch.min_clearance_m[row])
             released = float(batch.payload_released_at_s[row])
             separation = float(sim.min_separation_m[i])
+            manned_m = float(self.proximity.min_distance_m[i])
             stats = self.servers[i].stats
             pos = sim.pos_ned[i]
             vehicles.append(
@@ -327,6 +333,8 @@ class FleetServer:
                     foreign_datagrams=stats.foreign,
                     invalid_answers=stats.invalid_answers,
                     traffic_reports=int(self.traffic_sent[i]),
+                    min_manned_distance_m=manned_m if math.isfinite(manned_m) else None,
+                    nmac_at_s=self.proximity.nmac_at_s[i],
                 )
             )
         return FleetSummary(
@@ -338,6 +346,7 @@ class FleetServer:
             speed=self.config.speed,
             collisions=sum(v.end_reason == EndReason.COLLISION.name for v in vehicles),
             vehicle_contacts=len(sim.contacts),
+            manned_nmacs=sum(v.nmac_at_s is not None for v in vehicles),
             frames=sim.steps,
             sim_step_us=(wall_s - wait_s - sleep_s) / steps * 1e6,
             physics_us=physics_s / steps * 1e6,

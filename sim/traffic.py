@@ -62,6 +62,36 @@ class ScriptedTraffic:
         return out
 
 
+#: The near mid-air collision volume (FAA/ICAO): inside 500 ft horizontally and 100 ft vertically at once.
+NMAC_HOR_M = 152.4
+NMAC_VER_M = 30.48
+
+
+class MannedProximity:
+    """Per vehicle, against every scripted aircraft in the air: the closest 3D approach and the sim time of the
+    first NMAC (the truth the encounter Monte Carlo counts; the vehicles never see it)."""
+
+    def __init__(self, traffic: ScriptedTraffic, n: int) -> None:
+        self.traffic = traffic
+        self.min_distance_m = np.full(n, np.inf)
+        self.nmac_at_s: list[float | None] = [None] * n
+
+    def update(self, t_s: float, pos_ned: np.ndarray) -> None:
+        """Fold the vehicles' positions ``pos_ned`` (n, 3) at ``t_s`` in."""
+        if not len(self.traffic):
+            return
+        air = self.traffic.positions(t_s)
+        air = air[~np.isnan(air[:, 0])]
+        if not len(air):
+            return
+        d = pos_ned[:, None, :] - air[None, :, :]
+        h_m, v_m = np.hypot(d[..., 0], d[..., 1]), np.abs(d[..., 2])
+        np.minimum(self.min_distance_m, np.hypot(h_m, v_m).min(axis=1), out=self.min_distance_m)
+        for i in np.flatnonzero(((h_m < NMAC_HOR_M) & (v_m < NMAC_VER_M)).any(axis=1)):
+            if self.nmac_at_s[i] is None:
+                self.nmac_at_s[i] = t_s
+
+
 class TrafficReceiver:
     """What each vehicle's simulated receiver reports at a control step (see the module docstring)."""
 

@@ -39,6 +39,9 @@ class SimLoop:
         self.obstacle_sensor = ObstacleSensor(world, seed) if world.obstacles else None
         self._detect_every = round(CONTROL_HZ / ObstacleSensorConfig().rate_hz)
         self._k = 0
+        # The offboard/joystick/GCS link ages run on a clock that follows sim time (a client streaming every
+        # step at speed 1): on the real wall clock, a loaded machine's stall would age the stream out mid-test.
+        ap_kw.setdefault("wall_clock", lambda: self.sim.t_us * 1e-6)
         self.ap = Autopilot(AutopilotConfig(vehicle=vehicle), **ap_kw)
         self.vehicle = VehicleAdapter(self.ap)
         self.texts: list[str] = []

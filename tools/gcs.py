@@ -2,7 +2,8 @@
 
 Commands: ``status``, ``upload FILE [--fence-only]``, ``download OUT [--vehicle NAME]``, ``clear``, ``arm``,
 ``disarm``, ``start``, ``mode NAME``, ``takeoff ALT_M``, ``land``, ``rtl``,
-``fly FILE --summary PATH [--timeout-s S]``, ``param get NAME``, ``param set NAME VALUE``,
+``fly FILE --summary PATH [--timeout-s S] [--stagger-s S]`` (a fleet world: every vehicle, ``tools.gcs_fleet``),
+``param get NAME``, ``param set NAME VALUE``,
 ``param list``. Mission files: YAML v1, QGC WPL 110 (``.waypoints``/``.txt``), ``.plan``.
 Exit code 0 only when the request succeeded; errors are one line on stderr, with the vehicle's own reason
 for a refusal (its STATUSTEXT, else what the COMMAND_ACK result means). What it is waiting for (a vehicle,
@@ -14,13 +15,14 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from autopilot.mission.files import MissionFileError, load_mission_file, save_mission_file
+from autopilot.mission.files import MissionFileError, load_fleet_missions, load_mission_file, save_mission_file
 from autopilot.mission.plan import MissionPlan
 from mavlink_bridge.contract.about import version_text
 from mavlink_bridge.contract.frames import GeoPoint
@@ -193,7 +195,7 @@ def cmd_param(client: GcsClient, args: argparse.Namespace) -> str:
     return "\n".join(f"{name:<16} {value:g}" for name, value in client.list_params().items())
 
 
-def _arm_when_ready(client: GcsClient, timeout_s: float) -> None:
+def arm_when_ready(client: GcsClient, timeout_s: float) -> None:
     """Arm, retrying while the vehicle refuses (estimator or GPS not ready yet) until ``timeout_s``."""
     deadline = time.monotonic() + timeout_s
     said = False
@@ -213,7 +215,7 @@ def _arm_when_ready(client: GcsClient, timeout_s: float) -> None:
             client.pump(0.5)
 
 
-def _upload_when_ready(client: GcsClient, plan: MissionPlan, timeout_s: float) -> None:
+def upload_when_ready(client: GcsClient, plan: MissionPlan, timeout_s: float) -> None:
     """Wait for a 3D GPS fix, then upload mission + fence, retrying while the vehicle is not ready yet."""
     deadline = time.monotonic() + timeout_s
     if client.telemetry().gps_fix_type < 3:
@@ -235,7 +237,7 @@ def _upload_when_ready(client: GcsClient, plan: MissionPlan, timeout_s: float) -
             client.pump(0.5)
 
 
-def _mission_done(status: VehicleStatus, total: int) -> bool:
+def mission_done(status: VehicleStatus, total: int) -> bool:
     return status.mission_state == MISSION_STATE_COMPLETE or (total > 0 and total - 1 in status.items_reached)
 
 
@@ -244,9 +246,9 @@ def fly(client: GcsClient, plan: MissionPlan, timeout_s: float, progress: bool =
     t0 = time.monotonic()
     total = len(plan.items)
     text_serial = client.statustext_serial
-    _upload_when_ready(client, plan, min(60.0, timeout_s))
+    upload_when_ready(client, plan, min(60.0, timeout_s))
     client.forget_reached_items()
-    _arm_when_ready(client, min(60.0, timeout_s))
+    arm_when_ready(client, min(60.0, timeout_s))
     try:
         client.start_mission()
     except CommandFailedError:
@@ -261,13 +263,13 @@ def fly(client: GcsClient, plan: MissionPlan, timeout_s: float, progress: bool =
             bar.update(len(status.items_reached), status)
             seen_armed = seen_armed or status.armed
             landed_disarmed = not status.armed and status.landed_state is LandedState.ON_GROUND
-            if landed_disarmed and _mission_done(status, total):
+            if landed_disarmed and mission_done(status, total):
                 break
             if landed_disarmed and seen_armed:
                 client.pump(0.5)  # late MISSION_ITEM_REACHED / MISSION_CURRENT
                 status = client.telemetry()
                 bar.update(len(status.items_reached), status)
-                if not _mission_done(status, total):
+                if not mission_done(status, total):
                     reason = "the vehicle landed and disarmed before the mission was complete"
                 break
             if time.monotonic() >= deadline:
@@ -276,10 +278,10 @@ def fly(client: GcsClient, plan: MissionPlan, timeout_s: float, progress: bool =
     texts = [t.text for t in status.statustexts if t.severity <= 3]
     if reason and texts:
         reason += f" (last error: {texts[-1]})"
-    reason = reason or _failsafe_reason(client.statustexts_since(text_serial))
+    reason = reason or failsafe_reason(client.statustexts_since(text_serial))
     bypassed = sum(t.text.startswith(BYPASSED_PREFIX) for t in client.statustexts_since(text_serial))
     landed = status.landed_state is LandedState.ON_GROUND
-    ok = not reason and landed and not status.armed and _mission_done(status, total)
+    ok = not reason and landed and not status.armed and mission_done(status, total)
     return FlySummary(
         ok=ok,
         items_total=total,
@@ -298,7 +300,7 @@ FAILSAFE_PREFIX = "Failsafe:"
 BYPASSED_PREFIX = "Bypassed item"
 
 
-def _failsafe_reason(texts: Sequence[StatusText]) -> str:
+def failsafe_reason(texts: Sequence[StatusText]) -> str:
     """A mission during which a failsafe fired (a geofence breach too, even when GF_ACTION only warns) failed:
     the first such STATUSTEXT is the reason; empty when none fired."""
     for text in texts:
@@ -434,6 +436,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--summary", default=None, help="write the JSON summary here")
     p.add_argument("--timeout-s", type=float, default=600.0, help="wall-clock limit")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--stagger-s", type=float, default=0.0, help="fleet world: sim seconds between two vehicles' take-offs"
+    )
+    p.add_argument(
+        "--stall-s", type=float, default=120.0, help="fleet world: sim seconds without progress that fail a vehicle"
+    )
     p.set_defaults(run=cmd_fly)
     p = sub.add_parser("param", help="get, set or list parameters")
     psub = p.add_subparsers(dest="param_cmd", required=True)
@@ -446,11 +454,27 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _fleet_plans(args: argparse.Namespace) -> list[MissionPlan]:
+    """The per-vehicle plans when ``fly``'s file is a fleet world (``vehicles:``), else ``[]``."""
+    if args.stagger_s < 0.0 or not math.isfinite(args.stagger_s):
+        raise GcsScriptError(f"--stagger-s must be a finite number >= 0, got {args.stagger_s:g}")
+    return load_fleet_missions(args.file)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         key = signing_key_from_text(args.signing_key) if args.signing_key else None
         url = connect_url(args.connect, args.instance)
+        if args.command == "fly" and (fleet := _fleet_plans(args)):
+            from tools import gcs as importable  # run as a script, this module is __main__, not tools.gcs
+            from tools.gcs_fleet import cmd_fly_fleet  # a fleet world: every vehicle over the one GCS port
+
+            try:
+                print(cmd_fly_fleet(url, fleet, args))
+            except importable.GcsScriptError as exc:  # the fleet module raises tools.gcs's own class
+                raise GcsScriptError(str(exc)) from exc
+            return 0
         with GcsClient(url, target_system=args.system, signing_key=key, timeout_s=args.timeout_step_s) as client:
             try:
                 client.wait_heartbeat(min(args.wait_s, 1.0))

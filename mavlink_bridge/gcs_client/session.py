@@ -39,8 +39,10 @@ class GcsSession:
         signing_key: bytes | None = None,
         timeout_s: float = 5.0,
         retry_s: float = 0.3,
+        endpoint: MavlinkEndpoint | None = None,
     ) -> None:
-        self._endpoint = MavlinkEndpoint(
+        # ``endpoint``: a link shared with other vehicles' sessions (gcs_client.fleet_link), else its own on ``url``
+        self._endpoint = endpoint or MavlinkEndpoint(
             url, system_id=system_id, component_id=component_id, signing_key=signing_key, require_signing=False
         )
         self.mav = self._endpoint.mav

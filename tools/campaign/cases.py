@@ -59,12 +59,26 @@ def draw(spec: CampaignSpec, case_id: int) -> Case:
     """Case ``case_id`` of ``spec``: a pure function of (spec, case_id)."""
     rng = np.random.default_rng([case_id, spec.seed])
     sim_seed = int(rng.integers(0, SEED_LIMIT))
+    if spec.encounter is not None:  # the fleet world is drawn from the case's seed (tools.encounters)
+        return _encounter_case(spec, case_id, sim_seed, rng)
     base = spec.bases[int(rng.integers(len(spec.bases)))] if len(spec.bases) > 1 else spec.bases[0]
     drawn = {key: _sample(rng, dist) for key, dist in spec.vary}
     vehicle = drawn.pop("vehicle", None) or _base_vehicle(base)
     params = str(drawn.pop("params", "default"))
     failures = drawn.pop("failures", [])
     return Case(case_id, sim_seed, base, str(vehicle), params, json.dumps(failures), tuple(drawn.items()))
+
+
+def _encounter_case(spec: CampaignSpec, case_id: int, sim_seed: int, rng: np.random.Generator) -> Case:
+    """Case ``case_id`` of an encounter campaign: what it drew (kind, vehicles, manned, stagger) as its overrides."""
+    from tools.campaign.fleet_flight import ENCOUNTER_BASE
+    from tools.encounters import encounter_world
+
+    enc = encounter_world(sim_seed, **dict(spec.encounter or ()))
+    drawn = {key: _sample(rng, dist) for key, dist in spec.vary}
+    drawn_enc = (("encounter.kind", enc.kind), ("encounter.vehicles", enc.vehicles))
+    drawn_enc += (("encounter.manned", enc.manned), ("encounter.stagger_s", enc.stagger_s))
+    return Case(case_id, sim_seed, ENCOUNTER_BASE, "x500", str(drawn.get("params", "default")), "[]", drawn_enc)
 
 
 def _sample(rng: np.random.Generator, dist: Distribution) -> Any:
@@ -179,6 +193,8 @@ def _resolved_params(params_file: str | None, vehicle: str) -> tuple[tuple[str, 
 
 def materialise(spec: CampaignSpec, case: Case) -> CaseFiles:
     """The world, parameter and script files case ``case`` flies with (see the module docstring)."""
+    if spec.encounter is not None:
+        return _encounter_files(spec, case)
     base = Path(case.base)
     doc = base_doc(base)
     for dotted, value in case.overrides:
@@ -199,6 +215,17 @@ def materialise(spec: CampaignSpec, case: Case) -> CaseFiles:
         params_yaml=yaml.safe_dump(dict(sorted(params.items())), sort_keys=False) if params else "{}\n",
         script_yaml=yaml.safe_dump(steps, sort_keys=False),
     )
+
+
+def _encounter_files(spec: CampaignSpec, case: Case) -> CaseFiles:
+    """An encounter case's generated fleet world and its parameters (no script: the ground station arms)."""
+    from tools.encounters import encounter_world
+
+    world = encounter_world(case.sim_seed, **dict(spec.encounter or ())).yaml_text()
+    params_file = None if case.params == "default" else str(resolve_path(case.params, Path(spec.path)) or case.params)
+    params = resolved_params(params_file, case.vehicle)
+    params_yaml = yaml.safe_dump(dict(sorted(params.items())), sort_keys=False) if params else "{}\n"
+    return CaseFiles(world_yaml=world, params_yaml=params_yaml, script_yaml="[]\n")
 
 
 def write_case_files(files: CaseFiles, case_dir: Path) -> dict[str, Path]:

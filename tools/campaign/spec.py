@@ -48,6 +48,10 @@ PASS_KEYS = {
     "tracking_pos_max_m": float,
     "max_tilt_deg": float,
     "energy_used_frac": float,
+    "traffic_contacts": float,  # encounter campaigns (tools.campaign.fleet_flight)
+    "traffic_nmac": float,
+    "traffic_min_sep_m": float,
+    "traffic_completion": float,
 }
 DEFAULT_PASS_IF = {"landed": True, "collisions": 0}
 _TOP_KEYS = (
@@ -62,7 +66,10 @@ _TOP_KEYS = (
     "deadline_s",
     "arm_at_s",
     "estimator",
+    "encounter",
 )
+#: ``encounter:`` keys (tools.encounters.encounter_world's arguments; each drawn from the case's seed when absent).
+ENCOUNTER_KEYS = ("kind", "vehicles", "manned")
 
 
 class CampaignFileError(ValueError):
@@ -116,6 +123,7 @@ class CampaignSpec:
     arm_at_s: float
     estimator: str
     text: str  # the file as written (kept in the results' metadata)
+    encounter: tuple[tuple[str, Any], ...] | None = None  # fleet encounters generated per case (docs/traffic.md)
 
 
 def resolve_path(raw: str, campaign_path: Path) -> Path | None:
@@ -165,7 +173,8 @@ class _Checker:
         for key in doc:
             if key not in _TOP_KEYS:
                 raise self.fail((str(key),), "unknown key", did_you_mean(key, _TOP_KEYS))
-        for key in ("name", "base", "cases", "seed"):
+        encounter = self.encounter(doc) if "encounter" in doc else None
+        for key in ("name", "cases", "seed") if encounter is not None else ("name", "base", "cases", "seed"):
             if key not in doc:
                 raise self.fail((), f"missing '{key}'", f"add '{key}:' (see docs/campaigns.md)")
         name = doc["name"]
@@ -179,8 +188,12 @@ class _Checker:
 
         if estimator not in ESTIMATORS:
             raise self.fail(("estimator",), f"unknown estimator {estimator!r}", did_you_mean(estimator, ESTIMATORS))
-        bases = self.bases(doc["base"])
+        if encounter is not None and mode != "sitl":
+            raise self.fail(("mode",), "an encounter campaign flies fleets, which only sitl does", "mode: sitl")
+        bases = self.bases(doc["base"]) if encounter is None else ("encounter",)
         vary = tuple(self.vary(doc.get("vary") or {}, bases))
+        if encounter is not None and any(key != "params" for key, _ in vary):
+            raise self.fail(("vary",), "an encounter campaign varies only params", "vary: {params: {choice: [...]}}")
         return CampaignSpec(
             path=str(self.path),
             name=name,
@@ -195,7 +208,33 @@ class _Checker:
             arm_at_s=self.number(doc, "arm_at_s", 3.0, 0.0),
             estimator=estimator,
             text=self.path.read_text(),
+            encounter=encounter,
         )
+
+    def encounter(self, doc: dict) -> tuple[tuple[str, Any], ...]:
+        """``encounter: {kind: K, vehicles: N, manned: B}`` (each optional: drawn per case from its seed)."""
+        from tools.encounters import KINDS
+
+        raw = doc["encounter"]
+        if "base" in doc:
+            raise self.fail(("base",), "an encounter campaign generates its worlds", "remove base: (or encounter:)")
+        if raw is None:
+            raw = {}
+        if not isinstance(raw, dict):
+            raise self.fail(("encounter",), f"expected a mapping, got {raw!r}", "encounter: {} (all drawn)")
+        for key, value in raw.items():
+            node = ("encounter", str(key))
+            if key not in ENCOUNTER_KEYS:
+                raise self.fail(node, "unknown key", did_you_mean(key, ENCOUNTER_KEYS))
+            ok = {
+                "kind": value in KINDS,
+                "vehicles": isinstance(value, int) and not isinstance(value, bool) and 2 <= value <= 8,
+                "manned": isinstance(value, bool),
+            }[key]
+            if not ok:
+                fix = {"kind": f"one of {', '.join(KINDS)}", "vehicles": "2 to 8", "manned": "true or false"}[key]
+                raise self.fail(node, f"bad value {value!r}", fix)
+        return tuple(sorted(raw.items()))
 
     def integer(self, doc: dict, key: str, low: int) -> int:
         value = doc[key]

@@ -24,7 +24,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from tools.campaign import fleet_flight
 from tools.campaign.cases import Case, CaseFiles, write_case_files
+from tools.campaign.fleet_flight import ENCOUNTER_BASE
 from tools.campaign.spec import PassRule
 
 STATUSES = ("ok", "fail", "timeout", "error")
@@ -87,7 +89,10 @@ def run_case(payload: CasePayload) -> dict[str, Any]:
             "estimator": payload.estimator,
         }
         (case_dir / "case.json").write_text(json.dumps(case_json, indent=1) + "\n")
-        if payload.mode == "inproc":
+        if payload.case.base == ENCOUNTER_BASE:  # a fleet (tools.campaign.fleet_flight)
+            stagger_s = float(dict(payload.case.overrides).get("encounter.stagger_s", 0.0))
+            flight = fleet_flight.fly(case_dir, payload.deadline_s, stagger_s, kill_group)
+        elif payload.mode == "inproc":
             from tools.campaign import inproc_flight
 
             flight = inproc_flight.fly(case_dir, payload.deadline_s, payload.rerun)
@@ -192,6 +197,8 @@ def row(payload: CasePayload, flight: dict[str, Any], wall_s: float) -> dict[str
         "params_yaml": payload.files.params_yaml,
         "script_yaml": payload.files.script_yaml,
     }
+    if payload.case.base == ENCOUNTER_BASE:
+        out.update(fleet_flight.traffic_columns(flight))
     out["status"], out["reason"] = _judge(payload, flight, out)
     out["passed"] = out["status"] == "ok"
     return out

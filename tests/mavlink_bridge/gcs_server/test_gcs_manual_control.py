@@ -79,7 +79,7 @@ def test_manual_control_is_decoded_for_this_system_only() -> None:
 
 # ---- a flight on the sticks -------------------------------------------------------------------------------------
 def test_posctl_flight_on_the_sticks_takeoff_fly_turn_hold_land() -> None:
-    loop = SimLoop("x500", wall_clock=lambda: loop.sim.t_s)  # link timeouts on a clock that runs like sim time
+    loop = SimLoop("x500")  # link timeouts on a clock that runs like sim time (SimLoop's default)
     vehicle, sim, ap = loop.vehicle, loop.sim, loop.ap
     sticks = [ManualInput()]
 

@@ -1,0 +1,99 @@
+"""Encounter campaigns (``encounter:``, tools.campaign.fleet_flight): the key's FILE:LINE errors, cases drawn from
+the case's seed with the generator's world, the flight record of a fleet run, and one real fleet case end to end."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from tools.campaign.cases import draw, materialise
+from tools.campaign.fleet_flight import ENCOUNTER_BASE, record
+from tools.campaign.results import read_rows
+from tools.campaign.runner import run_campaign
+from tools.campaign.spec import CampaignFileError, load_campaign
+from tools.encounters import encounter_world
+
+GOOD = "name: enc\nencounter: {}\ncases: 4\nseed: 2\n"
+
+
+def _spec(tmp_path: Path, body: str) -> Path:
+    path = tmp_path / "c.yaml"
+    path.write_text(body)
+    return path
+
+
+@pytest.mark.parametrize(
+    ("body", "line", "words"),
+    [
+        ("name: enc\nencounter: {kind: spiral}\ncases: 4\nseed: 2\n", 2, ["encounter.kind: bad value 'spiral'"]),
+        ("name: enc\nencounter: {vehicles: 9}\ncases: 4\nseed: 2\n", 2, ["encounter.vehicles", "2 to 8"]),
+        ("name: enc\nencounter: {crowd: 3}\ncases: 4\nseed: 2\n", 2, ["encounter.crowd: unknown key"]),
+        (GOOD + "mode: inproc\n", 5, ["only sitl does"]),
+        (GOOD + "base: x.yaml\n", 5, ["generates its worlds"]),
+        (GOOD + "vary:\n  vehicle: {choice: [x500]}\n", 5, ["varies only params"]),
+    ],
+)
+def test_encounter_key_errors_name_file_line_and_fix(tmp_path: Path, body: str, line: int, words: list[str]) -> None:
+    with pytest.raises(CampaignFileError) as err:
+        load_campaign(_spec(tmp_path, body))
+    assert str(err.value).startswith(f"{tmp_path / 'c.yaml'}:{line}:"), err.value
+    assert all(w in str(err.value) for w in words) and "fix:" in str(err.value)
+
+
+def test_a_case_flies_the_generators_world_of_its_seed(tmp_path: Path) -> None:
+    spec = load_campaign(_spec(tmp_path, "name: enc\nencounter: {vehicles: 3}\ncases: 4\nseed: 2\n"))
+    case = draw(spec, 2)
+    assert case == draw(spec, 2) and case.base == ENCOUNTER_BASE
+    enc = encounter_world(case.sim_seed, vehicles=3)
+    assert dict(case.overrides) == {
+        "encounter.kind": enc.kind,
+        "encounter.vehicles": 3,
+        "encounter.manned": enc.manned,
+        "encounter.stagger_s": enc.stagger_s,
+    }
+    assert materialise(spec, case).world_yaml == enc.yaml_text()
+    shipped = [load_campaign(f"missions/campaigns/{n}.yaml") for n in ("encounters", "encounters_warn_only")]
+    assert [draw(s, 7).sim_seed for s in shipped] == [draw(shipped[0], 7).sim_seed] * 2  # the same encounters
+    assert "NAV_TRAFF_AVOID: 1.0" in materialise(shipped[1], draw(shipped[1], 7)).params_yaml
+
+
+def test_the_flight_record_of_a_fleet_run() -> None:
+    truth = [
+        {"name": "a", "end_reason": "STOPPED", "truth_sha256": "1", "min_separation_m": 7.5,
+         "min_manned_distance_m": 80.0},
+        {"name": "b", "end_reason": "COLLISION", "truth_sha256": "2", "min_separation_m": 0.0,
+         "min_manned_distance_m": None},
+    ]  # fmt: skip
+    rows = [
+        {"ok": True, "items_total": 4, "items_reached": 4, "landed": True, "disarmed": True, "reason": ""},
+        {"ok": False, "items_total": 4, "items_reached": 2, "landed": False, "disarmed": False,
+         "reason": "failsafe during the mission: Failsafe: geofence breached"},
+    ]  # fmt: skip
+    sim = {"vehicle_contacts": 1, "manned_nmacs": 1, "collisions": 2, "vehicles": truth}
+    flight = record({"sim": sim, "vehicles": rows})
+    assert flight["sim"]["end_reason"] == "COLLISION" and flight["texts"] == ["Failsafe: geofence breached"]
+    assert flight["autopilot"] == {
+        "items_total": 8, "items_reached": 6, "items_bypassed": 0, "landed": False, "disarmed": False,
+    }  # fmt: skip
+    assert flight["traffic"] == {
+        "traffic_contacts": 1, "traffic_min_sep_m": 0.0, "traffic_nmac": 1, "traffic_min_manned_m": 80.0,
+        "traffic_completion": 0.5, "traffic_vehicles": 2,
+    }  # fmt: skip
+    assert "error" in record({"sim": {}, "vehicles": [], "errors": ["quadsitl up died"]})
+
+
+@pytest.mark.sitl
+@pytest.mark.slow
+def test_one_head_on_encounter_flown_as_a_campaign_case(tmp_path: Path) -> None:
+    body = "name: enc\nencounter: {kind: head_on, vehicles: 2, manned: false}\ncases: 1\nseed: 5\ndeadline_s: 400\n"
+    body += "pass_if: {traffic_contacts: 0, traffic_completion: {min: 1.0}}\n"
+    spec = load_campaign(_spec(tmp_path, body))
+    run_campaign(spec, tmp_path / "out", workers=1, progress=False)
+    (row,) = read_rows(tmp_path / "out")
+    assert row["status"] == "ok", row["reason"]
+    assert row["vary.encounter.kind"] == "head_on" and row["traffic_vehicles"] == 2.0
+    assert row["traffic_contacts"] == 0.0 and row["traffic_completion"] == 1.0 and row["traffic_nmac"] == 0.0
+    assert row["traffic_min_sep_m"] > 0.0 and math.isnan(row["traffic_min_manned_m"])
+    assert row["landed"] and row["items_missed"] == 0
