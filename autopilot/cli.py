@@ -235,6 +235,7 @@ def main(argv: list[str] | None = None) -> int:
         params_file=args.params,
         log_dir=str(args.log_dir) if args.log_dir is not None else None,
         speed_factor=args.speed,
+        system_id=args.sys_id,
     )
     servers: list[GcsServer] = []
     client: LockstepClient | None = None

@@ -96,6 +96,8 @@ def _attack(sim_port: int, ap_pid: int, known: set[int], stop_event: threading.E
 def _fly(log_dir: Path, script: Path, hostile: bool) -> tuple[dict, dict, list[int]]:  # type: ignore[type-arg]
     port = Ports.free().sim
     extra = ("--seed", "11", "--duration-s", str(DURATION_S), "--start-timeout-s", "120")
+    if hostile:  # paced, so the attack lasts seconds of wall time whatever the machine (same flight at any speed)
+        extra += ("--speed", "2")
     sim = start_sim(log_dir, port, *extra, "--autopilot-timeout-s", "30")
     ap = start_autopilot(log_dir, port, None, "--script", str(script))
     stop_event, sent = threading.Event(), [0, 0]
