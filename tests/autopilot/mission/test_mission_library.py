@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from conftest import REPO_ROOT
 
-from autopilot.mission.files import load_mission_file
+from autopilot.mission.files import load_fleet_missions, load_mission_file
 from autopilot.mission.plan import items_match
 from autopilot.mission.validation import validate_mission
 from mavlink_bridge.contract.mav_enums import GripperAction, MavCmd
@@ -30,11 +30,12 @@ def test_the_library_is_there() -> None:
 def test_every_mission_file_loads_and_validates(path: Path) -> None:
     if "pattern:" in path.read_text() and not HAVE_TRAJECTORIES:
         pytest.skip("pattern entries need autopilot.flight_tasks.trajectories (not in the tree yet)")
-    plan = load_mission_file(path)
-    assert plan.items, "a mission file with no items"
-    assert validate_mission(plan.items, plan.home) == (MissionResult.ACCEPTED, "")
-    assert validate_mission(plan.fence, plan.home) == (MissionResult.ACCEPTED, "")
-    assert plan.items[-1].command in (MavCmd.NAV_LAND, MavCmd.NAV_RETURN_TO_LAUNCH)
+    fleet = load_fleet_missions(path) if path.suffix in (".yaml", ".yml") else []
+    for plan in fleet or [load_mission_file(path)]:  # a fleet world: every vehicle's own plan
+        assert plan.items, "a mission file with no items"
+        assert validate_mission(plan.items, plan.home) == (MissionResult.ACCEPTED, "")
+        assert validate_mission(plan.fence, plan.home) == (MissionResult.ACCEPTED, "")
+        assert plan.items[-1].command in (MavCmd.NAV_LAND, MavCmd.NAV_RETURN_TO_LAUNCH)
 
 
 def test_delivery_examples_match_the_yaml() -> None:
