@@ -204,7 +204,10 @@ def test_mavsdk_offboard_velocity_takeoff_cruise_turn_land(tmp_path: Path) -> No
     assert samples["cruise"]["vel_ned_m_s"] == pytest.approx([2.0, 0.0, 0.0], abs=0.3)
     turn = samples["turn"]
     course_deg = math.degrees(math.atan2(turn["vel_ned_m_s"][1], turn["vel_ned_m_s"][0]))
-    assert abs((course_deg - turn["heading_deg"] + 180.0) % 360.0 - 180.0) < 20.0  # body forward follows the turn
+    # Body forward follows the turn: sampled when the heading has turned 80 deg at 30 deg/s, the course lags the
+    # heading by about the yaw rate times the velocity loop's lag (0.3-1 s: 10-30 deg, by when the wall-clock
+    # sample lands); a velocity held in the world frame would lag by the whole 80 deg.
+    assert abs((course_deg - turn["heading_deg"] + 180.0) % 360.0 - 180.0) < 40.0
     assert samples["landed"]["down_m"] == pytest.approx(0.0, abs=0.3)
     assert "OFFBOARD" in [m["mode"] for m in summary["mode_history"]]
 
