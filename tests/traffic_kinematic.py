@@ -1,6 +1,8 @@
 """A small kinematic closed loop for traffic-avoidance tests: point-mass "own ships", each running its own
 :class:`TrafficAvoidance` on the others' 1 Hz reports and flying its decision (the detour reference exactly, else
-straight to its goal with an acceleration limit), plus scripted straight-flying manned aircraft."""
+straight to its goal with an acceleration limit), plus scripted straight-flying manned aircraft. A ship with
+``land`` descends vertically to the ground at its goal (a LAND item: no avoidance, as the autopilot in that mode);
+separation counts while both ships are airborne (a ship on the ground is parked traffic)."""
 
 from __future__ import annotations
 
@@ -19,6 +21,8 @@ HOME = GeoPoint(47.397742, 8.545594, 488.0)
 FRAME = LocalNedFrame(HOME)
 DT_S = 0.1
 ACC_M_S2 = 3.0
+LAND_M_S = 1.5  # descent speed of a landing ship (MPC_LAND_SPEED-like)
+AIRBORNE_M = 0.5  # a ship lower than this is on the ground
 
 
 @dataclass
@@ -33,10 +37,16 @@ class Ship:
     detour_steps: int = 0
     start_s: float = 0.0  # it hovers where it is until then (staggered departures)
     offsets: dict[int, np.ndarray] = field(default_factory=dict)  # step -> the offset of the detour flown then
+    land: bool = False  # at its goal it descends to the ground
+    landing: bool = False
 
     @property
     def done(self) -> bool:
-        return float(np.linalg.norm(self.goal - self.pos)) < 1.0
+        return self.landing or float(np.linalg.norm(self.goal - self.pos)) < 1.0
+
+    @property
+    def airborne(self) -> bool:
+        return -float(self.pos[2]) > AIRBORNE_M
 
 
 @dataclass
@@ -90,9 +100,10 @@ def fly(
                 reports = [report(TrafficSource.UAV, o.system_id, o.pos, o.vel, t_us) for o in ships if o is not s]
                 reports += [report(TrafficSource.MANNED, m.icao, m.pos, m.vel, t_us) for m in manned]
             waiting = k * DT_S < s.start_s
+            s.landing = s.landing or (s.land and float(np.linalg.norm(s.goal - s.pos)) < 1.0)
             route = () if s.done or waiting else (tuple(float(x) for x in s.goal),)
             own = OwnShip(t_us, tuple(map(float, s.pos)), tuple(map(float, s.vel)), route, s.cruise_m_s, s.system_id)
-            decision = s.avoidance.update(own, reports, limits)
+            decision = s.avoidance.update(own, reports, limits, can_avoid=not s.landing, airborne=s.airborne)
             s.texts += [t.text for t in decision.texts]
             sp = decision.setpoint(t_us)
             if decision.resolution is not None:
@@ -104,6 +115,10 @@ def fly(
                 s._next = None  # type: ignore[attr-defined]
         for s in ships:
             nxt = s._next  # type: ignore[attr-defined]
+            if s.landing:  # straight down to the ground
+                s.vel = np.array((0.0, 0.0, LAND_M_S if s.airborne else 0.0))
+                s.pos = np.array((s.pos[0], s.pos[1], min(float(s.pos[2]) + s.vel[2] * DT_S, 0.0)))
+                continue
             if nxt is not None:  # the detour reference one step on
                 s.pos = nxt[0] + nxt[1] * DT_S
                 s.vel = nxt[1]
@@ -120,7 +135,8 @@ def fly(
             m.pos = m.pos + m.vel * DT_S
         for i, a in enumerate(ships):
             for b in ships[i + 1 :]:
-                min_uav = min(min_uav, ratio(a.pos, b.pos, params.uav))
+                if a.airborne and b.airborne:
+                    min_uav = min(min_uav, ratio(a.pos, b.pos, params.uav))
             for m in manned:
                 min_man = min(min_man, ratio(a.pos, m.pos, params.manned))
     return Outcome(min_uav, min_man, sum(s.done for s in ships), ships)
@@ -157,6 +173,21 @@ def overtaking(rng: np.random.Generator) -> list[Ship]:
     fast, slow = rng.uniform(6, 8), rng.uniform(2, 3)
     a = _ship(1, (0, 0, alt), (260, 0, alt), fast)  # passes and flies on
     b = _ship(2, (40, lat, alt), (200, lat, alt), slow)
+    if rng.random() < 0.5:
+        a.system_id, b.system_id = 2, 1
+    return [a, b]
+
+
+def overtaking_lander(rng: np.random.Generator) -> list[Ship]:
+    """A fast vehicle overtakes a slow one on its line; the slow one stops at its drop point and lands there, right
+    under the fast one's way (tools.encounters' overtaking: the slower vehicle lands first, short of the others)."""
+    alt, lat = -15.0, rng.uniform(-2, 2)
+    fast, slow = rng.uniform(6, 8), rng.uniform(2.5, 3.5)
+    gap = rng.uniform(12, 16)
+    drop = rng.uniform(45, 60)
+    a = _ship(1, (gap, lat, alt), (gap + drop, lat, alt), slow)
+    a.land = True
+    b = _ship(2, (0, 0, alt), (gap + drop + 60, 0, alt), fast)
     if rng.random() < 0.5:
         a.system_id, b.system_id = 2, 1
     return [a, b]
@@ -227,7 +258,13 @@ def manned_crossing(rng: np.random.Generator) -> tuple[list[Ship], list[Manned]]
 # ---------------------------------------------------------------------- the encounter table (docs/traffic_avoidance.md)
 def encounter_table(seeds: int, action: TrafficAction) -> list[tuple[str, int, float, int, int, int]]:
     """Per geometry: (name, encounters, worst separation ratio, losses of separation, missions completed, total)."""
-    pair_kinds = {"head-on": head_on, "crossing": crossing, "overtaking": overtaking, "vertical": vertical}
+    pair_kinds = {
+        "head-on": head_on,
+        "crossing": crossing,
+        "overtaking": overtaking,
+        "vertical": vertical,
+        "overtaking a lander": overtaking_lander,
+    }
     groups: list[tuple[str, list[tuple[list[Ship], list[Manned]]], float]] = []
     for name, make in pair_kinds.items():
         groups.append((name, [(make(np.random.default_rng(s)), []) for s in range(seeds)], 130.0))

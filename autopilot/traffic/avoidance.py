@@ -29,7 +29,7 @@ from autopilot.traffic.resolution import (
     Threat,
     predicted_min_ratio,
 )
-from autopilot.traffic.rules import LAST_RESORT_S, Role, climbs, lateral_sense, role
+from autopilot.traffic.rules import LAST_RESORT_S, Role, climbs, lateral_sense, owns_column, role
 from autopilot.traffic.tracks import TrackKey, TrackTable, TrafficTrack
 from mavlink_bridge.contract.frames import GeoPoint, Vec3
 from mavlink_bridge.contract.traffic import TrafficSource
@@ -172,7 +172,7 @@ class TrafficAvoidance:
             volume = volume_for(p, track)
             # hysteresis: a conflict starts inside the volume grown by half the margin, ends outside the whole margin
             grow = p.margin if track.key in self._conflicts else 0.5 * p.margin
-            approach = predict_approach(rel, rel_vel, p.horizon_s, volume.grown(grow))
+            approach = predict_approach(rel, rel_vel, p.horizon_s, volume.grown(grow), owns_column(track))
             if approach.conflict:
                 out.append(Conflict(track, approach, role(self.system_id, track, own.vel_ned_m_s, rel), volume))
                 advised.add(track.key)
@@ -188,7 +188,7 @@ class TrafficAvoidance:
 
     # ------------------------------------------------------------------ avoid
     def _threats(self, tracks: tuple[TrafficTrack, ...], grow: float) -> list[Threat]:
-        return [Threat(t, volume_for(self.params, t).grown(grow)) for t in tracks]
+        return [Threat(t, volume_for(self.params, t).grown(grow), owns_column(t)) for t in tracks]
 
     def _avoid(self, own: OwnShip, tracks: tuple[TrafficTrack, ...], conflicts: list[Conflict], limits: AvoidLimits,
                texts: list[StatusText]) -> None:  # fmt: skip
@@ -237,11 +237,12 @@ class TrafficAvoidance:
         track = primary.track
         plan_volume = volume_for(p, track).grown(p.margin)
         rel, rel_vel = _relative(own, track)
-        approach = predict_approach(rel, rel_vel, p.horizon_s, plan_volume)
+        column = owns_column(track)
+        approach = predict_approach(rel, rel_vel, p.horizon_s, plan_volume, column)
         if not approach.conflict:
             approach = primary.approach
         # the whole window, past the horizon (a window the horizon cuts would rejoin the route inside it)
-        whole = predict_approach(rel, rel_vel, WINDOW_LOOKAHEAD_S, plan_volume)
+        whole = predict_approach(rel, rel_vel, WINDOW_LOOKAHEAD_S, plan_volume, column)
         if whole.conflict:
             approach = replace(approach, loss_out_s=min(whole.loss_out_s, 2.0 * p.horizon_s))
         t = approach.t_cpa_s

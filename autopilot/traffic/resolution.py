@@ -29,7 +29,7 @@ import numpy as np
 from autopilot.planner.bezier import BezierPath, fit_detour
 from autopilot.planner.geometry import path_clear_of_fences
 from autopilot.planner.path_shapes import brake_path
-from autopilot.traffic.cpa import predict_approach
+from autopilot.traffic.cpa import predict_approach, separation_ratio
 from autopilot.traffic.param_decls import SeparationVolume
 from autopilot.traffic.tracks import TrafficTrack
 from mavlink_bridge.contract.frames import Vec3
@@ -82,10 +82,12 @@ class AvoidLimits:
 
 @dataclass(frozen=True, slots=True)
 class Threat:
-    """A track and the separation volume to plan for against it."""
+    """A track and the separation volume to plan for against it (``column``: the volume reaches down to the
+    ground, :func:`autopilot.traffic.rules.owns_column`)."""
 
     track: TrafficTrack
     volume: SeparationVolume
+    column: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -169,19 +171,16 @@ def predicted_min_ratio(own_ned_m: np.ndarray, times_s: np.ndarray, t_us: int, t
         tr, vol = threat.track, threat.volume
         dt = times_s + (t_us - tr.t_us) * 1e-6
         rel = np.asarray(tr.pos_home_ned_m) + np.outer(dt, tr.vel_ned_m_s) - own_ned_m
-        ratio = np.maximum(np.hypot(rel[:, 0], rel[:, 1]) / vol.hor_m, np.abs(rel[:, 2]) / vol.ver_m)
+        dv = np.maximum(rel[:, 2], 0.0) if threat.column else np.abs(rel[:, 2])
+        ratio = np.maximum(np.hypot(rel[:, 0], rel[:, 1]) / vol.hor_m, dv / vol.ver_m)
         worst = min(worst, float(ratio.min()))
         if hold:
             r0, v = rel[-1], np.asarray(tr.vel_ned_m_s)
-            approach = predict_approach(tuple(r0), tuple(v), HOLD_LOOKAHEAD_S, vol)
+            approach = predict_approach(tuple(r0), tuple(v), HOLD_LOOKAHEAD_S, vol, threat.column)
             if approach.conflict:
-                worst = min(worst, 0.99 * _ratio_at(r0, v, 0.5 * (approach.loss_in_s + approach.loss_out_s), vol))
+                mid_s = 0.5 * (approach.loss_in_s + min(approach.loss_out_s, HOLD_LOOKAHEAD_S))
+                worst = min(worst, 0.99 * separation_ratio(tuple(r0 + v * mid_s), vol, threat.column))
     return worst
-
-
-def _ratio_at(r0: np.ndarray, v: np.ndarray, t_s: float, vol: SeparationVolume) -> float:
-    r = r0 + v * t_s
-    return max(math.hypot(r[0], r[1]) / vol.hor_m, abs(r[2]) / vol.ver_m)
 
 
 class Resolver:

@@ -1,8 +1,11 @@
 """Right of way and the sense of a resolution: rules two quadsitl vehicles apply alike without talking.
 
-- Who gives way (:func:`role`): manned traffic always has right of way; between two UAVs the higher system id
-  gives way (one total order both agree on whatever each measures), and in a head-on encounter both give way
-  (ICAO rules of the air). The stand-on vehicle keeps its route unless the conflict is still there
+- Who gives way (:func:`role`): manned traffic always has right of way; a UAV hovering or landing (slower than
+  ``COLUMN_SPEED_M_S``, :func:`owns_column`) has it over a moving one (ICAO Annex 2 3.2.2.5: aircraft landing have
+  right of way), and its separation volume reaches down to the ground, because a multirotor at a drop point may
+  descend to land at any moment and its report says nothing of that; between two UAVs otherwise the higher
+  system id gives way (one total order both agree on whatever each measures), and in a head-on encounter both
+  give way (ICAO rules of the air). The stand-on vehicle keeps its route unless the conflict is still there
   ``LAST_RESORT_S`` before the loss of separation; then it resolves too, with the same rules.
 - Which way (:func:`lateral_sense`, :func:`climbs`): away from where the other will be at the closest approach
   (widen the predicted miss: once one vehicle has moved, the other, seeing the grown miss, moves the same way
@@ -29,6 +32,8 @@ HEAD_ON_DEG = 150.0
 HEAD_ON_CONE_DEG = 30.0
 #: Below this horizontal speed (m/s) a velocity has no direction.
 MIN_SPEED_M_S = 0.5
+#: A UAV slower than this horizontally (m/s) hovers, stops or lands: it owns the column below it.
+COLUMN_SPEED_M_S = 1.0
 #: A predicted miss smaller than this has no side: horizontal (m) and vertical (m).
 MISS_DEADBAND_M = 2.0
 VER_DEADBAND_M = 1.0
@@ -53,9 +58,19 @@ def head_on(own_vel_ned_m_s: Vec3, track_vel_ned_m_s: Vec3, rel_pos_ned_m: Vec3)
     return _angle_deg(vo, vt) > HEAD_ON_DEG and _angle_deg(vo, rel_pos_ned_m[:2]) < HEAD_ON_CONE_DEG
 
 
+def owns_column(track: TrafficTrack) -> bool:
+    """A UAV hovering, stopping or landing (horizontal speed below ``COLUMN_SPEED_M_S``): it may descend to land
+    at any moment, so its separation volume reaches down to the ground and it has right of way over moving UAVs."""
+    return track.source is TrafficSource.UAV and math.hypot(*track.vel_ned_m_s[:2]) < COLUMN_SPEED_M_S
+
+
 def role(own_system_id: int, track: TrafficTrack, own_vel_ned_m_s: Vec3, rel_pos_ned_m: Vec3) -> Role:
-    """Give way to manned traffic always; to a UAV with a lower system id; both give way head-on."""
+    """Give way to manned traffic always; to a hovering or landing UAV when moving; to a UAV with a lower system
+    id; both give way head-on. (The hovering rule only adds give-way duties: two vehicles that classify each
+    other's speed differently near the threshold at worst both give way, never both stand on.)"""
     if track.source is TrafficSource.MANNED or own_system_id >= track.target_id:
+        return Role.GIVE_WAY
+    if owns_column(track) and math.hypot(*own_vel_ned_m_s[:2]) >= COLUMN_SPEED_M_S:
         return Role.GIVE_WAY
     if head_on(own_vel_ned_m_s, track.vel_ned_m_s, rel_pos_ned_m):
         return Role.GIVE_WAY

@@ -149,3 +149,18 @@ def test_stale_track_in_conflict_is_dropped_and_said() -> None:
     avoidance.update(_own(), [_head_on()], LIMITS)
     later = avoidance.update(_own(7_000_000), [], LIMITS)
     assert later.tracks == () and any("track lost" in t.text for t in later.texts)
+
+
+def test_a_hovering_uav_owns_the_column_below_it_and_is_passed_beside_not_under() -> None:
+    """A UAV hovering over its drop point 7 m above the route (outside the 5 m half-height) may land at any
+    moment: the vehicle below gives way even with the lower system id and passes beside it (seed 9 of the
+    overtaking encounters: the overtaker passed under a vehicle that then landed on its way)."""
+    avoidance = TrafficAvoidance(TrafficParams(), system_id=1)
+    avoidance.set_home(HOME)
+    hovering = report(TrafficSource.UAV, 2, np.array((60.0, 1.0, -27.0)), np.array((0.0, 0.0, 0.0)), 1_000_000)
+    decision = avoidance.update(_own(), [hovering], LIMITS)
+    assert decision.conflicts and decision.conflicts[0].role.value == "giving way"
+    res = decision.resolution
+    assert res is not None and res.safe and res.maneuver in (Maneuver.LEFT, Maneuver.RIGHT), res
+    moving = report(TrafficSource.UAV, 2, np.array((60.0, 1.0, -27.0)), np.array((5.0, 0.0, 0.0)), 1_000_000)
+    assert not _avoidance(TrafficAction.AVOID).update(_own(), [moving], LIMITS).conflicts  # 7 m above: separated

@@ -82,3 +82,21 @@ def test_separation_ratio() -> None:
     assert separation_ratio((0.0, 0.0, -7.5), UAV) == pytest.approx(1.5)
     assert separation_ratio((3.0, 0.0, 1.0), UAV) < 1.0
     assert math.isinf(separation_ratio((math.inf, 0.0, 0.0), UAV))
+
+
+def test_column_loss_window_matches_sampling_below_the_track() -> None:
+    """A hovering or landing UAV's volume reaches down to the ground: below it only the horizontal distance counts."""
+    rng = np.random.default_rng(11)
+    t = np.linspace(0.0, 60.0, 60001)
+    for _ in range(200):
+        rel = rng.uniform(-150, 150, 3) * (1, 1, 0.15)
+        vel = rng.uniform(-8, 8, 3) * (1, 1, 0.2)
+        a = predict_approach(tuple(rel), tuple(vel), 60.0, UAV, column=True)
+        pos = rel + np.outer(t, vel)
+        inside = (np.hypot(pos[:, 0], pos[:, 1]) < UAV.hor_m) & (pos[:, 2] < UAV.ver_m)
+        assert a.conflict == bool(inside.any()) or abs(a.loss_out_s - a.loss_in_s) < 2e-3
+        if inside.any():
+            assert a.loss_in_s == pytest.approx(t[inside][0], abs=2e-3)
+            assert a.loss_out_s == pytest.approx(t[inside][-1], abs=2e-3)
+    assert separation_ratio((0.0, 0.0, -30.0), UAV, column=True) == 0.0  # 30 m under it: inside its column
+    assert separation_ratio((0.0, 0.0, 7.5), UAV, column=True) == pytest.approx(1.5)  # 7.5 m above it

@@ -14,12 +14,14 @@ from traffic_kinematic import (
     head_on,
     manned_crossing,
     overtaking,
+    overtaking_lander,
     vertical,
 )
 
 from autopilot.traffic.param_decls import TrafficAction
 
-PAIRS = {"head_on": head_on, "crossing": crossing, "overtaking": overtaking, "vertical": vertical}
+PAIRS = {"head_on": head_on, "crossing": crossing, "overtaking": overtaking, "vertical": vertical,
+         "overtaking_lander": overtaking_lander}  # fmt: skip
 SEEDS = range(8)
 
 
@@ -38,7 +40,7 @@ def _mirrored_steps(a, b) -> int:  # type: ignore[no-untyped-def]
 def test_two_vehicles_keep_separation_and_never_mirror(kind: str) -> None:
     for seed in SEEDS:
         ships = PAIRS[kind](np.random.default_rng(seed))
-        out = fly(ships, duration_s=110.0)
+        out = fly(ships, duration_s=130.0)
         assert out.min_uav_ratio >= 1.0, f"{kind} seed {seed}: separation ratio {out.min_uav_ratio:.2f}"
         assert out.completed == 2, f"{kind} seed {seed}: {[s.texts[-3:] for s in ships]}"
         assert _mirrored_steps(*ships) == 0, f"{kind} seed {seed}: both moved the same way"
