@@ -20,6 +20,8 @@ starts. A world without ``vehicles:`` runs ``autopilot.launcher`` (one simulator
 When an autopilot exits the others fly on (the simulator drops its vehicle); the run ends when the simulator
 exits (``--duration-s``, every autopilot gone) or on SIGINT/SIGTERM, which stops every child. Summaries:
 ``--log-dir D`` gets the simulator's ``sim_summary.json`` and ``D/<vehicle name>/autopilot_summary.json``.
+Each autopilot gets the world as ``--world-failures`` and its name as ``--fleet-vehicle``: it injects the world's
+``failures:`` and its own entry's.
 """
 
 from __future__ import annotations
@@ -194,6 +196,8 @@ def commands(args: argparse.Namespace, plan: list[VehicleLinks]) -> tuple[list[s
         one.log_dir = str(Path(args.log_dir) / v.name) if args.log_dir else None
         _, ap = launcher.commands(one)
         ap += ["--sys-id", str(v.sys_id)]
+        if "--world-failures" in ap:  # the world's failures and this vehicle's own (its vehicles: entry)
+            ap += ["--fleet-vehicle", v.name]
         if args.rerun != "off":  # one recording: under its name, about the world's home, the fleet's id
             if v.home_ne_m is None:
                 raise LinkUrlError(

@@ -49,7 +49,7 @@ ALLOWED_IMPORTS: dict[str, frozenset[str]] = {
     name: frozenset(targets)
     for name, targets in {
         "mavlink_bridge.contract": (),
-        "mavlink_bridge": (),
+        "mavlink_bridge": ("mavlink_bridge.contract",),
         "mavlink_bridge.wire": ("mavlink_bridge.contract",),
         "mavlink_bridge.lockstep": ("mavlink_bridge.contract", "mavlink_bridge.wire"),
         "mavlink_bridge.gcs_server": ("mavlink_bridge.contract", "mavlink_bridge.wire"),
