@@ -5,7 +5,8 @@ as ``sim.fleet_server``) and one ``Autopilot`` per vehicle (MAV_SYS_ID i+1, its 
 as MISSION_ITEM_INT would carry them), stepped together: each control step every live vehicle's datagram is
 decoded into its frame (``inproc_flight.FrameAssembler``), its autopilot steps and its answer goes through the
 lockstep answer's own writer and reader, then the physics of all vehicles. Instead of the ground station, each
-vehicle's script arms it at ``arm_at_s + i * stagger_s`` of sim time and starts its mission 0.5 s later, so a
+vehicle's script arms it at ``arm_at_s + i * stagger_s`` of sim time and starts its mission 0.5 s later (its
+``failures:`` and the world's merged in, as ``autopilot --world-failures --fleet-vehicle`` does), so a
 case is a function of its world, parameters and seed: re-flying it gives the same per-vehicle truth hashes
 (``quadsitl campaign replay``), which the sitl mode's wall-clock ground station cannot promise.
 
@@ -118,15 +119,15 @@ def fly_world(
         recording=Path(world_rrd) if world_rrd else None,
         recording_id=recording_id,
     )
-    world_failures = failure_steps(world.failures)
     vehicles = []
     for i, (spec, plan, airframe) in enumerate(zip(fleet.vehicles, plans, airframes, strict=True)):
         config = AutopilotConfig(
             vehicle=airframe.name, estimator=estimator, params_file=params_file, system_id=spec.sys_id
         )
-        script = CommandScript(merged(vehicle_script(i, arm_at_s, stagger_s), world_failures))
+        failures = failure_steps(fleet.failures_of(i))  # the world's and its own (``vehicles[i].failures``)
+        script = CommandScript(merged(vehicle_script(i, arm_at_s, stagger_s), failures))
         ap = Autopilot(config, script=script)
-        if world_failures:  # as ``autopilot --world-failures``: a schedule enables the injection
+        if failures:  # as ``autopilot --world-failures``: a schedule enables the injection
             ap.params.set("SYS_FAILURE_EN", 1.0)
         if rerun:
             from autopilot.telemetry import make_listener  # imports rerun: only when a recording is asked for
