@@ -203,6 +203,12 @@ class TrafficAvoidance:
                                                                        (0.0, 0.0), keep, ()).safe):  # fmt: skip
                 texts.append(StatusText(Severity.INFO, "Traffic: clear of conflict, back on the route"))
                 self.resolution = active = None
+            elif finished and own.route_home_ned_m and self._reported_since_plan(tracks):
+                # held, and the route is blocked (a vehicle hovering on it): plan a way on as if flying the route
+                own = replace(own, vel_ned_m_s=_route_velocity(own))
+                conflicts = [c for c in (self._conflict(own, t) for t in tracks) if c is not None]
+                if conflicts:
+                    self.resolution = active = None
         acting = [c for c in conflicts if c.role is Role.GIVE_WAY or c.approach.loss_in_s <= LAST_RESORT_S]
         if not acting:
             return
@@ -225,6 +231,18 @@ class TrafficAvoidance:
         kept = "" if res.safe else f" (keeps only {res.min_ratio:.0%} of the planned separation)"
         refused = f" ({'; '.join(res.refused)})" if res.refused else ""
         texts.append(StatusText(severity, f"Traffic: {verb} to {primary.track.name}: {res.describe()}{kept}{refused}"))
+
+    def _conflict(self, own: OwnShip, track: TrafficTrack) -> Conflict | None:
+        """``track`` as a conflict of ``own`` flying straight on (the detection volume), or None."""
+        if on_ground(track, own.t_us):
+            return None
+        rel, rel_vel = _relative(own, track)
+        volume = volume_for(self.params, track)
+        approach = predict_approach(rel, rel_vel, self.params.horizon_s, volume.grown(0.5 * self.params.margin),
+                                    owns_column(track))  # fmt: skip
+        if not approach.conflict:
+            return None
+        return Conflict(track, approach, role(self.system_id, track, own.vel_ned_m_s, rel), volume)
 
     def _reported_since_plan(self, tracks: tuple[TrafficTrack, ...]) -> bool:
         return any(self._last_report_us.get(t.key) != t.t_us for t in tracks)
@@ -275,6 +293,18 @@ def on_ground(track: TrafficTrack, t_us: int) -> bool:
     traffic is the operator's business; home pads may be closer than the UAV volume)."""
     n, e, d = track.vel_ned_m_s
     return -track.position_at(t_us)[2] < GROUND_AGL_M and math.hypot(n, e) < 0.5 and abs(d) < 0.5
+
+
+def _route_velocity(own: OwnShip) -> Vec3:
+    """The velocity of flying the route at cruise speed from where the vehicle is (zero without a route)."""
+    to = own.route_home_ned_m[0] if own.route_home_ned_m else own.pos_home_ned_m
+    d = (to[0] - own.pos_home_ned_m[0], to[1] - own.pos_home_ned_m[1], to[2] - own.pos_home_ned_m[2])
+    n = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    return (
+        (0.0, 0.0, 0.0)
+        if n < 1e-6
+        else (d[0] / n * own.cruise_m_s, d[1] / n * own.cruise_m_s, d[2] / n * own.cruise_m_s)
+    )
 
 
 def _is_right_of(own_vel_ned_m_s: Vec3, rel_pos_ned_m: Vec3, direction_ne: tuple[float, float]) -> bool:

@@ -84,3 +84,12 @@ def test_manned_traffic_never_inside_the_nmac_volume() -> None:
         ships, heli = manned_crossing(np.random.default_rng(seed))
         worst_warn = min(worst_warn, fly(ships, heli, action=TrafficAction.WARN, duration_s=100.0).min_manned_ratio)
     assert worst_warn < 1.0  # the crossings are real NMACs without avoidance
+
+
+def test_an_overtaker_stopped_behind_a_vehicle_hovering_on_its_route_goes_round_it() -> None:
+    """The slow vehicle stops at its drop point, on the overtaker's route: the overtaker, held in its stop (the
+    route is blocked), plans a way round as if flying its route instead of waiting for ever (seeds that stayed)."""
+    for seed in (11, 12, 13):
+        out = fly(overtaking(np.random.default_rng(seed)), duration_s=130.0)
+        assert out.min_uav_ratio >= 1.0, f"seed {seed}: separation ratio {out.min_uav_ratio:.2f}"
+        assert out.completed == 2, f"seed {seed}: {[s.texts[-3:] for s in out.ships]}"
