@@ -32,7 +32,7 @@ from sim.vehicle_config import VehicleConfig
 from sim.world import World
 
 _RUNNING = int(EndReason.RUNNING)
-#: The default UAV separation volume (the autopilot's NAV_TRAFF_A_HOR / NAV_TRAFF_A_VER defaults): a pair of
+#: The default UAV separation volume (the autopilot's NAV_TRAFF_U_HOR / NAV_TRAFF_U_VER defaults): a pair of
 #: airborne vehicles is inside it when both closer than 10 m horizontally and than 5 m vertically.
 UAV_VOLUME_HOR_M = 10.0
 UAV_VOLUME_VER_M = 5.0
