@@ -29,7 +29,7 @@ from autopilot.traffic.resolution import (
     Threat,
     predicted_min_ratio,
 )
-from autopilot.traffic.rules import LAST_RESORT_S, Role, climbs, lateral_sense, owns_column, role
+from autopilot.traffic.rules import COLUMN_SPEED_M_S, LAST_RESORT_S, Role, climbs, lateral_sense, owns_column, role
 from autopilot.traffic.tracks import TrackKey, TrackTable, TrafficTrack
 from mavlink_bridge.contract.frames import GeoPoint, Vec3
 from mavlink_bridge.contract.traffic import TrafficSource
@@ -204,10 +204,13 @@ class TrafficAvoidance:
                 texts.append(StatusText(Severity.INFO, "Traffic: clear of conflict, back on the route"))
                 self.resolution = active = None
             elif finished and own.route_home_ned_m and self._reported_since_plan(tracks):
-                # held, and the route is blocked (a vehicle hovering on it): plan a way on as if flying the route
-                own = replace(own, vel_ned_m_s=_route_velocity(own))
-                conflicts = [c for c in (self._conflict(own, t) for t in tracks) if c is not None]
-                if conflicts:
+                # held, and the route is blocked by a UAV that stays on it (hovering there, or flying along it):
+                # plan a way on as if flying the route (traffic crossing the route passes: waiting for it is right)
+                flying = replace(own, vel_ned_m_s=_route_velocity(own))
+                staying = [t for t in tracks if _stays_on_route(t, flying.vel_ned_m_s)]
+                blocking = [c for c in (self._conflict(flying, t) for t in staying) if c is not None]
+                if blocking:
+                    own, conflicts = flying, blocking
                     self.resolution = active = None
         acting = [c for c in conflicts if c.role is Role.GIVE_WAY or c.approach.loss_in_s <= LAST_RESORT_S]
         if not acting:
@@ -305,6 +308,15 @@ def _route_velocity(own: OwnShip) -> Vec3:
         if n < 1e-6
         else (d[0] / n * own.cruise_m_s, d[1] / n * own.cruise_m_s, d[2] / n * own.cruise_m_s)
     )
+
+
+def _stays_on_route(track: TrafficTrack, route_vel_ned_m_s: Vec3) -> bool:
+    """A UAV whose velocity across the route is below COLUMN_SPEED_M_S (hovering on it, or flying along it)."""
+    n, e = route_vel_ned_m_s[0], route_vel_ned_m_s[1]
+    speed = math.hypot(n, e)
+    if track.source is not TrafficSource.UAV or speed < 1e-6:
+        return False
+    return abs(track.vel_ned_m_s[0] * e - track.vel_ned_m_s[1] * n) / speed < COLUMN_SPEED_M_S
 
 
 def _is_right_of(own_vel_ned_m_s: Vec3, rel_pos_ned_m: Vec3, direction_ne: tuple[float, float]) -> bool:
