@@ -14,7 +14,7 @@ import math
 from pathlib import Path
 
 import pytest
-from sitl_procs import connect_gcs, landed_disarmed, read_json, sitl_pair, upload_arm_start
+from sitl_procs import connect_gcs, fence_world_yaml, landed_disarmed, read_json, sitl_pair, upload_arm_start
 
 from autopilot.geofence.fence import geofence_from_items
 from autopilot.mission.files import load_mission_file
@@ -24,18 +24,16 @@ from mavlink_bridge.gcs_client.client import VehicleStatus
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 
-CIRCLE_BETWEEN = """
-name: circle_between
-home: {lat_deg: 30.2635, lon_deg: 120.1233, alt_m: 12.0}
-vehicle: x500
-speed_m_s: 6.0
-mission:
-  - takeoff: {alt_m: 10}
-  - waypoint: {north_m: 90, east_m: 0, alt_m: 10, accept_radius_m: 1.5, hold_s: 120}
-  - land: {}
-fence:
-  - exclusion_circle: {north_m: 45, east_m: 0, radius_m: 10}
-"""
+CIRCLE_BETWEEN = fence_world_yaml(
+    "circle_between",
+    speed_m_s=6.0,
+    mission=[
+        "takeoff: {alt_m: 10}",
+        "waypoint: {north_m: 90, east_m: 0, alt_m: 10, accept_radius_m: 1.5, hold_s: 120}",
+        "land: {}",
+    ],
+    fence=["exclusion_circle: {north_m: 45, east_m: 0, radius_m: 10}"],
+)
 
 
 @pytest.mark.parametrize("trigger", ["gcs_rtl", "low_battery"])
