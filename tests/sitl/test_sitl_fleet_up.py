@@ -112,7 +112,7 @@ vehicles:
 def test_a_vehicles_own_failures_reach_that_vehicle_alone_and_the_worlds_reach_all(tmp_path: Path) -> None:
     world = tmp_path / "pair.yaml"
     world.write_text(FLEET_FAILURES)
-    block, gcs_port = _free_block(2), _free_port()
+    block, gcs_port = free_instance_block(2), _free_port()
     gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{gcs_port}", source_system=255)
     args = [sys.executable, "-m", "quadsitl_cli", "up", "--world", str(world), "--instance", str(block)]
     args += ["--gcs-target", f"udpout:127.0.0.1:{gcs_port}", "--api", "off", "--speed", "2", "--duration-s", "6"]
