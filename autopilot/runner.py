@@ -359,7 +359,7 @@ class Autopilot:
         state = self.state
         if state is None:
             return None
-        commander, fc = self.commander, self.control
+        commander, fc, traffic = self.commander, self.control, self.navigator.traffic
         flying = self._target.kind is not TargetKind.IDLE
         return StepRecord(
             time_us=state.time_us,
@@ -383,6 +383,8 @@ class Autopilot:
             truth=self._truth,  # type: ignore[arg-type]
             estimator_status=self.estimator.status,
             planned_route_home_ned_m=self.navigator.route_path_home_ned_m,
+            traffic_decision=traffic.decision,
+            uav_separation=traffic.avoidance.params.uav,
         )
 
     def snapshot(self) -> TelemetrySnapshot | None:
