@@ -3,8 +3,7 @@
 Every frame (250 Hz): [failures] -> [stale-data check] -> estimator -> setpoints -> [avoidance] -> cascade ->
 [motor failures] -> ActuatorCommand. At 50 Hz and after any command: failsafes (10 Hz), navigator, commander.
 The answer goes out *before* the bookkeeping (:meth:`Autopilot.after_answer`), while the simulator integrates.
-The runner only composes and steps the modules; ``docs/architecture.md`` says what each owns, reads and emits.
-"""
+The runner only composes and steps the modules; ``docs/architecture.md`` says what each owns, reads and emits."""
 
 from __future__ import annotations
 
@@ -327,8 +326,7 @@ class Autopilot:
         and the next step's setpoint reference ahead of time (``SetpointGenerator.prepare``).
 
         Idempotent; :meth:`step`, :meth:`snapshot`, :meth:`record` and :meth:`summary` call it first when the
-        caller did not, so the numbers are the same either way (the next step reads the battery only after it).
-        """
+        caller did not, so the numbers are the same either way (the next step reads the battery only after it)."""
         truth = self._pending_truth
         if truth is not None:
             self._pending_truth = None
