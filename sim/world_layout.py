@@ -50,6 +50,7 @@ FLEET_PANELS: tuple[tuple[str, str], ...] = (
     ("mission/seq", "current mission item, every vehicle"),
 )
 LOG = "log"
+TICKS = "home/ticks"  # a vehicle's top-view grid (under ``vehicles/<name>``)
 
 
 def _whole_flight() -> dict[str, object]:
@@ -75,9 +76,13 @@ def framing(pos_ned_m: np.ndarray) -> tuple[tuple[float, float, float], float]:
     return (float(centre[0]), float(centre[1]), min(float(centre[2]), -5.0)), span
 
 
-def _world_views(centre: tuple[float, float, float], span_m: float) -> tuple[rrb.Spatial3DView, rrb.Spatial3DView]:
+def _world_views(
+    names: Sequence[str], centre: tuple[float, float, float], span_m: float
+) -> tuple[rrb.Spatial3DView, rrb.Spatial3DView]:
     n, e, d = centre
     contents = ["+ /**", f"- /{PLOTS}/**", f"- /{SEPARATION}/**"]
+    # each vehicle's labelled grid is about its own home: overlaid they would only clutter the world's views
+    contents += [f"- /{VEHICLES}/{name}/{TICKS}/**" for name in names]
     oblique = rrb.Spatial3DView(
         origin="/",
         contents=contents,
@@ -106,7 +111,7 @@ def _world_views(centre: tuple[float, float, float], span_m: float) -> tuple[rrb
 def fleet_blueprint(names: Sequence[str], pos_ned_m: np.ndarray | None = None) -> rrb.Blueprint:
     """The fleet layout for vehicles ``names``, its 3D views framed on ``pos_ned_m`` (k, 3) about the world's home."""
     centre, span = framing(np.zeros((0, 3)) if pos_ned_m is None else pos_ned_m)
-    oblique, top = _world_views(centre, span)
+    oblique, top = _world_views(names, centre, span)
     events = rrb.TextLogView(
         origin=f"/{PLOTS}", contents=[f"+ /{PLOTS}/{n}/{LOG}" for n in names], name="events, every vehicle"
     )

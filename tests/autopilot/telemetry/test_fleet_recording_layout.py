@@ -82,6 +82,7 @@ def test_the_world_part_carries_the_fleet_layout_under_the_fleets_application_id
     world = layout.view("fleet world (NED)")
     assert (world.origin, world.kind) == ("/", "3D")
     assert "- /plots/**" in world.contents and "+ /**" in world.contents
+    assert {f"- /vehicles/{n}/home/ticks/**" for n in NAMES} <= set(world.contents)  # no overlaid per-vehicle grids
     sep = layout.view("separation per pair: horizontal, vertical (m)")
     assert (sep.origin, sep.kind) == ("/separation", "TimeSeries")
     for name in NAMES:
