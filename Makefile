@@ -15,8 +15,9 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 	@echo "[setup] packages installed"
 
-# numba caches compiled kernels on disk; compiling them here (~1 min the first time, ~2 s when cached
-# or after an edit to one kernel file) keeps the first compile out of the lockstep loop.
+# numba caches compiled kernels on disk, in a directory keyed by every kernel source (docs/performance.md);
+# compiling them here (~1 min the first time or after an edit to a kernel source, ~2 s when cached) keeps the first
+# compile out of the lockstep loop.
 venv: $(STAMP)
 	@$(BIN)/python -m tools.warm_jit
 
@@ -55,3 +56,4 @@ screenshot: venv
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .ruff_cache
 	find sim autopilot mavlink_bridge tools -name '*.nbi' -delete -o -name '*.nbc' -delete
+	rm -rf "$${XDG_CACHE_HOME:-$$HOME/.cache}/quadsitl/numba"

@@ -117,6 +117,12 @@ def add_autopilot_options(p: argparse.ArgumentParser) -> None:
         help="inject this file's world: failures: at their sim times (sets SYS_FAILURE_EN 1; up passes its --world)",
     )
     p.add_argument(
+        "--fleet-vehicle",
+        default=None,
+        metavar="NAME",
+        help="in a fleet world, the vehicles: entry this autopilot flies: its own failures: are injected too",
+    )
+    p.add_argument(
         "--sim-timeout-s", type=float, default=3.0, metavar="S", help="wall s of sim silence that ends the run"
     )
     p.add_argument(
@@ -229,6 +235,9 @@ def main(argv: list[str] | None = None) -> int:
     if not 1 <= args.sys_id <= 254:
         print(f"quadsitl autopilot: --sys-id must be 1..254 (MAV_SYS_ID), got {args.sys_id}", file=sys.stderr)
         return EXIT_USAGE
+    if args.fleet_vehicle is not None and args.world_failures is None:
+        print("quadsitl autopilot: --fleet-vehicle names a vehicle of the --world-failures file", file=sys.stderr)
+        return EXIT_USAGE
     config = AutopilotConfig(
         vehicle=args.vehicle,
         estimator=args.estimator,
@@ -242,7 +251,7 @@ def main(argv: list[str] | None = None) -> int:
     autopilot: Autopilot | None = None
     try:
         urls = link_urls(args)
-        failures = load_world_failures(args.world_failures) if args.world_failures else []
+        failures = load_world_failures(args.world_failures, args.fleet_vehicle) if args.world_failures else []
         steps = merged(load_script(args.script) if args.script else [], failures)
         key = _signing_key(args)
         autopilot = Autopilot(config, script=CommandScript(steps) if steps else None)

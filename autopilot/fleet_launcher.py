@@ -20,6 +20,8 @@ starts. A world without ``vehicles:`` runs ``autopilot.launcher`` (one simulator
 When an autopilot exits the others fly on (the simulator drops its vehicle); the run ends when the simulator
 exits (``--duration-s``, every autopilot gone) or on SIGINT/SIGTERM, which stops every child. Summaries:
 ``--log-dir D`` gets the simulator's ``sim_summary.json`` and ``D/<vehicle name>/autopilot_summary.json``.
+Each autopilot gets the world as ``--world-failures`` and its name as ``--fleet-vehicle``: it injects the world's
+``failures:`` and its own entry's.
 """
 
 from __future__ import annotations
@@ -158,12 +160,12 @@ def home_offset_ne_m(entry: dict[str, Any]) -> tuple[float, float] | None:
         return None  # the simulator's check refuses the file and says why
 
 
-def _world_recording(spec: str) -> str | None:
+def world_rerun_path(spec: str) -> str | None:
     """The simulator's part of a fleet recording, beside the autopilots': ``save:PATH.rrd`` -> ``PATH_world.rrd``."""
-    return _rerun_for(spec, "world").removeprefix("save:") if spec.startswith("save:") else None
+    return vehicle_rerun_spec(spec, "world").removeprefix("save:") if spec.startswith("save:") else None
 
 
-def _rerun_for(spec: str, name: str) -> str:
+def vehicle_rerun_spec(spec: str, name: str) -> str:
     """A vehicle's ``--rerun``: ``save:PATH.rrd`` becomes ``save:PATH_<name>.rrd`` (one file per autopilot)."""
     if not spec.startswith("save:"):
         return spec
@@ -178,7 +180,7 @@ def commands(args: argparse.Namespace, plan: list[VehicleLinks]) -> tuple[list[s
     base.vehicle = args.vehicle or plan[0].airframe
     sim, _ = launcher.commands(base)
     recording_id = fleet_recording_id(args.world, args.seed) if args.rerun != "off" else ""
-    world_rrd = _world_recording(args.rerun)
+    world_rrd = world_rerun_path(args.rerun)
     if world_rrd is not None:
         sim += ["--recording", world_rrd, "--recording-id", recording_id]
     autopilots = []
@@ -190,10 +192,12 @@ def commands(args: argparse.Namespace, plan: list[VehicleLinks]) -> tuple[list[s
         one.gcs_target = args.gcs_target or f"udpout:{v.host}:{v.gcs_port}"
         one.api = "off" if v.api_local_port is None else f"udpin:{v.host}:{v.api_local_port}"
         one.api_target = f"udpout:{v.host}:{v.api_port}"
-        one.rerun = _rerun_for(args.rerun, v.name)
+        one.rerun = vehicle_rerun_spec(args.rerun, v.name)
         one.log_dir = str(Path(args.log_dir) / v.name) if args.log_dir else None
         _, ap = launcher.commands(one)
         ap += ["--sys-id", str(v.sys_id)]
+        if "--world-failures" in ap:  # the world's failures and this vehicle's own (its vehicles: entry)
+            ap += ["--fleet-vehicle", v.name]
         if args.rerun != "off":  # one recording: under its name, about the world's home, the fleet's id
             if v.home_ne_m is None:
                 raise LinkUrlError(

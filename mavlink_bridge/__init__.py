@@ -3,3 +3,5 @@ side of the GCS/API links), ``gcs_client`` (the ground station), ``wire`` (codec
 
 ``contract`` imports no pymavlink and may be used by sim and autopilot freely.
 """
+
+import mavlink_bridge.contract.jit_cache  # noqa: F401 (first: numba's cache directory, before any kernel)

@@ -6,6 +6,14 @@ sensor), derived from the world's seed and its instance only (:func:`vehicle_see
 shifts another's. Vehicles are physical to each other: two whose collision spheres (``collision_radius_m``, the
 half diagonal plus a propeller) overlap are in contact, a COLLISION for both; each vehicle's obstacle sensor sees
 the others as spheres of that radius (obstacle id ``len(world.obstacles) + instance``).
+
+Two separations are kept per vehicle, the truth the encounter Monte Carlo judges: ``min_separation_m``, the
+closest 3D approach to another vehicle surface to surface (0 is a contact), and ``min_volume_sep_m``, the closest
+approach to another airborne vehicle in the default UAV separation volume's own measure, centre to centre:
+``max(horizontal, vertical * 10 / 5)``, so below ``UAV_VOLUME_HOR_M`` (10 m) the pair was inside the volume
+(closer than 10 m horizontally and than 5 m vertically at once, NAV_TRAFF_A_HOR / NAV_TRAFF_A_VER), and e.g.
+16 m is "8 m above or below" or "16 m beside". Vehicles standing on the ground are parked traffic, not in
+conflict (pads are spaced for it): the measure counts pairs while both are airborne.
 """
 
 from __future__ import annotations
@@ -24,6 +32,10 @@ from sim.vehicle_config import VehicleConfig
 from sim.world import World
 
 _RUNNING = int(EndReason.RUNNING)
+#: The default UAV separation volume (the autopilot's NAV_TRAFF_A_HOR / NAV_TRAFF_A_VER defaults): a pair of
+#: airborne vehicles is inside it when both closer than 10 m horizontally and than 5 m vertically.
+UAV_VOLUME_HOR_M = 10.0
+UAV_VOLUME_VER_M = 5.0
 
 
 def vehicle_seed(seed: int, instance: int) -> int:
@@ -79,10 +91,12 @@ class FleetSim:
         self.pos_ned = np.zeros((n, 3))
         self.vel_ned = np.zeros((n, 3))
         self.end_reason = np.zeros(n, dtype=np.int8)
+        self.on_ground = np.ones(n, dtype=bool)
         self.gather()
         self.contacts: list[tuple[int, int, float]] = []  # (i, j, t_s) of each first contact of a pair
         self._touching = np.zeros((n, n), dtype=bool)
         self.min_separation_m = np.full(n, np.inf)  # closest approach to any other vehicle (surface to surface)
+        self.min_volume_sep_m = np.full(n, np.inf)  # closest airborne approach in the volume's measure (centres)
         self._others_id = len(world.obstacles) + np.arange(n, dtype=np.float64)
         gap = self._gaps()
         if n > 1 and float(gap.min()) <= 0.0:
@@ -120,6 +134,7 @@ class FleetSim:
             self.pos_ned[members] = batch.state[:, 0:3]
             self.vel_ned[members] = batch.state[:, 3:6]
             self.end_reason[members] = batch.end_reason
+            self.on_ground[members] = batch.on_ground
 
     def _gaps(self) -> np.ndarray:
         """(n, n) surface-to-surface distances between vehicles (inf on the diagonal)."""
@@ -160,6 +175,7 @@ class FleetSim:
     def _contacts(self) -> None:
         gap = self._gaps()
         np.minimum(self.min_separation_m, gap.min(axis=1), out=self.min_separation_m)
+        self._volume_separation()
         touching = gap <= 0.0
         new = touching & ~self._touching
         self._touching |= touching
@@ -168,6 +184,17 @@ class FleetSim:
         for i, j in zip(*np.nonzero(np.triu(new)), strict=True):
             self.contacts.append((int(i), int(j), self.t_s))
             self.end(EndReason.COLLISION, [int(i), int(j)])
+
+    def _volume_separation(self) -> None:
+        """Fold the airborne pairs' separations in the volume's measure into ``min_volume_sep_m``."""
+        airborne = ~self.on_ground
+        if np.count_nonzero(airborne) < 2:
+            return
+        d = self.pos_ned[:, None, :] - self.pos_ned[None, :, :]
+        sep = np.maximum(np.hypot(d[..., 0], d[..., 1]), np.abs(d[..., 2]) * (UAV_VOLUME_HOR_M / UAV_VOLUME_VER_M))
+        pair = airborne[:, None] & airborne[None, :]
+        np.fill_diagonal(pair, False)
+        np.minimum(self.min_volume_sep_m, np.where(pair, sep, np.inf).min(axis=1), out=self.min_volume_sep_m)
 
     def end(self, reason: EndReason, vehicles: list[int]) -> None:
         """End the running ones of ``vehicles`` with ``reason`` (they freeze)."""

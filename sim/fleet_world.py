@@ -3,17 +3,27 @@
 Both keys are optional; a file without them is one vehicle, exactly as before. Every ``north_m``/``east_m``
 is about the world's home (vehicles' homes, their missions, traffic paths). Instance i (the i-th entry of
 ``vehicles:``) is MAV_SYS_ID i+1. Vehicles' ``mission:``/``fence:``/``speed_m_s:`` are the autopilot's to read
-(the same items as the top-level ``mission:``); here they are only checked for their container type.
+(the same items as the top-level ``mission:``); here they are only checked for their container type. A vehicle's
+``failures:`` (the world's ``failures:`` schema) are that vehicle's alone; the world's go to every vehicle
+(:meth:`FleetSpec.failures_of` merges them, as the autopilot's ``--fleet-vehicle`` does).
 Errors name the file and line: ``FILE:LINE: vehicles[1].home.north_m: ...``.
 """
 
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from mavlink_bridge.contract.failure_schedule import (
+    FailureScheduleError,
+    ScheduledFailure,
+    merge_failures,
+    mission_failures,
+    parse_failures,
+)
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
 from mavlink_bridge.contract.source_lines import YamlSyntaxError, did_you_mean, read_yaml
 from mavlink_bridge.contract.traffic import AdsbEmitterType
@@ -41,6 +51,7 @@ class FleetVehicle:
     mission: tuple[Any, ...]  # raw ``mission:`` entries (the autopilot's mission reader parses them)
     fence: Any  # raw ``fence:`` (None when absent)
     speed_m_s: float | None
+    failures: tuple[ScheduledFailure, ...] = ()  # this vehicle's own (``vehicles[i].failures``), by time
 
     @property
     def sys_id(self) -> int:
@@ -76,11 +87,17 @@ class FleetSpec:
     home: GeoPoint
     vehicles: tuple[FleetVehicle, ...]
     traffic: tuple[ScriptedAircraft, ...]
+    world_failures: tuple[ScheduledFailure, ...] = ()  # the world's ``failures:``: every vehicle's
 
     @property
     def is_fleet(self) -> bool:
         """True when the file lists ``vehicles:`` (one simulator, one autopilot per vehicle)."""
         return bool(self.vehicles)
+
+    def failures_of(self, index: int) -> tuple[ScheduledFailure, ...]:
+        """What vehicle ``index``'s autopilot injects: the world's failures and its own, merged by time (the
+        world's first at a tie), as ``quadsitl autopilot --world-failures W --fleet-vehicle NAME`` reads them."""
+        return merge_failures(self.world_failures, self.vehicles[index].failures)
 
 
 def load_fleet(path: str | Path) -> FleetSpec:
@@ -119,12 +136,12 @@ def fleet_of(doc: Any) -> FleetSpec:
     for i, icao in enumerate(icaos):
         if icao in icaos[:i]:
             raise WorldConfigError(f"traffic[{i}].icao: 0x{icao:06X} is used twice; fix: one address per aircraft")
-    return FleetSpec(home, vehicles, traffic)
+    return FleetSpec(home, vehicles, traffic, _failures(lambda: mission_failures(doc)))
 
 
 def _vehicle(index: int, entry: Any, world_home: GeoPoint) -> FleetVehicle:
     where = f"vehicles[{index}]"
-    s = _fields(where, entry, {"name", "home"}, {"vehicle", "mission", "fence", "speed_m_s"})
+    s = _fields(where, entry, {"name", "home"}, {"vehicle", "mission", "fence", "speed_m_s", "failures"})
     name = s["name"]
     if not isinstance(name, str) or not _NAME.match(name):
         raise WorldConfigError(
@@ -150,7 +167,16 @@ def _vehicle(index: int, entry: Any, world_home: GeoPoint) -> FleetVehicle:
         tuple(mission),
         fence,
         None if speed is None else _num(where, "speed_m_s", speed, 0.1, 50.0),
+        _failures(lambda: parse_failures(s.get("failures"), ("vehicles", index, "failures"))),
     )
+
+
+def _failures(parse: Callable[[], tuple[ScheduledFailure, ...]]) -> tuple[ScheduledFailure, ...]:
+    """A parsed ``failures:`` list, its FailureScheduleError as the world's error (``vehicles[1].failures[0]...``)."""
+    try:
+        return parse()
+    except FailureScheduleError as exc:
+        raise WorldConfigError(str(exc)) from None
 
 
 def _vehicle_home(where: str, spec: Any, world_home: GeoPoint) -> tuple[float, float]:

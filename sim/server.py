@@ -21,11 +21,10 @@ from __future__ import annotations
 import hashlib
 import importlib
 import importlib.util
-import json
 import logging
 import math
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -39,6 +38,7 @@ from mavlink_bridge.wire.frame_writer import FrameWriter
 from sim.end_reason import EndReason
 from sim.frame_kernel import SensorValues
 from sim.sensors import SensorModel
+from sim.summary_file import SummaryFile
 from sim.traffic import DEFAULT_TRAFFIC_RANGE_M
 from sim.vehicle import VehicleSim
 from sim.vehicle_config import load_vehicle
@@ -47,7 +47,6 @@ from sim.world import World, empty_world, load_world
 log = logging.getLogger(__name__)
 
 DEFAULT_VEHICLE = "x500"
-SUMMARY_FILE = "sim_summary.json"
 
 
 class SimSetupError(ValueError):
@@ -79,7 +78,7 @@ class SimConfig:
 
 
 @dataclass(frozen=True, slots=True)
-class SimSummary:
+class SimSummary(SummaryFile):
     """What ``sim_summary.json`` holds (SPEC §12 keys first, then extras)."""
 
     end_reason: str
@@ -108,17 +107,6 @@ class SimSummary:
     sim_step_us: float  # mean wall time per step in the sim itself (all but the answer wait and pacing sleeps)
     answer_wait_us: float  # mean wall time per step waiting for the answer (autopilot step + transport)
     sim_cpu_us_per_step: float  # process CPU time per step (the sim's own work; unlike wall time, load-independent)
-
-    def to_json(self) -> str:
-        """Pretty JSON, one key per line."""
-        return json.dumps(asdict(self), indent=2) + "\n"
-
-    def write(self, log_dir: Path) -> Path:
-        """Write ``log_dir/sim_summary.json`` (creating the directory)."""
-        log_dir.mkdir(parents=True, exist_ok=True)
-        path = log_dir / SUMMARY_FILE
-        path.write_text(self.to_json())
-        return path
 
 
 class ObstacleSensorLike(Protocol):

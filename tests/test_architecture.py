@@ -20,11 +20,13 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("sim", "autopilot", "mavlink_bridge")
-#: The I/O edges of sim and autopilot: they own sockets (CLI, lockstep server/loop, links).
+#: The I/O edges of sim and autopilot: they own sockets (CLI, lockstep server/loop, links) or write the lockstep's
+#: wire (``sim.fleet_run``: a fleet step's datagrams, for the UDP server and the in-process campaign flight alike).
 IO_EDGES = {
     "sim.cli",
     "sim.server",
     "sim.fleet_server",
+    "sim.fleet_run",
     "autopilot.cli",
     "autopilot.launcher",
     "autopilot.fleet_launcher",
@@ -47,7 +49,7 @@ ALLOWED_IMPORTS: dict[str, frozenset[str]] = {
     name: frozenset(targets)
     for name, targets in {
         "mavlink_bridge.contract": (),
-        "mavlink_bridge": (),
+        "mavlink_bridge": ("mavlink_bridge.contract",),
         "mavlink_bridge.wire": ("mavlink_bridge.contract",),
         "mavlink_bridge.lockstep": ("mavlink_bridge.contract", "mavlink_bridge.wire"),
         "mavlink_bridge.gcs_server": ("mavlink_bridge.contract", "mavlink_bridge.wire"),

@@ -9,13 +9,14 @@ Kinds (drawn when not given):
 - ``crossing``: every route passes near the area's centre, the courses spread over 180 deg with random angles;
 - ``overtaking``: one course, the faster vehicles start further back and must pass the slower ones;
 - ``vertical``: head-on pairs, one climbing from 10 m to 24 m while the other descends through its altitude;
-- ``converging``: pads on a 90 m circle, every vehicle lands at the one depot (pads 10 m apart), take-offs
-  staggered by ``stagger_s`` (2-6 s drawn; the ground station's ``--stagger-s``).
+- ``converging``: pads on a 90 m circle, every vehicle lands at the one depot (pads 14 m apart: the 10 m UAV
+  volume and a margin), take-offs staggered by ``stagger_s`` (2-6 s drawn; the ground station's ``--stagger-s``).
 
 With ``manned`` (drawn true for one world in six when not given) a helicopter or light aircraft crosses the area
 at 30-60 m/s, 25-50 m above the ground (inside the 30 m NMAC half-height of the 15 m cruise), over the centre
 20-50 s after the start. Each vehicle: take off on its pad, one waypoint at the far end, land there; a 300 m
-inclusion fence about the centre. Every pad is at least 10 m from every other pad and every landing point.
+inclusion fence about the centre. Every pad is at least 10 m from every other pad and every landing point (a draw
+that is not is drawn again from the same stream, so the world stays a function of the seed).
 
 ``python -m tools.encounters --seed K [--kind KIND] [--vehicles N] [--manned|--no-manned] --out W.yaml`` writes
 one; ``python -m tools.run_fleet --world W.yaml --stagger-s S`` flies it (S printed by the first command).
@@ -40,8 +41,10 @@ CRUISE_ALT_M = 15.0
 HALF_LEG_M = 60.0
 LANE_M = 14.0
 MIN_PAD_GAP_M = 10.0
+DEPOT_PAD_GAP_M = 14.0  # the UAV separation volume (10 m) and a margin: neighbouring depot landings stay clear
 FENCE_RADIUS_M = 300.0
 MANNED_ONE_IN = 6
+_ROUTE_TRIES = 20
 _STREAM = 23  # the second word of the generator's seed: this module's own stream
 
 
@@ -88,9 +91,12 @@ def encounter_world(
         raise ValueError(f"an encounter has 2 to 8 vehicles, got {n}")
     course_rad = float(rng.uniform(0.0, 2.0 * math.pi))
     stagger_s = round(float(rng.uniform(2.0, 6.0)), 1) if kind == "converging" else 0.0
-    routes = _ROUTES[kind](rng, n)
-    routes = [_rotated(r, course_rad) for r in routes]
-    _check_pads(routes)
+    for _ in range(_ROUTE_TRIES):  # a draw that puts pads too close (rare: many crossing courses) is drawn again
+        routes = [_rotated(r, course_rad) for r in _ROUTES[kind](rng, n)]
+        if _pads_clear(routes):
+            break
+    else:
+        raise AssertionError(f"seed {seed}: no {kind} geometry with pads {MIN_PAD_GAP_M} m apart (generator bug)")
     world: dict[str, Any] = {
         "name": f"encounter_{seed}",
         "home": dict(HOME),
@@ -146,7 +152,7 @@ def _overtaking(rng: np.random.Generator, n: int) -> list[_Route]:
 def _converging(rng: np.random.Generator, n: int) -> list[_Route]:
     radius = 1.5 * HALF_LEG_M
     slice_rad = 2.0 * math.pi / n
-    depot = [((k // 3 - 1) * MIN_PAD_GAP_M, (k % 3 - 1) * MIN_PAD_GAP_M) for k in (4, 1, 7, 3, 5, 0, 2, 6, 8)]
+    depot = [((k // 3 - 1) * DEPOT_PAD_GAP_M, (k % 3 - 1) * DEPOT_PAD_GAP_M) for k in (4, 1, 7, 3, 5, 0, 2, 6, 8)]
     routes = []
     for i in range(n):
         bearing = i * slice_rad + float(rng.uniform(-0.25, 0.25)) * slice_rad
@@ -173,13 +179,13 @@ def _rotated(route: _Route, course_rad: float) -> _Route:
     return _Route(rot(route.start_ne_m), rot(route.end_ne_m), route.alt_start_m, route.alt_end_m, route.speed_m_s)
 
 
-def _check_pads(routes: list[_Route]) -> None:
+def _pads_clear(routes: list[_Route]) -> bool:
     """Every pad at least MIN_PAD_GAP_M from every other pad and from every other vehicle's landing point."""
-    for a, b in itertools.permutations(routes, 2):
-        for point in (a.start_ne_m, a.end_ne_m) if a is not b else ():
-            gap = math.dist(point, b.start_ne_m)
-            if gap < MIN_PAD_GAP_M - 1e-6:
-                raise AssertionError(f"pads {gap:.1f} m apart (< {MIN_PAD_GAP_M} m): the generator is wrong")
+    return all(
+        math.dist(point, b.start_ne_m) >= MIN_PAD_GAP_M - 1e-6
+        for a, b in itertools.permutations(routes, 2)
+        for point in (a.start_ne_m, a.end_ne_m)
+    )
 
 
 def _vehicle(name: str, r: _Route) -> dict[str, Any]:

@@ -1,9 +1,10 @@
 """Compile every numba kernel once and write numba's on-disk cache (run by the Makefile after install).
 
 The physics, world, sensor and control kernels are ``@njit(cache=True)``: the first process that
-calls one compiles it (tens of seconds on a small machine) and writes ``__pycache__/*.nbi|nbc``;
-later processes load it in milliseconds. Doing it at setup keeps that first compile out of the
-lockstep, where a silent autopilot would be declared lost, and out of the first ``make run``.
+calls one compiles it (tens of seconds on a small machine) and writes ``*.nbi|nbc`` to the directory
+``mavlink_bridge.contract.jit_cache`` keys by every kernel source; later processes load it in milliseconds.
+Doing it at setup keeps that first compile out of the lockstep, where a silent autopilot would be declared
+lost, and out of the first ``make run``.
 
 Usage: ``python -m tools.warm_jit`` (idempotent; a warm cache makes it take about a second).
 """

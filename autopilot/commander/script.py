@@ -20,7 +20,8 @@ types are FAILURE_UNIT / FAILURE_TYPE names without their prefix (``gps``, ``bar
     - {at_s: 32, cmd: inject_failure, unit: motor, type: off, instance: 2}
 
 A mission's or world's ``world: failures:`` (``--world-failures FILE``; :mod:`mavlink_bridge.contract.failure_schedule`)
-become the same ``inject_failure`` steps (:func:`failure_steps`), merged with the script by time.
+become the same ``inject_failure`` steps (:func:`failure_steps`), merged with the script by time; in a fleet world,
+``--fleet-vehicle NAME`` adds that ``vehicles:`` entry's own ``failures:``.
 """
 
 from __future__ import annotations
@@ -30,7 +31,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from mavlink_bridge.contract.failure_schedule import FailureScheduleError, ScheduledFailure, mission_failures
+from mavlink_bridge.contract.failure_schedule import (
+    FailureScheduleError,
+    ScheduledFailure,
+    mission_failures,
+    vehicle_entries,
+    vehicle_failures,
+    vehicle_index,
+)
 from mavlink_bridge.contract.mav_enums import FailureType, FailureUnit, MavCmd
 from mavlink_bridge.contract.source_lines import YamlSource, YamlSyntaxError, did_you_mean, read_yaml
 from mavlink_bridge.contract.vehicle_api import CommandRequest
@@ -167,8 +175,10 @@ def failure_steps(failures: Sequence[ScheduledFailure]) -> list[ScriptStep]:
     ]
 
 
-def load_world_failures(path: str | Path) -> list[ScriptStep]:
-    """The ``world: failures:`` of a mission or bare world file as script steps (ScriptError FILE:LINE)."""
+def load_world_failures(path: str | Path, vehicle: str | None = None) -> list[ScriptStep]:
+    """The ``world: failures:`` of a mission or bare world file as script steps (ScriptError FILE:LINE); in a fleet
+    world, ``vehicle`` (a ``vehicles:`` name) adds that vehicle's own ``failures:``, merged by time. A fleet world
+    whose vehicles schedule their own failures needs ``vehicle`` (no vehicle's failures are dropped unsaid)."""
     try:
         source = read_yaml(path)
     except OSError as exc:
@@ -178,6 +188,15 @@ def load_world_failures(path: str | Path) -> list[ScriptStep]:
     except YamlSyntaxError as exc:
         raise ScriptError(str(exc)) from None
     try:
+        if vehicle is not None:
+            return failure_steps(vehicle_failures(source.data, vehicle_index(source.data, vehicle)))
+        for i, entry in enumerate(vehicle_entries(source.data)):
+            if isinstance(entry, dict) and entry.get("failures"):
+                raise FailureScheduleError(
+                    ("vehicles", i, "failures"),
+                    f"vehicle {entry.get('name')!r} schedules its own failures and this autopilot flies no named "
+                    "vehicle; fix: --fleet-vehicle NAME (quadsitl up passes it)",
+                )
         return failure_steps(mission_failures(source.data))
     except FailureScheduleError as exc:
         raise ScriptError(f"{source.where(*exc.node)}: {exc}") from None

@@ -161,9 +161,10 @@ class YamlReader:
 
     def read_vehicle(self, index: int, entry: Any, world: MissionPlan) -> MissionPlan:
         """Fleet vehicle ``index``'s ``mission:``/``fence:``/``speed_m_s:`` as a plan about the world's home (SPEC
-        §13; its name and airframe from the entry). Leaves ``prefix`` at the entry, for the caller's checks."""
+        §13; its name and airframe from the entry; its ``failures:`` are the autopilot's ``--fleet-vehicle``). Leaves
+        ``prefix`` at the entry, for the caller's checks."""
         self.prefix, self.section, self.index, self.kind = ("vehicles", index), "", None, ""
-        entry = self.mapping(entry, ("name", "vehicle", "home", "mission", "fence", "speed_m_s"))
+        entry = self.mapping(entry, ("name", "vehicle", "home", "mission", "fence", "speed_m_s", "failures"))
         speed = self.number(entry, "speed_m_s", 0.1, 50.0) if entry.get("speed_m_s") is not None else world.speed_m_s
         frame = LocalNedFrame(world.home)
         items = self.mission(entry.get("mission"), frame, speed)

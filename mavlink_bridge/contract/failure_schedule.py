@@ -13,6 +13,10 @@ FAILURE_TYPE without their prefix, lower case; :data:`INJECTIONS` lists them); `
 (1-4 in PX4 quad-x order, 0 = all; motor injections only, default 0). The simulator validates the key with the
 rest of the world; the autopilot, which owns failure injection, runs each entry as the ``inject_failure`` step of
 a ``--script`` at that sim time (:func:`autopilot.commander.script.failure_steps`).
+
+In a fleet world each ``vehicles:`` entry may carry its own ``failures:`` (the same entries), for that vehicle only;
+the world's ``failures:`` go to every vehicle, and a vehicle gets both, merged by time
+(:func:`vehicle_failures`: world entries first at a tie).
 """
 
 from __future__ import annotations
@@ -113,11 +117,44 @@ def parse_failures(spec: Any, node: tuple[str | int, ...] = ("world", "failures"
     return tuple(sorted(out, key=lambda f: f.at_s))
 
 
+def merge_failures(*schedules: tuple[ScheduledFailure, ...]) -> tuple[ScheduledFailure, ...]:
+    """Several schedules as one, by time (stable: an earlier schedule's entry first at a tie)."""
+    return tuple(sorted((f for s in schedules for f in s), key=lambda f: f.at_s))
+
+
 def mission_failures(doc: Any) -> tuple[ScheduledFailure, ...]:
-    """The ``failures`` of a parsed mission (``world: failures:``) or bare world mapping (``failures:``)."""
+    """The ``failures`` of a parsed mission (``world: failures:``) or bare world mapping (``failures:``): in a fleet
+    world, the ones every vehicle gets."""
     if not isinstance(doc, dict):
         return ()
     if "world" in doc:
         world = doc["world"] or {}
         return parse_failures(world.get("failures") if isinstance(world, dict) else None)
     return parse_failures(doc.get("failures"), ("failures",))
+
+
+def vehicle_entries(doc: Any) -> list[Any]:
+    """The ``vehicles:`` entries of a parsed world document (``[]``: not a fleet world)."""
+    entries = doc.get("vehicles") if isinstance(doc, dict) else None
+    return entries if isinstance(entries, list) else []
+
+
+def vehicle_failures(doc: Any, index: int) -> tuple[ScheduledFailure, ...]:
+    """What fleet vehicle ``index`` (``vehicles[index]``, MAV_SYS_ID ``index + 1``) injects: the world's
+    ``failures:`` merged by time with its entry's own ``failures:`` (FailureScheduleError naming the field)."""
+    entries = vehicle_entries(doc)
+    if not 0 <= index < len(entries):
+        raise FailureScheduleError(("vehicles",), f"no vehicle {index} (the file lists {len(entries)})")
+    entry = entries[index]
+    own = entry.get("failures") if isinstance(entry, dict) else None
+    return merge_failures(mission_failures(doc), parse_failures(own, ("vehicles", index, "failures")))
+
+
+def vehicle_index(doc: Any, name: str) -> int:
+    """The index of the ``vehicles:`` entry called ``name`` (FailureScheduleError saying which names there are)."""
+    names = [str(e.get("name")) if isinstance(e, dict) else "" for e in vehicle_entries(doc)]
+    if name in names:
+        return names.index(name)
+    if not names:
+        raise FailureScheduleError(("vehicles",), f"no vehicle {name!r}: not a fleet world (no vehicles: list)")
+    raise FailureScheduleError(("vehicles",), f"no vehicle named {name!r}; fix: {did_you_mean(name, names)}")

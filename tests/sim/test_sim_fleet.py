@@ -15,8 +15,10 @@ import pytest
 from mavlink_bridge.contract.traffic import AdsbEmitterType, TrafficReport, TrafficSource
 from mavlink_bridge.contract.wire import ActuatorCommand
 from mavlink_bridge.lockstep import LockstepClient, LockstepFrame
+from mavlink_bridge.lockstep.answer_kernel import A_ARMED, A_MOTORS
 from sim.end_reason import EndReason
 from sim.fleet import FleetSim, vehicle_seed
+from sim.fleet_run import FleetRun, fleet_airframes
 from sim.fleet_server import FleetServer, FleetSummary
 from sim.fleet_world import load_fleet
 from sim.server import SimConfig
@@ -117,6 +119,21 @@ def test_contact_between_two_vehicles_is_a_collision_for_both(tmp_path: Path) ->
         sim.step()
     assert sim.end_reason.tolist() == [EndReason.COLLISION, EndReason.COLLISION]
     assert sim.contacts_of(0) == [1] and sim.contacts_of(1) == [0]
+
+
+def test_volume_separation_counts_airborne_pairs_in_the_volumes_measure(tmp_path: Path) -> None:
+    """``min_volume_sep_m`` = max(horizontal, 2 x vertical) between centres while both fly: parked is not
+    counted, 6 m beside and 4 m above is inside the 10 m / 5 m volume (8 m), 6 m beside and 6 m above is not."""
+    sim = _fleet_sim(_write(tmp_path, FLEET_YAML.replace("east_m: 8}", "east_m: 6}")))
+    sim.step()  # both on their pads, 6 m apart: parked traffic
+    assert np.isinf(sim.min_volume_sep_m).all() and sim.min_separation_m[0] < 6.0
+    batch = sim.batches[0]
+    batch.state[:, 2] = (-20.0, -26.0)  # 6 m beside, 6 m above: outside (12 m in the measure)
+    sim.step()
+    assert sim.min_volume_sep_m == pytest.approx([12.0, 12.0], abs=0.01)
+    batch.state[:, 2] = (-20.0, -24.0)  # 4 m above: inside (8 m)
+    sim.step()
+    assert sim.min_volume_sep_m == pytest.approx([8.0, 8.0], abs=0.01)
 
 
 def test_obstacle_sensor_sees_the_other_vehicle(tmp_path: Path) -> None:
@@ -223,6 +240,27 @@ def test_same_world_and_seed_give_the_same_per_vehicle_hashes(tmp_path: Path) ->
     third = gusty.replace("traffic:", "  - name: charlie\n    home: {north_m: 20, east_m: 0}\ntraffic:")
     bigger = _run_fleet(_write(tmp_path, third, "three.yaml"), [*pilots, {"motors": 0.7}], 1.0, seed=3)[0]
     assert [v.truth_sha256 for v in bigger.vehicles][:2] == hashes[0]
+
+
+def test_the_socket_free_run_flies_the_servers_bits(tmp_path: Path) -> None:
+    """``FleetRun`` stepped directly (the in-process campaign flight's way) gives the per-vehicle truth hashes the
+    UDP server gives with the same answers: one implementation of a fleet step, two transports."""
+    path = _write(tmp_path, FLEET_YAML + "world: {wind: {gust_m_s: 2.0}}\n")
+    pilots = [{"motors": 0.75}, {"motors": 0.72}]
+    over_udp = _run_fleet(path, pilots, 1.0, seed=3)[0]
+    world, fleet = load_world(path), load_fleet(path)
+    run = FleetRun(world, fleet, fleet_airframes(fleet, "x500"), seed=3)
+    answers = [np.zeros(16) for _ in pilots]
+    for answer, pilot in zip(answers, pilots, strict=True):
+        answer[A_MOTORS : A_MOTORS + 4], answer[A_ARMED] = np.float32(pilot["motors"]), 1.0
+    alive = np.ones(run.n, dtype=bool)
+    while run.sim.t_s < 1.0 - 1e-9:
+        assert [i for i, _ in run.frames(alive)] == [0, 1]
+        for i, answer in enumerate(answers):
+            run.apply(i, answer)
+        run.advance()
+        run.sim.record()
+    assert [h.hexdigest() for h in run.sim.hashes] == [v.truth_sha256 for v in over_udp.vehicles]
 
 
 def test_a_dead_autopilot_loses_its_vehicle_and_the_others_keep_flying(tmp_path: Path) -> None:

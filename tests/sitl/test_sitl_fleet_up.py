@@ -120,3 +120,47 @@ def _autopilot_pid(parent: int, *words: str) -> int:
         if "autopilot" in args and " ".join(words) in " ".join(args):
             return int(pid)
     raise AssertionError(f"no autopilot child with {words}")
+
+
+FLEET_FAILURES = """\
+name: pair
+home: {lat_deg: 47.3977, lon_deg: 8.5456, alt_m: 488}
+world:
+  failures: [{at_s: 3, inject: mag_off}]
+vehicles:
+  - name: alpha
+    home: {north_m: 0, east_m: 0}
+    failures: [{at_s: 2, inject: motor_off, motor: 2}]
+  - name: bravo
+    home: {north_m: 0, east_m: 8}
+"""
+
+
+def test_a_vehicles_own_failures_reach_that_vehicle_alone_and_the_worlds_reach_all(tmp_path: Path) -> None:
+    world = tmp_path / "pair.yaml"
+    world.write_text(FLEET_FAILURES)
+    block, gcs_port = _free_block(2), _free_port()
+    gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{gcs_port}", source_system=255)
+    args = [sys.executable, "-m", "quadsitl_cli", "up", "--world", str(world), "--instance", str(block)]
+    args += ["--gcs-target", f"udpout:127.0.0.1:{gcs_port}", "--api", "off", "--speed", "2", "--duration-s", "6"]
+    log = open(tmp_path / "up.log", "wb")  # noqa: SIM115 (the child keeps its own copy)
+    up = subprocess.Popen(args, cwd=REPO_ROOT, env=dict(os.environ, PYTHONUNBUFFERED="1"), stdout=log, stderr=log)
+    texts: dict[int, list[str]] = {1: [], 2: []}
+    try:
+        deadline = time.monotonic() + 120.0
+        while up.poll() is None and time.monotonic() < deadline:
+            msg = gcs.recv_match(type="STATUSTEXT", blocking=True, timeout=0.5)
+            if msg is not None and msg.text.startswith("Failure injected"):
+                texts[msg.get_srcSystem()].append(msg.text)
+        rc = up.wait(timeout=60)
+    finally:
+        if up.poll() is None:
+            up.kill()
+            up.wait()
+        log.close()
+        gcs.close()
+    assert rc == 0, (tmp_path / "up.log").read_text(errors="replace")
+    assert texts == {
+        1: ["Failure injected: motor 2 off (motor output failed", "Failure injected: mag off"],  # 50 chars
+        2: ["Failure injected: mag off"],
+    }

@@ -10,6 +10,7 @@ import pytest
 
 from tools.campaign.cases import draw, materialise
 from tools.campaign.fleet_flight import ENCOUNTER_BASE, record
+from tools.campaign.replay import replay_case
 from tools.campaign.results import read_rows
 from tools.campaign.runner import run_campaign
 from tools.campaign.spec import CampaignFileError, load_campaign
@@ -30,7 +31,6 @@ def _spec(tmp_path: Path, body: str) -> Path:
         ("name: enc\nencounter: {kind: spiral}\ncases: 4\nseed: 2\n", 2, ["encounter.kind: bad value 'spiral'"]),
         ("name: enc\nencounter: {vehicles: 9}\ncases: 4\nseed: 2\n", 2, ["encounter.vehicles", "2 to 8"]),
         ("name: enc\nencounter: {crowd: 3}\ncases: 4\nseed: 2\n", 2, ["encounter.crowd: unknown key"]),
-        (GOOD + "mode: inproc\n", 5, ["only sitl does"]),
         (GOOD + "base: x.yaml\n", 5, ["generates its worlds"]),
         (GOOD + "vary:\n  vehicle: {choice: [x500]}\n", 5, ["varies only params"]),
     ],
@@ -62,9 +62,9 @@ def test_a_case_flies_the_generators_world_of_its_seed(tmp_path: Path) -> None:
 def test_the_flight_record_of_a_fleet_run() -> None:
     truth = [
         {"name": "a", "end_reason": "STOPPED", "truth_sha256": "1", "min_separation_m": 7.5,
-         "min_manned_distance_m": 80.0},
+         "min_volume_sep_m": 12.0, "min_manned_distance_m": 80.0},
         {"name": "b", "end_reason": "COLLISION", "truth_sha256": "2", "min_separation_m": 0.0,
-         "min_manned_distance_m": None},
+         "min_volume_sep_m": 9.0, "min_manned_distance_m": None},
     ]  # fmt: skip
     rows = [
         {"ok": True, "items_total": 4, "items_reached": 4, "landed": True, "disarmed": True, "reason": ""},
@@ -78,8 +78,8 @@ def test_the_flight_record_of_a_fleet_run() -> None:
         "items_total": 8, "items_reached": 6, "items_bypassed": 0, "landed": False, "disarmed": False,
     }  # fmt: skip
     assert flight["traffic"] == {
-        "traffic_contacts": 1, "traffic_min_sep_m": 0.0, "traffic_nmac": 1, "traffic_min_manned_m": 80.0,
-        "traffic_completion": 0.5, "traffic_vehicles": 2,
+        "traffic_contacts": 1, "traffic_min_sep_m": 9.0, "traffic_volume_entries": 1, "traffic_min_dist_m": 0.0,
+        "traffic_nmac": 1, "traffic_min_manned_m": 80.0, "traffic_completion": 0.5, "traffic_vehicles": 2,
     }  # fmt: skip
     assert "error" in record({"sim": {}, "vehicles": [], "errors": ["quadsitl up died"]})
 
@@ -97,3 +97,23 @@ def test_one_head_on_encounter_flown_as_a_campaign_case(tmp_path: Path) -> None:
     assert row["traffic_contacts"] == 0.0 and row["traffic_completion"] == 1.0 and row["traffic_nmac"] == 0.0
     assert row["traffic_min_sep_m"] > 0.0 and math.isnan(row["traffic_min_manned_m"])
     assert row["landed"] and row["items_missed"] == 0
+
+
+@pytest.mark.slow
+def test_an_encounter_flown_in_process_replays_bit_for_bit(tmp_path: Path) -> None:
+    """``mode: inproc`` flies a fleet case with scripted, staggered starts on sim time: replaying its row gives the
+    same per-vehicle truth hashes (the sitl mode's wall-clock ground station cannot promise that)."""
+    body = "name: enc\nencounter: {kind: converging, vehicles: 2, manned: false}\ncases: 1\nseed: 5\n"
+    body += "mode: inproc\nsim_time_s: 400\npass_if: {traffic_contacts: 0, traffic_completion: {min: 1.0}}\n"
+    spec = load_campaign(_spec(tmp_path, body))
+    run_campaign(spec, tmp_path / "out", workers=1, progress=False)
+    (row,) = read_rows(tmp_path / "out")
+    assert row["status"] == "ok", row["reason"]
+    assert row["mode"] == "inproc" and row["traffic_vehicles"] == 2.0 and row["vary.encounter.stagger_s"] > 0.0
+    assert row["traffic_contacts"] == 0.0 and row["traffic_completion"] == 1.0 and row["items_missed"] == 0
+    assert row["sim_time_s"] < 400.0  # ends when every vehicle has landed, not at the limit
+    replay = replay_case(tmp_path / "out", 0)
+    assert replay.matched, replay.text
+    assert sorted(p.name for p in replay.recording.parent.glob("*.rrd")) == [
+        "flight_uav0.rrd", "flight_uav1.rrd", "flight_world.rrd"
+    ]  # fmt: skip

@@ -7,8 +7,12 @@ only when every vehicle is, ``collisions`` the simulator's, ``end_reason`` ``COM
 otherwise than stopped (a crash), the truth hash the SHA-256 of the vehicles' hashes. The traffic columns:
 
 - ``traffic_contacts``: pairs of vehicles that touched (the simulator's truth);
-- ``traffic_min_sep_m``: the closest approach of two vehicles, surface to surface, while both were airborne or
-  not (pads are >= 10 m apart);
+- ``traffic_min_sep_m``: the closest approach of two airborne vehicles in the default UAV separation volume's
+  measure, ``max(horizontal, 2 * vertical)`` between centres (``sim.fleet``): below 10 m they were inside the
+  volume (10 m horizontally and 5 m vertically at once); NaN when no two vehicles were airborne together;
+- ``traffic_volume_entries``: vehicles that came inside that volume of another (target 0);
+- ``traffic_min_dist_m``: the closest 3D approach of two vehicles, surface to surface, airborne or not (0 is a
+  contact; pads are >= 14 m apart);
 - ``traffic_nmac``: vehicles that came inside a manned aircraft's NMAC volume (500 ft / 100 ft at once);
 - ``traffic_min_manned_m``: the closest 3D approach to a manned aircraft (NaN: none flew);
 - ``traffic_completion``: the fraction of vehicles whose mission the ground station saw done, landed, disarmed;
@@ -30,11 +34,15 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from sim.fleet import UAV_VOLUME_HOR_M
+
 #: The ``base`` a case of an encounter campaign records (its world is generated, not read from a file).
 ENCOUNTER_BASE = "encounter"
 TRAFFIC_COLUMNS = (
     "traffic_contacts",
     "traffic_min_sep_m",
+    "traffic_volume_entries",
+    "traffic_min_dist_m",
     "traffic_nmac",
     "traffic_min_manned_m",
     "traffic_completion",
@@ -88,6 +96,7 @@ def record(summary: dict[str, Any]) -> dict[str, Any]:
             texts.append(reason[reason.index("Failsafe:") :])
     manned = [float(v["min_manned_distance_m"]) for v in truth if v.get("min_manned_distance_m") is not None]
     separations = [float(v["min_separation_m"]) for v in truth if v.get("min_separation_m") is not None]
+    volume_seps = [float(v["min_volume_sep_m"]) for v in truth if v.get("min_volume_sep_m") is not None]
     n = len(truth)
     return {
         "sim": {
@@ -105,7 +114,9 @@ def record(summary: dict[str, Any]) -> dict[str, Any]:
         "texts": texts,
         "traffic": {
             "traffic_contacts": int(sim.get("vehicle_contacts", 0)),
-            "traffic_min_sep_m": min(separations) if separations else math.nan,
+            "traffic_min_sep_m": min(volume_seps) if volume_seps else math.nan,
+            "traffic_volume_entries": sum(sep < UAV_VOLUME_HOR_M for sep in volume_seps),
+            "traffic_min_dist_m": min(separations) if separations else math.nan,
             "traffic_nmac": int(sim.get("manned_nmacs", 0)),
             "traffic_min_manned_m": min(manned) if manned else math.nan,
             "traffic_completion": sum(bool(r.get("ok")) for r in rows) / n if n else 0.0,

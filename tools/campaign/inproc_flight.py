@@ -29,6 +29,7 @@ from autopilot.commander.script import CommandScript, failure_steps, load_script
 from autopilot.mission.files import load_mission_file
 from autopilot.runner import Autopilot, AutopilotConfig
 from autopilot.vehicle_adapter import VehicleAdapter
+from mavlink_bridge.contract.traffic import TrafficReport
 from mavlink_bridge.contract.vehicle_api import MissionItem, MissionResult, MissionType
 from mavlink_bridge.contract.wire import GpsSample, GroundTruth, ObstacleDetection, SensorSample
 from mavlink_bridge.lockstep import LockstepFrame
@@ -55,8 +56,10 @@ from sim.world import load_world
 CONTROL_HZ = 250
 
 
-class _Wire:
-    """The autopilot's side of one datagram: its messages assembled into a frame (as ``LockstepClient``)."""
+class FrameAssembler:
+    """The autopilot's side of one datagram: its messages assembled into a frame (as ``LockstepClient`` does on a
+    good link: traffic reports of the datagram ride with its frame, an ADS-B report without a time is stamped
+    with the frame's)."""
 
     def __init__(self) -> None:
         self.decoder = Decoder()
@@ -65,6 +68,7 @@ class _Wire:
 
     def frame(self, datagram: bytes) -> LockstepFrame:
         detections: list[ObstacleDetection] = []
+        traffic: list[TrafficReport] = []
         for msg in self.decoder.decode(datagram):
             kind = type(msg)
             if kind is GroundTruth:
@@ -73,10 +77,14 @@ class _Wire:
                 self.gps = msg
             elif kind is ObstacleDetection:
                 detections.append(msg)
+            elif kind is TrafficReport:
+                traffic.append(msg)
             elif kind is SensorSample:
                 gps, self.gps = self.gps, None
                 assert self.truth is not None
-                return LockstepFrame(msg, gps, self.truth, tuple(detections))
+                t = msg.time_us
+                stamped = tuple(r if r.t_us else replace(r, t_us=t) for r in traffic)
+                return LockstepFrame(msg, gps, self.truth, tuple(detections), stamped)
         raise RuntimeError("a lockstep datagram without HIL_SENSOR")
 
 
@@ -143,7 +151,7 @@ def fly(case_dir: Path, deadline_s: float | None = None, rerun: str | None = Non
         result, why = vehicle_api.replace_mission(mission_type, [as_on_the_wire(item) for item in items])
         if result is not MissionResult.ACCEPTED:
             error = f"{mission_type.name} upload refused: {result.name} {why}"
-    wire = _Wire()
+    wire = FrameAssembler()
     answers = AnswerWriter(1, 1)
     answer, payload = np.zeros(16), np.zeros(96, dtype=np.uint8)
     motors_off = np.zeros(4)

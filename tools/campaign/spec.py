@@ -51,6 +51,8 @@ PASS_KEYS = {
     "traffic_contacts": float,  # encounter campaigns (tools.campaign.fleet_flight)
     "traffic_nmac": float,
     "traffic_min_sep_m": float,
+    "traffic_volume_entries": float,
+    "traffic_min_dist_m": float,
     "traffic_completion": float,
 }
 DEFAULT_PASS_IF = {"landed": True, "collisions": 0}
@@ -188,8 +190,6 @@ class _Checker:
 
         if estimator not in ESTIMATORS:
             raise self.fail(("estimator",), f"unknown estimator {estimator!r}", did_you_mean(estimator, ESTIMATORS))
-        if encounter is not None and mode != "sitl":
-            raise self.fail(("mode",), "an encounter campaign flies fleets, which only sitl does", "mode: sitl")
         bases = self.bases(doc["base"]) if encounter is None else ("encounter",)
         vary = tuple(self.vary(doc.get("vary") or {}, bases))
         if encounter is not None and any(key != "params" for key, _ in vary):

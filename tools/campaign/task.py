@@ -91,7 +91,12 @@ def run_case(payload: CasePayload) -> dict[str, Any]:
         (case_dir / "case.json").write_text(json.dumps(case_json, indent=1) + "\n")
         if payload.case.base == ENCOUNTER_BASE:  # a fleet (tools.campaign.fleet_flight)
             stagger_s = float(dict(payload.case.overrides).get("encounter.stagger_s", 0.0))
-            flight = fleet_flight.fly(case_dir, payload.deadline_s, stagger_s, kill_group)
+            if payload.mode == "inproc":
+                from tools.campaign import fleet_inproc
+
+                flight = fleet_inproc.fly(case_dir, payload.deadline_s, stagger_s, payload.rerun)
+            else:
+                flight = fleet_flight.fly(case_dir, payload.deadline_s, stagger_s, kill_group)
         elif payload.mode == "inproc":
             from tools.campaign import inproc_flight
 

@@ -1,0 +1,290 @@
+"""One fleet world run without sockets (SPEC §13): what the simulator does for every vehicle each control step.
+
+``FleetRun`` owns the vehicles (:class:`~sim.fleet.FleetSim`), their transponder receivers
+(:class:`~sim.traffic.TrafficReceiver`), the manned-traffic proximity truth and the world part of the recording.
+Per control step its user (the UDP server ``sim.fleet_server`` or the in-process campaign flight
+``tools.campaign.fleet_inproc``) does::
+
+    frames = run.frames(alive)          # per live vehicle: receiver HEARTBEAT + traffic due + sensors -> datagram
+    ...each autopilot answers...        # run.apply(i, answer) / run.stop_motors(i) for a lost one
+    run.advance()                       # physics of all batches, contacts, manned proximity, recording
+
+so both transports fly the same bytes and the same physics. ``summaries`` turns the end state into the
+per-vehicle part of ``sim_summary.json``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from mavlink_bridge.lockstep.answer_kernel import A_ARMED, A_GRIPPER_RELEASE, A_MOTORS
+from mavlink_bridge.wire.codec import Encoder, Heartbeat
+from mavlink_bridge.wire.frame_writer import FrameWriter
+from mavlink_bridge.wire.traffic_codec import MAV_COMP_ID_ADSB, MAV_TYPE_ADSB
+from sim.end_reason import EndReason
+from sim.fleet import FleetSim
+from sim.fleet_world import FleetSpec
+from sim.summary_file import SummaryFile
+from sim.traffic import DEFAULT_TRAFFIC_RANGE_M, MannedProximity, ScriptedTraffic, TrafficReceiver
+from sim.vehicle_config import VehicleConfig, load_vehicle
+from sim.world import World
+from sim.world_recording import WorldRecorder
+
+_MAV_AUTOPILOT_INVALID = 8
+_MAV_STATE_ACTIVE = 4
+_RUNNING = int(EndReason.RUNNING)
+
+
+@dataclass(frozen=True, slots=True)
+class LinkCounts:
+    """One vehicle's lockstep link counters (all 0 but ``frames`` when no link carries the frames)."""
+
+    frames: int = 0
+    resends: int = 0
+    stale_answers: int = 0
+    foreign: int = 0
+    invalid_answers: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class FleetVehicleSummary:
+    """One vehicle's part of a fleet ``sim_summary.json``."""
+
+    name: str
+    sys_id: int
+    vehicle: str
+    sim_port: int  # its lockstep port (0: flown in process)
+    end_reason: str
+    autopilot_connected: bool
+    autopilot_lost_at_s: float | None  # when its autopilot stopped answering (None: it never did)
+    contacts: list[str]  # the vehicles it touched (each a COLLISION for both)
+    min_separation_m: float | None  # closest approach to another vehicle, surface to surface
+    min_volume_sep_m: float | None  # closest airborne approach, max(hor, ver * 2): < 10 m is inside (sim.fleet)
+    min_clearance_m: float | None  # to the world's obstacles
+    payload_released_at_s: float | None
+    final_pos_ned_m: tuple[float, float, float]
+    truth_sha256: str
+    frames: int
+    resends: int
+    stale_answers: int
+    foreign_datagrams: int
+    invalid_answers: int
+    traffic_reports: int  # reports its receiver sent (UTM + ADS-B)
+    min_manned_distance_m: float | None  # closest 3D approach to a scripted aircraft (None: none flew)
+    nmac_at_s: float | None  # first NMAC with a scripted aircraft (sim.traffic.NMAC_HOR_M/VER_M; None: none)
+
+
+@dataclass(frozen=True, slots=True)
+class FleetSummary(SummaryFile):
+    """``sim_summary.json`` of a fleet world: the run, what bounds its speed, then one entry per vehicle."""
+
+    end_reason: str
+    sim_time_s: float
+    wall_time_s: float
+    real_time_factor: float
+    seed: int
+    speed: float | None
+    collisions: int  # vehicles that ended in a COLLISION (obstacles or each other)
+    vehicle_contacts: int  # pairs of vehicles that touched
+    manned_nmacs: int  # vehicles that came inside the NMAC volume of a scripted aircraft
+    frames: int  # control steps
+    sim_step_us: float  # mean wall time per step in the sim's own work (physics, sensors, datagrams, hashes)
+    physics_us: float  # of which the batched physics and contacts
+    answer_wait_us: float  # waiting for the slowest autopilot's answer (autopilot steps + transport)
+    sim_cpu_us_per_step: float
+    vehicles: list[FleetVehicleSummary]
+
+
+class FleetRun:
+    """The vehicles, receivers and truth of one fleet run, stepped by a transport (see the module docstring)."""
+
+    def __init__(
+        self,
+        world: World,
+        fleet: FleetSpec,
+        airframes: tuple[VehicleConfig, ...],
+        *,
+        seed: int = 0,
+        physics_hz: int = 1000,
+        control_hz: int = 250,
+        sensor_noise: bool = True,
+        traffic_range_m: float = DEFAULT_TRAFFIC_RANGE_M,
+        recording: Path | None = None,
+        recording_id: str = "",
+    ) -> None:
+        """ValueError for vehicles placed in contact, a bad rate or a bad traffic range."""
+        self.fleet = fleet
+        self.airframes = airframes
+        self.sim = sim = FleetSim(
+            world, fleet, airframes, seed=seed, physics_hz=physics_hz, control_hz=control_hz, sensor_noise=sensor_noise
+        )
+        self.receiver = TrafficReceiver(
+            world.home,
+            tuple(v.sys_id for v in fleet.vehicles),
+            ScriptedTraffic(fleet.traffic),
+            control_hz,
+            traffic_range_m,
+        )
+        self.proximity = MannedProximity(self.receiver.traffic, sim.n)
+        names = [v.name for v in fleet.vehicles]
+        self.recorder = (
+            WorldRecorder(names, self.receiver.traffic, recording, recording_id) if recording is not None else None
+        )
+        self.writers = [FrameWriter(v.sys_id) for v in fleet.vehicles]
+        self.receiver_encoders = [Encoder(v.sys_id, MAV_COMP_ID_ADSB) for v in fleet.vehicles]
+        self._receiver_heartbeat = Heartbeat(MAV_TYPE_ADSB, _MAV_AUTOPILOT_INVALID, 0, 0, _MAV_STATE_ACTIVE)
+        n = sim.n
+        period_us = round(1e6 / sim.obstacle_sensors[0].config.rate_hz)
+        self._detection_period_us = period_us
+        control_us = 1_000_000 // control_hz
+        # staggered over the period (vehicle i's first at i/n of it, on a control step): no step senses for all
+        self._next_detection_us = [(i * period_us // n) // control_us * control_us for i in range(n)]
+        self.traffic_sent = np.zeros(n, dtype=np.int64)
+
+    @property
+    def n(self) -> int:
+        return self.sim.n
+
+    def frames(self, alive: np.ndarray) -> Iterator[tuple[int, bytes]]:
+        """``(vehicle, datagram)`` for each vehicle whose autopilot is alive (``alive`` (n,) bool), this step:
+        its receiver's HEARTBEAT and traffic reports when due, sensors, truth, obstacle detections when due.
+        A generator (a transport sends each before the next is built); consume it whole, once per step."""
+        sim = self.sim
+        t_us = sim.t_us
+        heartbeat_due = self.receiver.heartbeat_due(sim.steps)
+        reports = self.receiver.reports(sim.steps, t_us, sim.pos_ned, sim.vel_ned, alive)
+        for i in np.flatnonzero(alive).tolist():
+            detect = t_us >= self._next_detection_us[i]
+            if detect:
+                self._next_detection_us[i] += self._detection_period_us
+            gps_due = sim.values[i].fill()
+            detections = sim.detect(i) if detect else ()
+            frame = self.writers[i].write(sim.values[i].values, t_us, gps_due, detections)
+            if reports[i] or heartbeat_due:
+                encoder = self.receiver_encoders[i]
+                head = [encoder.heartbeat(self._receiver_heartbeat)] if heartbeat_due else []
+                head += [encoder.traffic(r) for r in reports[i]]
+                self.traffic_sent[i] += len(reports[i])
+                frame = b"".join(head) + frame
+            yield i, frame
+
+    def apply(self, i: int, answer: np.ndarray) -> None:
+        """Vehicle i's decoded answer (``answer_kernel`` layout) into its motors (stopped when disarmed); a
+        gripper release drops its payload."""
+        if answer[A_GRIPPER_RELEASE] == 1.0 and self.sim.payload_kg(i) > 0.0:
+            self.sim.release_payload(i)
+        self.sim.set_motors(i, answer[A_MOTORS : A_MOTORS + 4] if answer[A_ARMED] == 1.0 else 0.0)
+
+    def stop_motors(self, i: int) -> None:
+        """Vehicle i's autopilot is gone: its motors stop (it falls)."""
+        self.sim.set_motors(i, np.zeros(4))
+
+    def advance(self) -> None:
+        """Physics of every vehicle one control step, contacts, manned proximity, the world recording."""
+        sim = self.sim
+        sim.step()
+        self.proximity.update(sim.t_s, sim.pos_ned)
+        if self.recorder is not None:
+            self.recorder.sample(sim.t_us, sim.pos_ned)
+
+    def close(self) -> None:
+        """Write the world part of the recording (when recording)."""
+        if self.recorder is not None:
+            self.recorder.write()
+
+    def summaries(
+        self,
+        end: EndReason,
+        connected: np.ndarray,
+        lost_at_s: list[float | None],
+        links: list[LinkCounts],
+        ports: list[int],
+    ) -> list[FleetVehicleSummary]:
+        """Every vehicle's end state: a vehicle still running ends with ``end`` (or AUTOPILOT_LOST when its
+        autopilot never connected or was lost)."""
+        sim = self.sim
+        out = []
+        for i, spec in enumerate(self.fleet.vehicles):
+            code = int(sim.end_reason[i])
+            if code == _RUNNING:
+                code = int(EndReason.AUTOPILOT_LOST if lost_at_s[i] is not None or not connected[i] else end)
+            b, row = sim.rows[i]
+            batch = sim.batches[b]
+            link = links[i]
+            pos = sim.pos_ned[i]
+            out.append(
+                FleetVehicleSummary(
+                    name=spec.name,
+                    sys_id=spec.sys_id,
+                    vehicle=self.airframes[i].name,
+                    sim_port=ports[i],
+                    end_reason=EndReason(code).name,
+                    autopilot_connected=bool(connected[i]),
+                    autopilot_lost_at_s=lost_at_s[i],
+                    contacts=[self.fleet.vehicles[j].name for j in sim.contacts_of(i)],
+                    min_separation_m=_finite(sim.min_separation_m[i]),
+                    min_volume_sep_m=_finite(sim.min_volume_sep_m[i]),
+                    min_clearance_m=_finite(batch.min_clearance_m[row]),
+                    payload_released_at_s=_finite(batch.payload_released_at_s[row]),
+                    final_pos_ned_m=(float(pos[0]), float(pos[1]), float(pos[2])),
+                    truth_sha256=sim.hashes[i].hexdigest(),
+                    frames=link.frames,
+                    resends=link.resends,
+                    stale_answers=link.stale_answers,
+                    foreign_datagrams=link.foreign,
+                    invalid_answers=link.invalid_answers,
+                    traffic_reports=int(self.traffic_sent[i]),
+                    min_manned_distance_m=_finite(self.proximity.min_distance_m[i]),
+                    nmac_at_s=self.proximity.nmac_at_s[i],
+                )
+            )
+        return out
+
+    def summary(
+        self,
+        end: EndReason,
+        vehicles: list[FleetVehicleSummary],
+        *,
+        seed: int,
+        speed: float | None,
+        wall_s: float,
+        timing_s: tuple[float, float, float, float],
+    ) -> FleetSummary:
+        """The run's summary; ``timing_s`` = (answer wait, pacing sleep, physics, process CPU) in seconds."""
+        sim = self.sim
+        wait_s, sleep_s, physics_s, cpu_s = timing_s
+        steps = max(sim.steps, 1)
+        return FleetSummary(
+            end_reason=end.name,
+            sim_time_s=sim.t_s,
+            wall_time_s=wall_s,
+            real_time_factor=sim.t_s / wall_s if wall_s > 0.0 else 0.0,
+            seed=seed,
+            speed=speed,
+            collisions=sum(v.end_reason == EndReason.COLLISION.name for v in vehicles),
+            vehicle_contacts=len(sim.contacts),
+            manned_nmacs=sum(v.nmac_at_s is not None for v in vehicles),
+            frames=sim.steps,
+            sim_step_us=(wall_s - wait_s - sleep_s) / steps * 1e6,
+            physics_us=physics_s / steps * 1e6,
+            answer_wait_us=wait_s / steps * 1e6,
+            sim_cpu_us_per_step=cpu_s / steps * 1e6,
+            vehicles=vehicles,
+        )
+
+
+def fleet_airframes(fleet: FleetSpec, default: str) -> tuple[VehicleConfig, ...]:
+    """Each vehicle's airframe (its ``vehicle:``, else ``default``), each airframe file loaded once."""
+    names = [v.vehicle or default for v in fleet.vehicles]
+    loaded = {name: load_vehicle(name) for name in dict.fromkeys(names)}
+    return tuple(loaded[name] for name in names)
+
+
+def _finite(value: float) -> float | None:
+    value = float(value)
+    return value if math.isfinite(value) else None

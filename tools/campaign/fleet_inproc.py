@@ -1,0 +1,313 @@
+"""A fleet flown in one process (``mode: inproc`` of an encounter campaign; docs/traffic.md, docs/campaigns.md).
+
+The simulator's socket-free fleet run (``sim.fleet_run.FleetRun``: the same datagrams, traffic reports and physics
+as ``sim.fleet_server``) and one ``Autopilot`` per vehicle (MAV_SYS_ID i+1, its own mission and fence handed over
+as MISSION_ITEM_INT would carry them), stepped together: each control step every live vehicle's datagram is
+decoded into its frame (``inproc_flight.FrameAssembler``), its autopilot steps and its answer goes through the
+lockstep answer's own writer and reader, then the physics of all vehicles. Instead of the ground station, each
+vehicle's script arms it at ``arm_at_s + i * stagger_s`` of sim time and starts its mission 0.5 s later (its
+``failures:`` and the world's merged in, as ``autopilot --world-failures --fleet-vehicle`` does), so a
+case is a function of its world, parameters and seed: re-flying it gives the same per-vehicle truth hashes
+(``quadsitl campaign replay``), which the sitl mode's wall-clock ground station cannot promise.
+
+Each vehicle is judged as the fleet ground station judges it (``tools.gcs_fleet``): done when landed and
+disarmed after flying, when it crashed, or after ``stall_s`` of sim time without progress; ok when its mission
+was completed, it landed and disarmed, and no failsafe fired. The run ends when every vehicle is done or at
+``sim_time_s``. The record has the shape ``fleet_flight.record`` reads (``sim``: the fleet ``sim_summary``;
+``vehicles``: one ground-station-like row per vehicle).
+
+``python -m tools.campaign.fleet_inproc WORLD.yaml [--stagger-s S] [--params P] [--seed N]`` flies one world
+and prints the record's traffic columns and one line per vehicle (``--json``: the whole record).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from autopilot.commander.script import CommandScript, ScriptStep, failure_steps, merged, parse_script
+from autopilot.fleet_launcher import fleet_recording_id, vehicle_rerun_spec, world_rerun_path
+from autopilot.mission.files import load_fleet_missions
+from autopilot.mission.plan import MissionPlan
+from autopilot.runner import Autopilot, AutopilotConfig
+from autopilot.vehicle_adapter import VehicleAdapter
+from mavlink_bridge.contract.vehicle_api import LandedState, MissionResult, MissionType
+from mavlink_bridge.lockstep.answer_kernel import ANSWER_OK, AnswerWriter, read_answer
+from sim.end_reason import EndReason
+from sim.fleet_run import FleetRun, LinkCounts, fleet_airframes
+from sim.fleet_world import load_fleet
+from sim.server import DEFAULT_VEHICLE, mission_vehicle
+from sim.world import load_world
+from tools.campaign.cases import MISSION_START_DELAY_S
+from tools.campaign.fleet_flight import record
+from tools.campaign.inproc_flight import CONTROL_HZ, FrameAssembler, as_on_the_wire
+from tools.gcs import BYPASSED_PREFIX, failsafe_reason
+
+DEFAULT_ARM_AT_S = 3.0
+DEFAULT_STALL_S = 120.0  # as the fleet ground station's --stall-s
+DEFAULT_SIM_TIME_S = 900.0
+_RUNNING = int(EndReason.RUNNING)
+_MISSION_COMPLETE = "COMPLETE"
+
+
+@dataclass(slots=True)
+class _Vehicle:
+    """One autopilot of the fleet and what the judge knows of its flight."""
+
+    name: str
+    plan: MissionPlan
+    autopilot: Autopilot
+    answers: AnswerWriter
+    assembler: FrameAssembler = field(default_factory=lambda: FrameAssembler())
+    texts: list[Any] = field(default_factory=list)
+    seen_armed: bool = False
+    progress: tuple[int, bool, bool] = (0, False, False)
+    progress_at_s: float = 0.0
+    done: bool = False
+    reason: str = ""
+    upload_error: str = ""
+
+
+def vehicle_script(index: int, arm_at_s: float, stagger_s: float) -> list[ScriptStep]:
+    """Vehicle ``index``'s arm and mission start (the fleet ground station's staggered start, on sim time)."""
+    at_s = arm_at_s + index * stagger_s
+    return parse_script(
+        [{"at_s": at_s, "cmd": "arm"}, {"at_s": at_s + MISSION_START_DELAY_S, "cmd": "mission_start"}],
+        f"<vehicle {index} start>",
+    )
+
+
+def fly_world(
+    world_path: Path,
+    *,
+    seed: int = 0,
+    params_file: str | None = None,
+    estimator: str = "ekf",
+    stagger_s: float = 0.0,
+    arm_at_s: float = DEFAULT_ARM_AT_S,
+    sim_time_s: float = DEFAULT_SIM_TIME_S,
+    stall_s: float = DEFAULT_STALL_S,
+    deadline_s: float | None = None,
+    rerun: str | None = None,
+) -> dict[str, Any]:
+    """Fly the fleet world at ``world_path``; the record (see the module docstring). ``deadline_s``: wall-clock
+    limit (checked every simulated second; ``timed_out`` in the record). ``rerun``: ``save:PATH.rrd`` records
+    the fleet as ``quadsitl up --rerun`` does (``PATH_<name>.rrd`` per vehicle, ``PATH_world.rrd``, one id)."""
+    t0, cpu0 = time.monotonic(), time.process_time()
+    world = load_world(world_path)
+    fleet = load_fleet(world_path)
+    if not fleet.is_fleet:
+        raise ValueError(f"{world_path}: no vehicles: list (a single-vehicle world: fly it with mode inproc)")
+    plans = load_fleet_missions(world_path)
+    airframes = fleet_airframes(fleet, mission_vehicle(world_path) or DEFAULT_VEHICLE)
+    recording_id = fleet_recording_id(world_path, seed) if rerun else ""
+    world_rrd = world_rerun_path(rerun) if rerun else None
+    run = FleetRun(
+        world,
+        fleet,
+        airframes,
+        seed=seed,
+        control_hz=CONTROL_HZ,
+        recording=Path(world_rrd) if world_rrd else None,
+        recording_id=recording_id,
+    )
+    vehicles = []
+    for i, (spec, plan, airframe) in enumerate(zip(fleet.vehicles, plans, airframes, strict=True)):
+        config = AutopilotConfig(
+            vehicle=airframe.name, estimator=estimator, params_file=params_file, system_id=spec.sys_id
+        )
+        failures = failure_steps(fleet.failures_of(i))  # the world's and its own (``vehicles[i].failures``)
+        script = CommandScript(merged(vehicle_script(i, arm_at_s, stagger_s), failures))
+        ap = Autopilot(config, script=script)
+        if failures:  # as ``autopilot --world-failures``: a schedule enables the injection
+            ap.params.set("SYS_FAILURE_EN", 1.0)
+        if rerun:
+            from autopilot.telemetry import make_listener  # imports rerun: only when a recording is asked for
+
+            ap.listener = make_listener(
+                vehicle_rerun_spec(rerun, spec.name),
+                vehicle=airframe.name,
+                safety_radius_m=ap.params.get("CA_RSAFE_M"),
+                rtl_alt_m=ap.params.get("MIS_RTL_ALT"),
+                recording_id=recording_id,
+                fleet_name=spec.name,
+                home_offset_ned_m=(spec.home_north_m, spec.home_east_m, 0.0),
+            )
+        v = _Vehicle(spec.name, plan, ap, AnswerWriter(spec.sys_id, 1))
+        api = VehicleAdapter(ap)
+        for mission_type, items in ((MissionType.FENCE, plan.fence), (MissionType.MISSION, plan.items)):
+            result, why = api.replace_mission(mission_type, [as_on_the_wire(item) for item in items])
+            if result is not MissionResult.ACCEPTED:
+                v.upload_error = f"{mission_type.name} upload refused: {result.name} {why}"
+        vehicles.append(v)
+
+    n = run.n
+    alive = np.ones(n, dtype=bool)
+    answer, payload = np.zeros(16), np.zeros(96, dtype=np.uint8)
+    sim = run.sim
+    timed_out = False
+    error = ""
+    end = EndReason.STOPPED
+    wait_s = physics_s = 0.0
+    while True:
+        if sim.t_s >= sim_time_s - 1e-9:
+            end = EndReason.COMPLETED
+            break
+        if sim.steps % CONTROL_HZ == 0:
+            verdicts = [_judge(v, sim.t_s, int(sim.end_reason[i]), stall_s) for i, v in enumerate(vehicles)]
+            if all(verdicts):  # every vehicle judged every second (no short-circuit)
+                end = EndReason.COMPLETED
+                break
+            if deadline_s is not None and time.monotonic() - t0 > deadline_s:
+                timed_out = True
+                break
+        wait0 = time.perf_counter()
+        for i, datagram in run.frames(alive):
+            v = vehicles[i]
+            ap = v.autopilot
+            cmd = ap.step(v.assembler.frame(datagram))
+            step_texts = ap.drain_texts()
+            v.texts += step_texts
+            if ap.listener is not None:
+                step_record = ap.record(step_texts)
+                if step_record is not None:
+                    ap.listener.on_step(step_record)
+            length = v.answers.write(cmd.time_us, cmd.motor_cmd, cmd.armed, cmd.gripper_release, cmd.lockstep)
+            if read_answer(v.answers.buffer, length, sim.t_us, answer, payload) != ANSWER_OK:
+                error = f"{v.name}: the autopilot's answer at t={sim.t_us} us was refused by the simulator's reader"
+                alive[i] = False
+                run.stop_motors(i)
+                continue
+            ap.after_answer()
+            run.apply(i, answer)
+        wait_s += time.perf_counter() - wait0
+        physics0 = time.perf_counter()
+        run.advance()
+        sim.record()
+        physics_s += time.perf_counter() - physics0
+    run.close()
+    wall_s = time.monotonic() - t0
+    for v in vehicles:
+        v.texts += v.autopilot.drain_texts()
+        close = getattr(v.autopilot.listener, "close", None)
+        if close is not None:
+            close()
+    links = [LinkCounts(frames=v.autopilot.frames) for v in vehicles]
+    ends = run.summaries(end, np.ones(n, dtype=bool), [None] * n, links, [0] * n)
+    cpu_s = time.process_time() - cpu0
+    summary = run.summary(end, ends, seed=seed, speed=None, wall_s=wall_s, timing_s=(wait_s, 0.0, physics_s, cpu_s))
+    out = record({"sim": asdict(summary), "vehicles": [_row(v, wall_s) for v in vehicles]})
+    out["error"] = out.get("error") or error or "; ".join(v.upload_error for v in vehicles if v.upload_error)
+    out["timed_out"] = timed_out
+    out["wall_s"] = wall_s
+    out["vehicle_rows"] = [_row(v, wall_s) for v in vehicles]
+    return out
+
+
+def fly(case_dir: Path, deadline_s: float | None, stagger_s: float, rerun: str | None = None) -> dict[str, Any]:
+    """Fly an encounter campaign's case in ``case_dir`` (``case.json``, ``world.yaml``, ``params.yaml``)."""
+    case = json.loads((case_dir / "case.json").read_text())
+    return fly_world(
+        case_dir / "world.yaml",
+        seed=int(case["sim_seed"]),
+        params_file=str(case_dir / "params.yaml"),
+        estimator=str(case["estimator"]),
+        stagger_s=stagger_s,
+        sim_time_s=float(case["sim_time_s"]),
+        deadline_s=deadline_s,
+        rerun=rerun,
+    )
+
+
+def _judge(v: _Vehicle, t_s: float, end_code: int, stall_s: float) -> bool:
+    """Update vehicle ``v``'s verdict at sim time ``t_s`` (its simulator end code); True once it is done."""
+    if v.done:
+        return True
+    commander = v.autopilot.commander
+    armed = commander.armed
+    on_ground = commander.landed_state is LandedState.ON_GROUND
+    reached = len(v.autopilot.progress.reached_seqs)
+    progress = (reached, on_ground, armed)
+    if progress != v.progress:
+        v.progress, v.progress_at_s = progress, t_s
+    v.seen_armed = v.seen_armed or armed
+    if end_code != _RUNNING:
+        v.reason, v.done = f"the vehicle ended {EndReason(end_code).name} in the simulator", True
+    elif v.seen_armed and not armed and on_ground:
+        v.done = True
+    elif t_s - v.progress_at_s > stall_s:
+        v.reason, v.done = f"no mission progress for {stall_s:g} s of sim time (crashed or stuck?)", True
+    return v.done
+
+
+def _row(v: _Vehicle, wall_s: float) -> dict[str, Any]:
+    """Vehicle ``v``'s row, as the fleet ground station's summary has it."""
+    s = v.autopilot.summary(wall_s)
+    total = int(s["items_total"])  # type: ignore[call-overload]
+    reached = set(s["reached_seqs"])  # type: ignore[call-overload]
+    mission_done = s["mission_state"] == _MISSION_COMPLETE or (total > 0 and total - 1 in reached)
+    reason = v.reason or v.upload_error or failsafe_reason(v.texts)
+    if not reason and v.done and not mission_done:
+        reason = "the vehicle landed and disarmed before the mission was complete"
+    landed, disarmed = bool(s["landed"]), bool(s["disarmed"])
+    return {
+        "name": v.name,
+        "ok": not reason and landed and disarmed and mission_done,
+        "items_total": total,
+        "items_reached": len(reached),
+        "items_bypassed": sum(t.text.startswith(BYPASSED_PREFIX) for t in v.texts),
+        "sim_time_s": s["sim_time_s"],
+        "landed": landed,
+        "disarmed": disarmed,
+        "reason": reason,
+        "traffic_texts": [t.text for t in v.texts if t.text.startswith("Traffic")],
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m tools.campaign.fleet_inproc", description=__doc__.split("\n")[0])
+    parser.add_argument("world", type=Path, help="a fleet world YAML (vehicles:, traffic:)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--params", default=None, help="a parameter file every vehicle loads")
+    parser.add_argument("--estimator", default="ekf", choices=("ekf", "truth"))
+    parser.add_argument("--stagger-s", type=float, default=0.0, help="sim seconds between take-offs")
+    parser.add_argument("--sim-time-s", type=float, default=DEFAULT_SIM_TIME_S, help="sim time limit")
+    parser.add_argument("--json", action="store_true", help="print the whole record as JSON")
+    args = parser.parse_args(argv)
+    try:
+        out = fly_world(
+            args.world,
+            seed=args.seed,
+            params_file=args.params,
+            estimator=args.estimator,
+            stagger_s=args.stagger_s,
+            sim_time_s=args.sim_time_s,
+        )
+    except (OSError, ValueError) as exc:  # MissionFileError, FleetWorldError, ScriptError are ValueErrors
+        print(f"fleet_inproc: {exc}", file=sys.stderr)
+        return 2
+    if args.json:
+        print(json.dumps(out, indent=1, default=str))
+        return 0
+    traffic = out["traffic"]
+    print(" ".join(f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}" for k, v in traffic.items()))
+    sim_rows = {r["name"]: r for r in out["sim"]["vehicles"]}
+    for r in out["vehicle_rows"]:
+        sep = sim_rows[r["name"]]["min_separation_m"]
+        sep_text = "-" if sep is None or not math.isfinite(sep) else f"{sep:.2f} m"
+        print(f"{r['name']:>10} ok={r['ok']!s:5} items {r['items_reached']}/{r['items_total']} min_sep {sep_text} "
+              f"{r['reason']}")  # fmt: skip
+    print(f"sim {out['sim']['sim_time_s']:.1f} s in {out['wall_s']:.1f} s wall")
+    return 0 if not out["error"] else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
