@@ -3,8 +3,7 @@
 Every frame (250 Hz): [failures] -> [stale-data check] -> estimator -> setpoints -> [avoidance] -> cascade ->
 [motor failures] -> ActuatorCommand. At 50 Hz and after any command: failsafes (10 Hz), navigator, commander.
 The answer goes out *before* the bookkeeping (:meth:`Autopilot.after_answer`), while the simulator integrates.
-The runner only composes and steps the modules; ``docs/architecture.md`` says what each owns, reads and emits.
-"""
+The runner only composes and steps the modules; ``docs/architecture.md`` says what each owns, reads and emits."""
 
 from __future__ import annotations
 
@@ -327,8 +326,7 @@ class Autopilot:
         and the next step's setpoint reference ahead of time (``SetpointGenerator.prepare``).
 
         Idempotent; :meth:`step`, :meth:`snapshot`, :meth:`record` and :meth:`summary` call it first when the
-        caller did not, so the numbers are the same either way (the next step reads the battery only after it).
-        """
+        caller did not, so the numbers are the same either way (the next step reads the battery only after it)."""
         truth = self._pending_truth
         if truth is not None:
             self._pending_truth = None
@@ -359,7 +357,7 @@ class Autopilot:
         state = self.state
         if state is None:
             return None
-        commander, fc = self.commander, self.control
+        commander, fc, traffic = self.commander, self.control, self.navigator.traffic
         flying = self._target.kind is not TargetKind.IDLE
         return StepRecord(
             time_us=state.time_us,
@@ -383,6 +381,8 @@ class Autopilot:
             truth=self._truth,  # type: ignore[arg-type]
             estimator_status=self.estimator.status,
             planned_route_home_ned_m=self.navigator.route_path_home_ned_m,
+            traffic_decision=traffic.decision,
+            uav_separation=traffic.avoidance.params.uav,
         )
 
     def snapshot(self) -> TelemetrySnapshot | None:

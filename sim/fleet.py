@@ -11,7 +11,7 @@ Two separations are kept per vehicle, the truth the encounter Monte Carlo judges
 closest 3D approach to another vehicle surface to surface (0 is a contact), and ``min_volume_sep_m``, the closest
 approach to another airborne vehicle in the default UAV separation volume's own measure, centre to centre:
 ``max(horizontal, vertical * 10 / 5)``, so below ``UAV_VOLUME_HOR_M`` (10 m) the pair was inside the volume
-(closer than 10 m horizontally and than 5 m vertically at once, NAV_TRAFF_A_HOR / NAV_TRAFF_A_VER), and e.g.
+(closer than 10 m horizontally and than 5 m vertically at once, NAV_TRAFF_U_HOR / NAV_TRAFF_U_VER), and e.g.
 16 m is "8 m above or below" or "16 m beside". Vehicles standing on the ground are parked traffic, not in
 conflict (pads are spaced for it): the measure counts pairs while both are airborne.
 """

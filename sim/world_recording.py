@@ -7,7 +7,10 @@ each autopilot's open in the viewer as one recording. Sampled at ``rate_hz`` of 
 - ``traffic/<callsign>``: the scripted aircraft's pose (``Transform3D``, while it flies), with children
   ``aircraft`` (a point, labelled) and ``nmac_volume`` (the NMAC separation volume, 152.4 m x 30.48 m half sizes,
   drawn as an ellipsoid) and ``traffic/<callsign>/path`` (its scripted route, static);
-- ``separation/<a>-<b>``: per vehicle pair, the horizontal and vertical distance of their centres (m).
+- ``separation/<a>-<b>``: per vehicle pair, the horizontal and vertical distance of their centres (m);
+
+and the fleet's layout (:func:`sim.world_layout.fleet_blueprint`, framed on where the vehicles flew), made active.
+The application id is :data:`sim.world_layout.FLEET_APPLICATION_ID`, the autopilots' in a fleet.
 """
 
 from __future__ import annotations
@@ -19,10 +22,9 @@ import numpy as np
 import rerun as rr
 
 from sim.traffic import NMAC_HOR_M, NMAC_VER_M, ScriptedTraffic
+from sim.world_layout import FLEET_APPLICATION_ID, SEPARATION, TRAFFIC, fleet_blueprint
 
 TIMELINE = "sim_time"
-TRAFFIC = "traffic"
-SEPARATION = "separation"
 _COLOR_TRAFFIC = (230, 40, 160)
 
 
@@ -57,7 +59,7 @@ class WorldRecorder:
 
     def write(self) -> Path:
         """Save the recording (parent directories created); returns its path."""
-        rec = rr.RecordingStream("quadsitl", recording_id=self.recording_id)
+        rec = rr.RecordingStream(FLEET_APPLICATION_ID, recording_id=self.recording_id)
         rec.set_log_time_enabled(False)
         rec.set_log_tick_enabled(False)
         self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -97,6 +99,8 @@ class WorldRecorder:
                     indexes=[rr.TimeColumn(TIMELINE, duration=t_us[flying].astype("timedelta64[us]"))],
                     columns=rr.Transform3D.columns(translation=track[flying]),
                 )
+        flown = np.concatenate(self._pos_ned_m) if self._pos_ned_m else None
+        rec.send_blueprint(fleet_blueprint(self.names, flown), make_active=True, make_default=True)
         rec.flush()
         rec.disconnect()
         return self.path

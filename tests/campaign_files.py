@@ -4,21 +4,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
-HOP = """\
-name: hop
-home: {lat_deg: 30.2635, lon_deg: 120.1233, alt_m: 12.0}
-vehicle: x500
-speed_m_s: 5.0
-mission:
-  - takeoff: {alt_m: 5}
-  - waypoint: {north_m: 10, east_m: 0, alt_m: 5, accept_radius_m: 1.0}
-  - land: {}
-fence:
-  - inclusion_circle: {north_m: 0, east_m: 0, radius_m: 100}
-world:
-  wind: {north_m_s: 0.5, east_m_s: 0.0, down_m_s: 0.0, gust_m_s: 0.2}
-  payload_kg: 0.0
-"""
+from sitl_procs import fence_world_yaml
+
+HOP = fence_world_yaml(
+    "hop",
+    speed_m_s=5.0,
+    mission=["takeoff: {alt_m: 5}", "waypoint: {north_m: 10, east_m: 0, alt_m: 5, accept_radius_m: 1.0}", "land: {}"],
+    fence=["inclusion_circle: {north_m: 0, east_m: 0, radius_m: 100}"],
+    world=["wind: {north_m_s: 0.5, east_m_s: 0.0, down_m_s: 0.0, gust_m_s: 0.2}", "payload_kg: 0.0"],
+)
 
 #: Seed 3: case 0 draws the motor failure (a GROUND_IMPACT: a failing case), cases 1-3 none, 4 and 5 the failure.
 CAMPAIGN = """\

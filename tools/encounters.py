@@ -8,7 +8,8 @@ Kinds (drawn when not given):
   the other's pad);
 - ``crossing``: every route passes near the area's centre, the courses spread over 180 deg with random angles;
 - ``overtaking``: one course, the faster vehicles start further back and must pass the slower ones;
-- ``vertical``: head-on pairs, one climbing from 10 m to 24 m while the other descends through its altitude;
+- ``vertical``: head-on pairs, one climbing from 10 m to 24 m while the other descends from 24 m to 10 m, both
+  between waypoints 8 m either side of the point where they meet (so they cross altitudes there);
 - ``converging``: pads on a 90 m circle, every vehicle lands at the one depot (pads 14 m apart: the 10 m UAV
   volume and a margin), take-offs staggered by ``stagger_s`` (2-6 s drawn; the ground station's ``--stagger-s``).
 
@@ -44,6 +45,9 @@ MIN_PAD_GAP_M = 10.0
 DEPOT_PAD_GAP_M = 14.0  # the UAV separation volume (10 m) and a margin: neighbouring depot landings stay clear
 FENCE_RADIUS_M = 300.0
 MANNED_ONE_IN = 6
+VERTICAL_LOW_M = 10.0
+VERTICAL_HIGH_M = 24.0
+VERTICAL_WINDOW_M = 8.0
 _ROUTE_TRIES = 20
 _STREAM = 23  # the second word of the generator's seed: this module's own stream
 
@@ -72,6 +76,7 @@ class _Route:
     alt_start_m: float = CRUISE_ALT_M
     alt_end_m: float = CRUISE_ALT_M
     speed_m_s: float = 5.0
+    via: tuple[tuple[float, float, float], ...] = ()  # (north, east, alt) waypoints before the far end
 
 
 def encounter_world(
@@ -117,11 +122,20 @@ def _head_on(rng: np.random.Generator, n: int, climb: bool = False) -> list[_Rou
     routes = []
     for k, lane in enumerate(_lanes(math.ceil(n / 2))):
         jitter = float(rng.uniform(-2.0, 2.0))  # a near-miss as often as a dead-centre collision course
-        low, high = (10.0, 24.0) if climb else (CRUISE_ALT_M, CRUISE_ALT_M)
         far = HALF_LEG_M + LANE_M  # each lands a lane beyond the other's pad
-        routes.append(_Route((-HALF_LEG_M, lane), (far, lane + jitter), low, high))
+        if not climb:
+            routes.append(_Route((-HALF_LEG_M, lane), (far, lane + jitter)))
+            if 2 * k + 1 < n:
+                routes.append(_Route((HALF_LEG_M, lane + jitter), (-far, lane)))
+            continue
+        # vertical: the climb and the descent happen between two waypoints VERTICAL_WINDOW_M either side of the
+        # meeting point, so both cross the other's altitude where they meet (not before, whatever the climb rate)
+        w = VERTICAL_WINDOW_M
+        up = ((-w, lane + jitter / 2, VERTICAL_LOW_M), (w, lane + jitter / 2, VERTICAL_HIGH_M))
+        routes.append(_Route((-HALF_LEG_M, lane), (far, lane + jitter), VERTICAL_LOW_M, VERTICAL_HIGH_M, via=up))
         if 2 * k + 1 < n:
-            routes.append(_Route((HALF_LEG_M, lane + jitter), (-far, lane), high, low))
+            down = ((w, lane + jitter / 2, VERTICAL_HIGH_M), (-w, lane + jitter / 2, VERTICAL_LOW_M))
+            routes.append(_Route((HALF_LEG_M, lane + jitter), (-far, lane), VERTICAL_HIGH_M, VERTICAL_LOW_M, via=down))
     return routes
 
 
@@ -176,7 +190,8 @@ def _rotated(route: _Route, course_rad: float) -> _Route:
     def rot(p: tuple[float, float]) -> tuple[float, float]:
         return (round(c * p[0] - s * p[1], 2), round(s * p[0] + c * p[1], 2))
 
-    return _Route(rot(route.start_ne_m), rot(route.end_ne_m), route.alt_start_m, route.alt_end_m, route.speed_m_s)
+    via = tuple((*rot((n, e)), alt) for n, e, alt in route.via)
+    return _Route(rot(route.start_ne_m), rot(route.end_ne_m), route.alt_start_m, route.alt_end_m, route.speed_m_s, via)
 
 
 def _pads_clear(routes: list[_Route]) -> bool:
@@ -197,6 +212,7 @@ def _vehicle(name: str, r: _Route) -> dict[str, Any]:
         "speed_m_s": round(r.speed_m_s, 2),
         "mission": [
             {"takeoff": {"alt_m": r.alt_start_m}},
+            *({"waypoint": {"north_m": n, "east_m": e, "alt_m": alt, "accept_radius_m": 2.0}} for n, e, alt in r.via),
             {"waypoint": {"north_m": to_north, "east_m": to_east, "alt_m": r.alt_end_m, "accept_radius_m": 2.0}},
             {"land": {}},
         ],

@@ -37,6 +37,7 @@ from mavlink_bridge.contract.vehicle_api import (
 from mavlink_bridge.gcs_client.client import CommandFailedError, GcsClient, GcsError, MissionUploadError, VehicleStatus
 from mavlink_bridge.wire.link import LinkUrlError, resolve_url
 from mavlink_bridge.wire.signing import SigningKeyError, signing_key_from_text
+from tools.gcs_progress import MissionBars, flight_state_text, sim_time_text
 
 DEFAULT_CONNECT = "udpin:127.0.0.1:14550"
 MISSION_STATE_COMPLETE = 5
@@ -256,11 +257,11 @@ def fly(client: GcsClient, plan: MissionPlan, timeout_s: float, progress: bool =
     deadline = t0 + timeout_s
     reason = ""
     seen_armed = False  # armed in telemetry at least once (a fast sim may finish before we look)
-    with _Progress(total, enabled=progress) as bar:
+    with MissionBars("[bold]mission", [("mission", total)], enabled=progress) as bars:
         while True:
             client.pump(0.1)
             status = client.telemetry()
-            bar.update(len(status.items_reached), status)
+            _show(bars, status)
             seen_armed = seen_armed or status.armed
             landed_disarmed = not status.armed and status.landed_state is LandedState.ON_GROUND
             if landed_disarmed and mission_done(status, total):
@@ -268,7 +269,7 @@ def fly(client: GcsClient, plan: MissionPlan, timeout_s: float, progress: bool =
             if landed_disarmed and seen_armed:
                 client.pump(0.5)  # late MISSION_ITEM_REACHED / MISSION_CURRENT
                 status = client.telemetry()
-                bar.update(len(status.items_reached), status)
+                _show(bars, status)
                 if not mission_done(status, total):
                     reason = "the vehicle landed and disarmed before the mission was complete"
                 break
@@ -309,42 +310,9 @@ def failsafe_reason(texts: Sequence[StatusText]) -> str:
     return ""
 
 
-class _Progress:
-    """A rich progress bar of mission items reached (plain no-op when disabled or rich is missing)."""
-
-    def __init__(self, total: int, enabled: bool) -> None:
-        self._bar = None
-        self._task = None
-        if enabled:
-            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-            self._bar = Progress(
-                TextColumn("[bold]mission"),
-                BarColumn(),
-                MofNCompleteColumn(),
-                TextColumn("{task.fields[state]}"),
-                TimeElapsedColumn(),
-                transient=False,
-            )
-            self._task = self._bar.add_task("mission", total=max(total, 1), state="")
-
-    def __enter__(self) -> _Progress:
-        if self._bar is not None:
-            self._bar.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        if self._bar is not None:
-            self._bar.stop()
-
-    def update(self, reached: int, status: VehicleStatus) -> None:
-        if self._bar is None or self._task is None:
-            return
-        sim = f"{status.sim_time_s:7.1f} s" if status.sim_time_s is not None else "   ?"
-        state = (
-            f"{status.mode_name:<13} {'ARMED' if status.armed else 'disarmed':<8} {status.landed_state.name} t={sim}"
-        )
-        self._bar.update(self._task, completed=reached, state=state)
+def _show(bars: MissionBars, status: VehicleStatus) -> None:
+    state = f"{flight_state_text(status)} {status.landed_state.name} t={sim_time_text(status)}"
+    bars.show(0, len(status.items_reached), state)
 
 
 def cmd_fly(client: GcsClient, args: argparse.Namespace) -> str:

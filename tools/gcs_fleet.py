@@ -39,6 +39,7 @@ from tools.gcs import (
     say,
     upload_when_ready,
 )
+from tools.gcs_progress import MissionBars, flight_state_text, sim_time_text
 
 #: Wall seconds without any message from a flying vehicle before the ground station gives it up.
 LOST_AFTER_S = 10.0
@@ -124,7 +125,8 @@ def _follow(vehicles: list[_Vehicle], link: FleetLink, args: argparse.Namespace,
     deadline = t0 + args.timeout_s
     min_sep_m = math.inf
     first_start_s: float | None = None
-    with _FleetProgress([v.plan.name for v in vehicles], [len(v.plan.items) for v in vehicles], args) as bars:
+    rows = [(v.plan.name, len(v.plan.items)) for v in vehicles]
+    with MissionBars("[bold]{task.description:<10}", rows, enabled=not args.no_progress) as bars:
         while not all(v.done for v in vehicles):
             for i, v in enumerate(vehicles):
                 if v.done:
@@ -141,7 +143,7 @@ def _follow(vehicles: list[_Vehicle], link: FleetLink, args: argparse.Namespace,
                     _judge(v, link, args.stall_s)
                 if status.lat_deg is not None and status.home is not None and status.alt_rel_m is not None:
                     v.geo = (status.lat_deg, status.lon_deg or 0.0, status.home.alt_amsl_m + status.alt_rel_m)
-                bars.update(i, v)
+                _show(bars, i, v)
             min_sep_m = min(min_sep_m, _separation_now_m(vehicles))
             if time.monotonic() >= deadline:
                 for v in vehicles:
@@ -227,42 +229,14 @@ def _separation_now_m(vehicles: list[_Vehicle]) -> float:
     return best
 
 
-class _FleetProgress:
-    """One rich progress bar per vehicle: items reached, mode, arming, landed state, sim time."""
-
-    def __init__(self, names: list[str], totals: list[int], args: argparse.Namespace) -> None:
-        self._bar = None
-        self._tasks: list[int] = []
-        if not args.no_progress:
-            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-            self._bar = Progress(
-                TextColumn("[bold]{task.description:<10}"),
-                BarColumn(),
-                MofNCompleteColumn(),
-                TextColumn("{task.fields[state]}"),
-                TimeElapsedColumn(),
-            )
-            self._tasks = [self._bar.add_task(n, total=max(t, 1), state="") for n, t in zip(names, totals, strict=True)]
-
-    def __enter__(self) -> _FleetProgress:
-        if self._bar is not None:
-            self._bar.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        if self._bar is not None:
-            self._bar.stop()
-
-    def update(self, index: int, v: _Vehicle) -> None:
-        if self._bar is None or v.status is None:
-            return
-        s = v.status
-        sim = f"{s.sim_time_s:7.1f} s" if s.sim_time_s is not None else "   ?"
-        state = "waiting to start" if not v.started else f"{s.mode_name:<13} {'ARMED' if s.armed else 'disarmed':<8}"
-        if v.done:
-            state = "FAILED: " + v.reason[:40] if v.reason else "done"
-        self._bar.update(self._tasks[index], completed=len(s.items_reached), state=f"{state} t={sim}")
+def _show(bars: MissionBars, index: int, v: _Vehicle) -> None:
+    """Vehicle ``index``'s bar: items reached, then waiting / mode and arming / done / FAILED, and sim time."""
+    if v.status is None:
+        return
+    state = flight_state_text(v.status) if v.started else "waiting to start"
+    if v.done:
+        state = "FAILED: " + v.reason[:40] if v.reason else "done"
+    bars.show(index, len(v.status.items_reached), f"{state} t={sim_time_text(v.status)}")
 
 
 def cmd_fly_fleet(url: str, plans: list[MissionPlan], args: argparse.Namespace) -> str:

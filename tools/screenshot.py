@@ -1,8 +1,9 @@
 """Screenshot a flight recording in Rerun's web viewer, headless (no GPU, no display): ``make screenshot``.
 
-Usage: ``python -m tools.screenshot [--recording FLIGHT.rrd] [--out docs/recording_web_viewer.png]``.
+Usage: ``python -m tools.screenshot [--recording FLIGHT.rrd ...] [--out docs/recording_web_viewer.png]``.
 Without ``--recording`` it first flies ``missions/city_block_delivery.yaml`` (``tools.run_delivery`` at
-``--speed max``, about a minute) and uses that flight's recording.
+``--speed max``, about a minute) and uses that flight's recording. Several files are served together, as
+``rerun`` opens them: a fleet's recording is ``--recording runs/fleet-<timestamp>/*.rrd``.
 
 How: ``rerun --serve-web`` serves the recording and the web viewer on two free loopback ports; Chromium
 renders the viewer headless with its software rasterizer (SwiftShader) and writes the PNG. The viewer
@@ -28,6 +29,7 @@ import tempfile
 import threading
 import time
 import urllib.parse
+from collections.abc import Sequence
 from pathlib import Path
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
@@ -107,14 +109,17 @@ def _stop(proc: subprocess.Popen[bytes]) -> None:
             proc.wait()
 
 
-def screenshot(recording: Path, out: Path, *, size: tuple[int, int] = (1600, 1000), wait_s: float = 90.0) -> Path:
-    """Render ``recording`` in the web viewer headless and write the PNG to ``out``."""
+def screenshot(
+    recordings: Sequence[Path], out: Path, *, size: tuple[int, int] = (1600, 1000), wait_s: float = 90.0
+) -> Path:
+    """Render ``recordings`` (one flight's files, opened together) in the web viewer headless; write the PNG."""
     chromium = find_chromium()
-    if not recording.is_file():
-        raise ScreenshotError(f"{recording}: no such recording; fix: give a .rrd written by make run")
+    for recording in recordings:
+        if not recording.is_file():
+            raise ScreenshotError(f"{recording}: no such recording; fix: give a .rrd written by make run")
     web_port, grpc_port = free_tcp_port(), free_tcp_port()
     serve = [sys.executable, "-m", "rerun", "--serve-web", "--bind", "127.0.0.1"]
-    serve += ["--web-viewer-port", str(web_port), "--port", str(grpc_port), str(recording)]
+    serve += ["--web-viewer-port", str(web_port), "--port", str(grpc_port), *map(str, recordings)]
     quiet = subprocess.DEVNULL
     viewer = subprocess.Popen(serve, stdout=quiet, stderr=quiet, start_new_session=True)
     wrapper = _wrapper_server(viewer_url(web_port, grpc_port), wait_s)
@@ -164,7 +169,13 @@ def main(argv: list[str] | None = None) -> int:
         prog="python -m tools.screenshot",
         description="Screenshot a flight recording in Rerun's web viewer, headless (Chromium, no GPU).",
     )
-    parser.add_argument("--recording", type=Path, default=None, help="a .rrd (default: fly the city-block delivery)")
+    parser.add_argument(
+        "--recording",
+        type=Path,
+        nargs="+",
+        default=None,
+        help="one flight's .rrd file(s), e.g. a fleet's *.rrd (default: fly the city-block delivery)",
+    )
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"PNG to write (default {DEFAULT_OUT})")
     parser.add_argument(
         "--wait-s",
@@ -176,8 +187,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         find_chromium()  # before a minute of flying
         with tempfile.TemporaryDirectory(prefix="quadsitl-shot-") as tmp:
-            recording = args.recording or fly(Path(tmp) / "run")
-            written = screenshot(recording, args.out, wait_s=args.wait_s)
+            recordings = args.recording or [fly(Path(tmp) / "run")]
+            written = screenshot(recordings, args.out, wait_s=args.wait_s)
     except ScreenshotError as exc:
         print(f"screenshot: {exc}", file=sys.stderr)
         return 2 if "no Chromium" in str(exc) else 1

@@ -91,6 +91,8 @@ class StepRecord:
     truth: GroundTruth | None = None  # the sim's truth of this step: for estimate-vs-truth logging only
     estimator_status: EstimatorStatus | None = None
     planned_route_home_ned_m: np.ndarray | None = None  # the routed leg (about home); the same array until replanned
+    traffic_decision: object | None = None  # autopilot.traffic.TrafficDecision (frozen) of the latest traffic check
+    uav_separation: object | None = None  # autopilot.traffic.SeparationVolume in force (NAV_TRAFF_U_HOR, U_VER)
 
     @property
     def pos_sp_ned_m(self) -> Vec3:

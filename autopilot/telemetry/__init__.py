@@ -18,7 +18,15 @@ from autopilot.telemetry.rerun_logger import (
     RerunTelemetry,
 )
 from autopilot.telemetry.scene import route_points_ned
-from autopilot.telemetry.sinks import RerunSink, RerunSpecError, SinkKind, open_recording, parse_rerun_spec
+from autopilot.telemetry.sinks import (
+    APPLICATION_ID,
+    FLEET_APPLICATION_ID,
+    RerunSink,
+    RerunSpecError,
+    SinkKind,
+    open_recording,
+    parse_rerun_spec,
+)
 
 __all__ = [
     "RerunSink",
@@ -49,7 +57,8 @@ def make_listener(
     draws its route and fence about its home, and its ``world:`` obstacles as the *true* obstacles
     (which the autopilot itself never uses). Raises ``MissionFileError`` for a bad mission file.
     ``fleet_name``: this autopilot flies vehicle ``fleet_name`` of a fleet: its entities go under its name and
-    its positions about the world's home (``home_offset_ned_m``, :mod:`autopilot.telemetry.fleet_recording`).
+    its positions about the world's home (``home_offset_ned_m``, :mod:`autopilot.telemetry.fleet_recording`), with
+    its own separation volume drawn, under the fleet's application id (the simulator's part carries the layout).
     """
     sink = parse_rerun_spec(spec)
     if sink.kind is SinkKind.OFF:
@@ -65,7 +74,8 @@ def make_listener(
         framing = Framing.of_route(route, obstacles)
     # one blueprint: framed on the route now when it is known, else on the first uploaded mission
     blueprint = flight_blueprint(framing) if framing is not None and fleet_name is None else None
-    rec = open_recording(sink, blueprint, recording_id=recording_id)
+    app_id = APPLICATION_ID if fleet_name is None else FLEET_APPLICATION_ID
+    rec = open_recording(sink, blueprint, recording_id=recording_id, application_id=app_id)
     assert rec is not None
     if fleet_name is not None:
         from autopilot.telemetry.fleet_recording import VehicleRecording
@@ -90,6 +100,7 @@ def make_listener(
         blueprint_sent=framing is not None or fleet_name is not None,
         rtl_alt_m=rtl_alt_m,
         obstacles_known=framing.obstacles if framing is not None else None,
+        separation_volume=fleet_name is not None,
     )
     if plan is not None:
         from autopilot.geofence.fence import geofence_from_items

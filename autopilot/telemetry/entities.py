@@ -16,6 +16,7 @@ VEHICLE_BODY = "world/vehicle/body"
 SETPOINT = "world/setpoint"
 TARGETS = "world/targets"  # navigation targets as they were commanded (about the origin)
 TRAIL = "world/trail"
+SEPARATION_VOLUME = "world/separation_volume"  # a fleet vehicle's own UAV separation volume (its position)
 HOME = "world/home"
 ROUTE = "world/home/route"
 DETOUR = "world/home/detour"

@@ -10,8 +10,8 @@ world file and the seed), so their ``.rrd`` files, and the simulator's world par
 
 ``vehicles/<name>`` carries a static ``Transform3D`` whose translation is the vehicle's home about the
 world's home (NED, m), so the vehicle's local NED positions (origin: its own home) are drawn about the
-world's home. The single-vehicle layout (blueprint) names ``world/...`` paths, so a fleet recording sends none
-and the viewer lays out its default views.
+world's home. The single-vehicle layout (blueprint) names ``world/...`` paths, so an autopilot of a fleet sends
+none: the simulator's world part carries the fleet's layout (``sim.world_layout``), which names the paths above.
 """
 
 from __future__ import annotations
@@ -59,7 +59,7 @@ class VehicleRecording:
         self._rec.send_columns(vehicle_entity(self.name, entity_path), *args, **kwargs)
 
     def send_blueprint(self, *_args: Any, **_kwargs: Any) -> None:
-        """No blueprint: the single-vehicle layout names ``world/...`` paths (the viewer lays out the fleet)."""
+        """No blueprint: the single-vehicle layout names ``world/...`` paths (the simulator sends the fleet's)."""
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._rec, name)

@@ -112,12 +112,92 @@ class Recording:
         assert best is not None
         return best[1]
 
+    def rows(self, entity: str, component: str) -> list[tuple[int, list[object]]]:
+        """``(t_us, instances)`` of every timed row of a component, in sim-time order (static rows left out)."""
+        out: list[tuple[int, list[object]]] = []
+        for t_us, arr in self._parts(entity, component):
+            if t_us is not None:
+                out += [(int(t), row) for t, row in zip(t_us, arr.to_pylist(), strict=True)]
+        return sorted(out, key=lambda r: r[0])
+
     def static_component(self, entity: str, component: str) -> list[object]:
         """The latest static value of a component (a Python list of instances)."""
         for t_us, arr in reversed(self._parts(entity, component)):
             if t_us is None:
                 return arr.to_pylist()[-1]
         raise RecordingReadError(f"{self.path}: {entity} {component} has no static value")
+
+
+@dataclass(frozen=True, slots=True)
+class BlueprintView:
+    """One view of a saved layout: its title, origin (``/...``), kind (``Spatial3D``, ``TimeSeries`` ...) and
+    contents queries (``$origin/**`` when not given)."""
+
+    name: str
+    origin: str
+    kind: str
+    contents: tuple[str, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class Layout:
+    """The layout (blueprint) a recording file carries: its application id, views and the names of its named
+    containers (tabs), sorted."""
+
+    application_id: str
+    views: tuple[BlueprintView, ...]
+    containers: tuple[str, ...]
+
+    def view(self, name: str) -> BlueprintView:
+        found = [v for v in self.views if v.name == name]
+        if len(found) != 1:
+            raise RecordingReadError(f"layout: {len(found)} views named {name!r}")
+        return found[0]
+
+
+def _one(fields: dict[str, list[object]], column: str) -> str:
+    """The single value of a blueprint component ('' when absent)."""
+    value = fields.get(column) or [""]
+    return str(value[0])
+
+
+def read_layout(path: str | Path) -> Layout:
+    """The one blueprint saved in ``path``. Raises :class:`RecordingReadError` (none, several, unreadable)."""
+    p = Path(path)
+    try:
+        reader = RrdReader(p)
+        stores = reader.blueprints()
+        if len(stores) != 1:
+            raise RecordingReadError(f"{p}: {len(stores)} blueprints in the file, expected one")
+        fields: dict[str, dict[str, list[object]]] = {}
+        for chunk in reader.stream(store=stores[0]):
+            batch = chunk.to_record_batch()
+            mine = fields.setdefault(chunk.entity_path.removesuffix("/ViewContents"), {})
+            for k, column in enumerate(batch.schema.names):
+                if ":" in column:
+                    mine[column] = batch.column(k).to_pylist()[-1] or []  # the latest row's instances
+    except (OSError, ValueError, RuntimeError) as exc:
+        if isinstance(exc, RecordingReadError):
+            raise
+        raise RecordingReadError(f"{p}: cannot read the layout ({exc})") from exc
+    views = tuple(
+        BlueprintView(
+            _one(f, "ViewBlueprint:display_name"),
+            _one(f, "ViewBlueprint:space_origin"),
+            _one(f, "ViewBlueprint:class_identifier"),
+            tuple(str(q) for q in f.get("ViewContents:query", ())),
+        )
+        for e, f in sorted(fields.items())
+        if e.startswith("/view/") and "ViewBlueprint:class_identifier" in f
+    )
+    containers = tuple(
+        sorted(
+            _one(f, "ContainerBlueprint:display_name")
+            for e, f in fields.items()
+            if e.startswith("/container/") and f.get("ContainerBlueprint:display_name")
+        )
+    )
+    return Layout(stores[0].application_id, views, containers)
 
 
 def _t_us(column: pa.Array) -> np.ndarray:

@@ -33,6 +33,7 @@ from autopilot.telemetry import entities as ent
 from autopilot.telemetry.blueprint import Framing, flight_blueprint
 from autopilot.telemetry.estimator_errors import EstimatorErrorLog
 from autopilot.telemetry.scene_log import SceneLog
+from autopilot.telemetry.separation_volume import SeparationVolumeLog
 from autopilot.telemetry.step_columns import (
     ANGLE_COLS,
     C_ATT_ERR,
@@ -95,12 +96,15 @@ class RerunTelemetry(SceneLog):
         blueprint_sent: bool = False,
         rtl_alt_m: float | None = None,
         obstacles_known: bool | None = None,
+        separation_volume: bool = False,
     ) -> None:
         """``blueprint_sent``: the recording already holds its (framed) blueprint; otherwise one is sent with
         the first route (framed on it) or at :meth:`close`. ``rtl_alt_m``: the RTL altitude above home
         (``MIS_RTL_ALT``) an RTL item climbs to when lower. ``obstacles_known``: whether the world is
-        known to have obstacles (None: not known), for the clearance panel's title."""
+        known to have obstacles (None: not known), for the clearance panel's title. ``separation_volume``: draw the
+        vehicle's own UAV separation volume (:mod:`autopilot.telemetry.separation_volume`; a fleet's recording)."""
         self._estimator_errors: EstimatorErrorLog | None = None
+        self._volume = SeparationVolumeLog(rec) if separation_volume else None
         if not (rate_3d_hz > 0.0 and batch_rows >= 1 and trail_segment_points >= 2):
             raise ValueError("need rate_3d_hz > 0, batch_rows >= 1 and trail_segment_points >= 2")
         super().__init__(
@@ -200,6 +204,10 @@ class RerunTelemetry(SceneLog):
         if t_us >= self._next_3d_us:
             self._next_3d_us = t_us + self._period_3d_us
             self._sample_3d(t_us, pos, state.q_ned_frd, sp)
+            if self._volume is not None:
+                self._volume.on_sample(
+                    t_us, getattr(record, "uav_separation", None), getattr(record, "traffic_decision", None)
+                )
             target = record.target
             kind = target.kind
             if kind is TargetKind.POSITION or kind is TargetKind.LAND:  # IDLE and VELOCITY have no position
@@ -345,6 +353,8 @@ class RerunTelemetry(SceneLog):
                 columns=rr.Transform3D.columns(translation=r3[:, 0:3], quaternion=r3[:, 3:7]),
             )
             rec.send_columns(ent.SETPOINT, indexes=times3, columns=rr.Points3D.columns(positions=r3[:, 7:10]))
+            if self._volume is not None:
+                self._volume.send_positions(times3, r3[:, 0:3])
             self._vals3.clear()
             self._times3.clear()
         if self._trail_dirty:

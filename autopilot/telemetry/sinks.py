@@ -19,6 +19,9 @@ import rerun.blueprint as rrb
 
 #: The application id every quadsitl recording carries (the viewer groups blueprints by it).
 APPLICATION_ID = "quadsitl"
+#: The application id of a fleet's recording parts (the simulator's world part too): the viewer keeps one layout per
+#: application id, so a fleet's layout never replaces a single-vehicle recording's open in the same viewer.
+FLEET_APPLICATION_ID = "quadsitl_fleet"
 DEFAULT_CONNECT_URL = "rerun+http://127.0.0.1:9876/proxy"
 _URL_SCHEMES = ("rerun://", "rerun+http://", "rerun+https://")
 

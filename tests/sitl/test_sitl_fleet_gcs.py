@@ -7,9 +7,7 @@ from __future__ import annotations
 
 import json
 import os
-import random
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -19,7 +17,7 @@ import pytest
 from conftest import REPO_ROOT
 from interop_clients import MAVSDK_DRIVER, MISSING_CLIENT, mavsdk4_python
 from interop_clients.missions import short_delivery
-from sitl_procs import read_json
+from sitl_procs import free_instance_block, read_json
 
 from autopilot.mission.files import load_fleet_missions
 from mavlink_bridge.contract.frames import LocalNedFrame
@@ -57,21 +55,6 @@ def _world(tmp_path: Path, name: str, vehicles: list[tuple[str, float, float, fl
     return path
 
 
-def _free_block(count: int) -> int:
-    """An --instance block whose sim, GCS-link, API-link, API and GCS ports are all free."""
-    for _ in range(50):
-        block = random.randrange(1000, 9000)
-        ports = [p + block + i for p in (14560, 18570, 14580, 14540) for i in range(count)] + [14550 + block]
-        try:
-            for port in ports:
-                with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-                    sock.bind(("127.0.0.1", port))
-        except OSError:
-            continue
-        return block
-    raise RuntimeError("no free port block")
-
-
 def _up(world: Path, block: int, log_dir: Path, *extra: str) -> subprocess.Popen[bytes]:
     args = [sys.executable, "-m", "quadsitl_cli", "up", "--world", str(world), "--instance", str(block)]
     args += ["--speed", "max", "--log-dir", str(log_dir), "--sim-timeout-s", "30", *extra]
@@ -101,7 +84,7 @@ def _autopilot_pid(parent: int, sys_id: int) -> int:
 
 def test_one_gcs_port_flies_every_vehicle_and_one_killed_mid_flight_fails_alone(tmp_path: Path) -> None:
     world = _world(tmp_path, "trio", [("alpha", 0, 10, 8), ("bravo", 12, -2, 12), ("charlie", 24, 24, 16)])
-    block, log_dir = _free_block(3), tmp_path / "logs"
+    block, log_dir = free_instance_block(3), tmp_path / "logs"
     log_dir.mkdir()
     up = _up(world, block, log_dir, "--api", "off")
     gcs_cmd = [sys.executable, "-u", "-m", "tools.gcs", "--instance", str(block), "fly", str(world)]
@@ -170,7 +153,7 @@ def test_mavsdk_on_vehicle_2s_api_port_while_the_bundled_client_flies_vehicle_1(
     bravo_home = LocalNedFrame(alpha_plan.home).geodetic_from_ned(0.0, 40.0, 0.0)
     sent = [_item_json(item) for item in short_delivery(bravo_home)]  # about bravo's own pad
     (tmp_path / "items.json").write_text(json.dumps(sent))
-    block, log_dir = _free_block(2), tmp_path / "logs"
+    block, log_dir = free_instance_block(2), tmp_path / "logs"
     log_dir.mkdir()
     up = _up(world, block, log_dir)
     driver = None

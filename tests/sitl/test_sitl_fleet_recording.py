@@ -11,23 +11,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import REPO_ROOT
-from test_sitl_fleet_up import _free_block
+from rerun.chunk import RrdReader
+from sitl_procs import free_instance_block, write_fleet_world
 
 from autopilot.fleet_launcher import fleet_recording_id
-from autopilot.telemetry.recording_reader import read_recording
+from autopilot.telemetry.recording_reader import read_layout, read_recording
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 
-WORLD = """\
-name: trio
-home: {lat_deg: 47.3977, lon_deg: 8.5456, alt_m: 488}
-vehicles:
-  - name: alpha
-    home: {north_m: 0, east_m: 0}
-  - name: bravo
-    home: {north_m: 0, east_m: 8}
-  - name: charlie
-    home: {north_m: -5, east_m: 0}
+TRAFFIC = """\
 traffic:
   - callsign: HELI1
     icao: 0xA1B2C3
@@ -39,10 +31,10 @@ traffic:
 
 
 def test_a_fleet_run_writes_one_recording_under_each_vehicles_name_about_the_worlds_home(tmp_path: Path) -> None:
-    world = tmp_path / "trio.yaml"
-    world.write_text(WORLD)
+    world = write_fleet_world(tmp_path, "trio", [("alpha", 0, 0), ("bravo", 0, 8), ("charlie", -5, 0)], TRAFFIC)
     out = tmp_path / "rec"
-    args = [sys.executable, "-m", "quadsitl_cli", "up", "--world", str(world), "--instance", str(_free_block(3))]
+    block = free_instance_block(3)
+    args = [sys.executable, "-m", "quadsitl_cli", "up", "--world", str(world), "--instance", str(block)]
     args += ["--gcs", "off", "--api", "off", "--speed", "max", "--duration-s", "4", "--seed", "3"]
     args += ["--no-sensor-noise"]  # the poses are the EKF's: noiseless sensors keep them on the vehicle's home
     args += ["--rerun", f"save:{out / 'flight.rrd'}", "--sim-timeout-s", "30"]
@@ -53,13 +45,19 @@ def test_a_fleet_run_writes_one_recording_under_each_vehicles_name_about_the_wor
     assert [f.name for f in files] == names
     recs = {f.stem.removeprefix("flight_"): read_recording(f) for f in files}
     assert {r.recording_id for r in recs.values()} == {fleet_recording_id(world, 3)}
-    assert {r.application_id for r in recs.values()} == {"quadsitl"}
+    assert {r.application_id for r in recs.values()} == {"quadsitl_fleet"}  # not the single-vehicle layout's id
+    assert [f.name for f in files if RrdReader(f).blueprints()] == ["flight_world.rrd"]  # the one layout: the world's
+    layout = read_layout(out / "flight_world.rrd")
+    assert {"fleet", "alpha", "bravo", "charlie"} <= set(layout.containers)
+    assert layout.view("fleet world (NED)").origin == "/"
     homes = {"alpha": (0.0, 0.0), "bravo": (0.0, 8.0), "charlie": (-5.0, 0.0)}
     for name, (north_m, east_m) in homes.items():
         rec = recs[name]
         mine = (f"vehicles/{name}", f"plots/{name}/", "__")  # "__properties": rerun's own
         others = [e for e in rec.entities if not e.startswith(mine)]
         assert others == ["vehicles"], others  # only the shared NED declaration is outside its name
+        radius = rec.rows(f"vehicles/{name}/separation_volume", "Cylinders3D:radii")[0][1]
+        assert radius == [10.0]  # its own volume: NAV_TRAFF_U_HOR (default)
         assert f"plots/{name}/position/pos_ned_m" in rec.entities
         offset = np.asarray(rec.static_component(f"vehicles/{name}", "Transform3D:translation")[0])
         np.testing.assert_allclose(offset, (north_m, east_m, 0.0))

@@ -4,7 +4,6 @@ pymavlink GCS on one port sees every vehicle by system id; a killed autopilot le
 from __future__ import annotations
 
 import os
-import random
 import signal
 import socket
 import subprocess
@@ -15,34 +14,9 @@ from pathlib import Path
 import pytest
 from conftest import REPO_ROOT
 from pymavlink import mavutil
-from sitl_procs import read_json
+from sitl_procs import free_instance_block, read_json, write_fleet_world
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
-
-FLEET = """\
-name: pair
-home: {lat_deg: 47.3977, lon_deg: 8.5456, alt_m: 488}
-vehicles:
-  - name: alpha
-    home: {north_m: 0, east_m: 0}
-  - name: bravo
-    home: {north_m: 0, east_m: 8}
-"""
-
-
-def _free_block(count: int) -> int:
-    """An --instance offset whose sim (14560+N+i) and GCS-link (18570+N+i) ports are all free."""
-    for _ in range(50):
-        block = random.randrange(1000, 9000)
-        ports = [p + block + i for p in (14560, 18570) for i in range(count)]
-        try:
-            for port in ports:
-                with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-                    sock.bind(("127.0.0.1", port))
-        except OSError:
-            continue
-        return block
-    raise RuntimeError("no free port block")
 
 
 def _free_port() -> int:
@@ -52,9 +26,8 @@ def _free_port() -> int:
 
 
 def test_one_gcs_port_sees_the_whole_fleet_and_a_killed_autopilot_leaves_the_others(tmp_path: Path) -> None:
-    world = tmp_path / "pair.yaml"
-    world.write_text(FLEET)
-    block, gcs_port = _free_block(2), _free_port()
+    world = write_fleet_world(tmp_path, "pair", [("alpha", 0, 0), ("bravo", 0, 8)])
+    block, gcs_port = free_instance_block(2), _free_port()
     gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{gcs_port}", source_system=255)
     args = [sys.executable, "-m", "quadsitl_cli", "up", "--world", str(world), "--instance", str(block)]
     args += ["--gcs-target", f"udpout:127.0.0.1:{gcs_port}", "--api", "off", "--speed", "max"]
@@ -139,7 +112,7 @@ vehicles:
 def test_a_vehicles_own_failures_reach_that_vehicle_alone_and_the_worlds_reach_all(tmp_path: Path) -> None:
     world = tmp_path / "pair.yaml"
     world.write_text(FLEET_FAILURES)
-    block, gcs_port = _free_block(2), _free_port()
+    block, gcs_port = free_instance_block(2), _free_port()
     gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{gcs_port}", source_system=255)
     args = [sys.executable, "-m", "quadsitl_cli", "up", "--world", str(world), "--instance", str(block)]
     args += ["--gcs-target", f"udpout:127.0.0.1:{gcs_port}", "--api", "off", "--speed", "2", "--duration-s", "6"]

@@ -19,6 +19,7 @@ from sitl_procs import (
     STARTUP_TIMEOUT_S,
     Ports,
     connect_gcs,
+    fence_world_yaml,
     logs,
     read_json,
     sitl_pair,
@@ -35,34 +36,23 @@ from tools import gcs
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 
-CIRCLE_AND_TOWER = """
-name: circle_and_tower
-home: {lat_deg: 30.2635, lon_deg: 120.1233, alt_m: 12.0}
-vehicle: x500
-speed_m_s: 5.0
-mission:
-  - takeoff: {alt_m: 12}
-  - waypoint: {north_m: 90, east_m: 0, alt_m: 12, accept_radius_m: 1.5}
-  - land: {}
-fence:
-  - exclusion_circle: {north_m: 40, east_m: 0, radius_m: 10}
-world:
-  obstacles:
-    - cylinder: {north_m: 58, east_m: 9, radius_m: 4, height_m: 60}
-"""
-
-FAR_WAYPOINT = """
-name: far_waypoint
-home: {lat_deg: 30.2635, lon_deg: 120.1233, alt_m: 12.0}
-vehicle: x500
-mission:
-  - takeoff: {alt_m: 10}
-  - waypoint: {north_m: 100, east_m: 0, alt_m: 20}
-  - waypoint: {north_m: 900, east_m: 0, alt_m: 20}
-  - land: {}
-fence:
-  - inclusion_circle: {north_m: 0, east_m: 0, radius_m: 500}
-"""
+CIRCLE_AND_TOWER = fence_world_yaml(
+    "circle_and_tower",
+    speed_m_s=5.0,
+    mission=["takeoff: {alt_m: 12}", "waypoint: {north_m: 90, east_m: 0, alt_m: 12, accept_radius_m: 1.5}", "land: {}"],
+    fence=["exclusion_circle: {north_m: 40, east_m: 0, radius_m: 10}"],
+    world=["obstacles:", "  - cylinder: {north_m: 58, east_m: 9, radius_m: 4, height_m: 60}"],
+)
+FAR_WAYPOINT = fence_world_yaml(
+    "far_waypoint",
+    mission=[
+        "takeoff: {alt_m: 10}",
+        "waypoint: {north_m: 100, east_m: 0, alt_m: 20}",
+        "waypoint: {north_m: 900, east_m: 0, alt_m: 20}",
+        "land: {}",
+    ],
+    fence=["inclusion_circle: {north_m: 0, east_m: 0, radius_m: 500}"],
+)
 
 
 def _fly(tmp_path: Path, mission: Path, timeout_s: float = 240.0) -> tuple[int, dict[str, object], str]:

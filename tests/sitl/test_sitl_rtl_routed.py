@@ -14,7 +14,7 @@ import math
 from pathlib import Path
 
 import pytest
-from sitl_procs import connect_gcs, landed_disarmed, read_json, sitl_pair, upload_arm_start
+from sitl_procs import connect_gcs, fence_world_yaml, landed_disarmed, read_json, sitl_pair, upload_arm_start
 
 from autopilot.geofence.fence import geofence_from_items
 from autopilot.mission.files import load_mission_file
@@ -24,18 +24,16 @@ from mavlink_bridge.gcs_client.client import VehicleStatus
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 
-CIRCLE_BETWEEN = """
-name: circle_between
-home: {lat_deg: 30.2635, lon_deg: 120.1233, alt_m: 12.0}
-vehicle: x500
-speed_m_s: 6.0
-mission:
-  - takeoff: {alt_m: 10}
-  - waypoint: {north_m: 90, east_m: 0, alt_m: 10, accept_radius_m: 1.5, hold_s: 120}
-  - land: {}
-fence:
-  - exclusion_circle: {north_m: 45, east_m: 0, radius_m: 10}
-"""
+CIRCLE_BETWEEN = fence_world_yaml(
+    "circle_between",
+    speed_m_s=6.0,
+    mission=[
+        "takeoff: {alt_m: 10}",
+        "waypoint: {north_m: 90, east_m: 0, alt_m: 10, accept_radius_m: 1.5, hold_s: 120}",
+        "land: {}",
+    ],
+    fence=["exclusion_circle: {north_m: 45, east_m: 0, radius_m: 10}"],
+)
 
 
 @pytest.mark.parametrize("trigger", ["gcs_rtl", "low_battery"])
@@ -68,9 +66,9 @@ def test_a_return_with_an_exclusion_zone_between_vehicle_and_home_flies_around_i
     assert ap["landed"] and ap["disarmed"] and sim["collisions"] == 0, (ap, sim)
     final_ned = sim["final_pos_ned_m"]
     assert isinstance(final_ned, list) and math.hypot(final_ned[0], final_ned[1]) < 1.5, final_ned  # at home
-    # sampled from the drop point home: telemetry streams at wall-clock rates, so at --speed max an idle machine
-    # sees fewer samples than a loaded one (9 on an idle 2-core VM); the autopilot's own fence check below runs at
-    # 10 Hz of sim time and covers every step between them
+    # sampled from the drop point home: streams run in sim time but are capped at 5x their rate in wall time, so
+    # at --speed max an idle machine sees fewer samples than a loaded one (9 on an idle 2-core VM); the
+    # autopilot's own fence check below runs at 10 Hz of sim time and covers every step between them
     assert len(track) >= 5 and max(p[0] for p in track) > 80.0 and min(p[0] for p in track) < 20.0
     breaches = [p for p in track if fence.violates(p)]
     assert not breaches, breaches[:3]

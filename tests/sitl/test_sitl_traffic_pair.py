@@ -7,8 +7,6 @@ from __future__ import annotations
 import importlib.util
 import math
 import os
-import random
-import socket
 import subprocess
 import sys
 import time
@@ -16,7 +14,7 @@ from pathlib import Path
 
 import pytest
 from conftest import REPO_ROOT
-from sitl_procs import read_json
+from sitl_procs import free_instance_block, read_json, write_fleet_world
 
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
 from mavlink_bridge.contract.mav_enums import MavCmd, MavFrame
@@ -26,15 +24,6 @@ from mavlink_bridge.gcs_client.client import GcsClient
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 
 HOME = GeoPoint(47.3977, 8.5456, 488.0)
-WORLD = """\
-name: pair
-home: {lat_deg: 47.3977, lon_deg: 8.5456, alt_m: 488}
-vehicles:
-  - name: alpha
-    home: {north_m: 0, east_m: 0}
-  - name: bravo
-    home: {north_m: 1, east_m: 200}
-"""
 REL = int(MavFrame.GLOBAL_RELATIVE_ALT_INT)
 ALT_M = 15.0
 
@@ -48,27 +37,11 @@ def _mission(frame: LocalNedFrame, east_m: float) -> list[MissionItem]:
     ]
 
 
-def _free_block(count: int) -> int:
-    """An --instance offset whose sim (14560+N+i), GCS (18570+N+i) and API (14540/14580+N+i) ports are free."""
-    for _ in range(50):
-        block = random.randrange(1000, 9000)
-        ports = [p + block + i for p in (14560, 18570, 14540, 14580) for i in range(count)]
-        try:
-            for port in ports:
-                with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-                    sock.bind(("127.0.0.1", port))
-        except OSError:
-            continue
-        return block
-    raise RuntimeError("no free port block")
-
-
 def test_two_vehicles_head_on_avoid_each_other_and_finish_their_missions(tmp_path: Path) -> None:
     if importlib.util.find_spec("sim.fleet_world") is None:
         pytest.skip("needs the fleet simulator (quadsitl up --world with vehicles:)")
-    world = tmp_path / "pair.yaml"
-    world.write_text(WORLD)
-    block = _free_block(2)
+    world = write_fleet_world(tmp_path, "pair", [("alpha", 0, 0), ("bravo", 1, 200)])
+    block = free_instance_block(2)
     args = [sys.executable, "-m", "quadsitl_cli", "up", "--world", str(world), "--instance", str(block)]
     args += ["--gcs", "off", "--speed", "max", "--log-dir", str(tmp_path / "logs"), "--duration-s", "150"]
     log = open(tmp_path / "up.log", "wb")  # noqa: SIM115 (the child keeps its own copy)
