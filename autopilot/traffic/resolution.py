@@ -220,6 +220,8 @@ class Resolver:
     # ------------------------------------------------------------------ candidates
     def _where_refused(self, path: BezierPath) -> str | None:
         lim = self.limits
+        if not path.limits_ok:  # the controller cannot follow it: a 17 m/s² "descend" fell faster than gravity
+            return "beyond the speed or acceleration limit"
         samples = path.sample(1.0)
         start_down = self.own.pos_home_ned_m[2]
         floor = max(lim.down_max_m, start_down)  # a vehicle below the floor may stay as low as it is
@@ -269,7 +271,17 @@ class Resolver:
 
     def _fit_and_stop(self, pts: list[Vec3]) -> BezierPath:
         """The chain through ``pts`` at cruise speed up to a braking distance before the last, then a straight
-        constant-deceleration stop on it (fit_detour alone would spread the slowdown over the whole last leg)."""
+        constant-deceleration stop on it (fit_detour alone would spread the slowdown over the whole last leg).
+        When that is beyond the limits (a moving vehicle turning to a point close by), the chain that simply
+        stops at the last point, which takes longer and may overshoot the turn, if that one is within them."""
+        path = self._cruise_and_stop(pts)
+        if path.limits_ok:
+            return path
+        lim = self.limits
+        slow = fit_detour(np.array(pts), np.array(self.own.vel_ned_m_s), np.zeros(3), lim.v_max_m_s, lim.a_max_m_s2)
+        return slow if slow.limits_ok else path
+
+    def _cruise_and_stop(self, pts: list[Vec3]) -> BezierPath:
         lim = self.limits
         last, prev = np.array(pts[-1]), np.array(pts[-2])
         leg = float(np.linalg.norm(last - prev))
