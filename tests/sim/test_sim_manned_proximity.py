@@ -34,3 +34,13 @@ def test_no_aircraft_in_the_air_changes_nothing() -> None:
     empty.update(1.0, np.zeros((1, 3)))
     late.update(100.0, np.zeros((1, 3)))  # past the end of its path: gone
     assert np.isinf(empty.min_distance_m).all() and np.isinf(late.min_distance_m).all()
+
+
+def test_a_vehicle_standing_on_the_ground_under_a_low_aircraft_is_not_an_nmac() -> None:
+    """NMACs are between aircraft in flight: a pad under a helicopter's path at 25 m is recorded apart."""
+    proximity = MannedProximity(_heli(25.0), 2)
+    pos_ned = np.array([[0.0, 0.0, 0.0], [0.0, 10.0, -5.0]])  # one on its pad, one hovering 5 m up beside it
+    for t_s in np.arange(0.0, 40.0, 0.1):
+        proximity.update(float(t_s), pos_ned, np.array([True, False]))
+    assert proximity.nmac_at_s[0] is None and proximity.ground_nmac_at_s[0] is not None
+    assert proximity.nmac_at_s[1] is not None and proximity.ground_nmac_at_s[1] is None
