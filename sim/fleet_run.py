@@ -188,7 +188,7 @@ class FleetRun:
         """Physics of every vehicle one control step, contacts, manned proximity, the world recording."""
         sim = self.sim
         sim.step()
-        self.proximity.update(sim.t_s, sim.pos_ned)
+        self.proximity.update(sim.t_s, sim.pos_ned, sim.on_ground)
         if self.recorder is not None:
             self.recorder.sample(sim.t_us, sim.pos_ned)
 

@@ -65,19 +65,28 @@ class ScriptedTraffic:
 #: The near mid-air collision volume (FAA/ICAO): inside 500 ft horizontally and 100 ft vertically at once.
 NMAC_HOR_M = 152.4
 NMAC_VER_M = 30.48
+#: A vehicle lower than this above the ground (m) is on its pad, not in flight (a take-off held under traffic
+#: hovers a few centimetres up; the autopilot parks traffic below 1.5 m the same way).
+IN_FLIGHT_MIN_AGL_M = 1.5
 
 
 class MannedProximity:
     """Per vehicle, against every scripted aircraft in the air: the closest 3D approach and the sim time of the
-    first NMAC (the truth the encounter Monte Carlo counts; the vehicles never see it)."""
+    first NMAC (the truth the encounter Monte Carlo counts; the vehicles never see it). An NMAC is an event
+    between aircraft in flight: a vehicle on the ground (standing, or held within ``IN_FLIGHT_MIN_AGL_M`` of its
+    pad, under a low aircraft's path) is not
+    counted, as the UAV separation measure does not count parked vehicles (``ground_nmac_at_s`` keeps when
+    an aircraft passed that low over a vehicle on the ground, for the record)."""
 
     def __init__(self, traffic: ScriptedTraffic, n: int) -> None:
         self.traffic = traffic
         self.min_distance_m = np.full(n, np.inf)
         self.nmac_at_s: list[float | None] = [None] * n
+        self.ground_nmac_at_s: list[float | None] = [None] * n
 
-    def update(self, t_s: float, pos_ned: np.ndarray) -> None:
-        """Fold the vehicles' positions ``pos_ned`` (n, 3) at ``t_s`` in."""
+    def update(self, t_s: float, pos_ned: np.ndarray, on_ground: np.ndarray | None = None) -> None:
+        """Fold the vehicles' positions ``pos_ned`` (n, 3) at ``t_s`` in; ``on_ground`` (n,) bool: standing
+        on the ground (None: all airborne)."""
         if not len(self.traffic):
             return
         air = self.traffic.positions(t_s)
@@ -87,9 +96,14 @@ class MannedProximity:
         d = pos_ned[:, None, :] - air[None, :, :]
         h_m, v_m = np.hypot(d[..., 0], d[..., 1]), np.abs(d[..., 2])
         np.minimum(self.min_distance_m, np.hypot(h_m, v_m).min(axis=1), out=self.min_distance_m)
-        for i in np.flatnonzero(((h_m < NMAC_HOR_M) & (v_m < NMAC_VER_M)).any(axis=1)):
-            if self.nmac_at_s[i] is None:
-                self.nmac_at_s[i] = t_s
+        inside = ((h_m < NMAC_HOR_M) & (v_m < NMAC_VER_M)).any(axis=1)
+        grounded = pos_ned[:, 2] > -IN_FLIGHT_MIN_AGL_M  # flat ground at home level (fleet worlds)
+        if on_ground is not None:
+            grounded |= np.asarray(on_ground, dtype=bool)
+        for i in np.flatnonzero(inside):
+            first = self.ground_nmac_at_s if grounded[i] else self.nmac_at_s
+            if first[i] is None:
+                first[i] = t_s
 
 
 class TrafficReceiver:

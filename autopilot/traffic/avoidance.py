@@ -46,6 +46,10 @@ OFFSET_SLACK = 1.15
 GROUND_AGL_M = 1.5
 #: How far the conflict window of the most urgent conflict is followed past the horizon (s).
 WINDOW_LOOKAHEAD_S = 600.0
+#: A descent from manned traffic stops this far above the altitude floor (the detour's curve may overshoot) (m).
+FLOOR_SLACK_M = 0.5
+#: At most this many fits to cut a descent from manned traffic at the altitude floor.
+FLOOR_FITS = 4
 #: A refused-report reason is said at most once per this interval (µs).
 REJECT_TEXT_US = 10_000_000
 
@@ -274,6 +278,10 @@ class TrafficAvoidance:
         near, far = max(hor_m + along, 1.0), max(hor_m - along, 1.0)  # the preferred side, then across
         ver = rel[2] + rel_vel[2] * t  # other below own > 0 (NED down)
         up, down = max(ver_m - ver, 1.0), max(ver_m + ver, 1.0)
+        manned = track.source is TrafficSource.MANNED
+        window = (approach.loss_in_s, approach.loss_out_s)
+        if manned:  # low under an aircraft: the floor may still clear its half-height (the candidates' check says)
+            down = _down_to_floor(resolver, down, window)
         first_up = climbs(self.system_id, track, ver, up, down)
         v1 = (Maneuver.CLIMB, up, (0.0, 0.0, -up)) if first_up else (Maneuver.DESCEND, down, (0.0, 0.0, down))
         v2 = (Maneuver.DESCEND, down, (0.0, 0.0, down)) if first_up else (Maneuver.CLIMB, up, (0.0, 0.0, -up))
@@ -282,13 +290,32 @@ class TrafficAvoidance:
         side2 = (Maneuver.LEFT if right_first else Maneuver.RIGHT, far, (-n[0] * far, -n[1] * far, 0.0))
         route = (Maneuver.ROUTE, 0.0, (0.0, 0.0, 0.0))
         stop = (Maneuver.STOP, 0.0, (0.0, 0.0, 0.0))
-        manned = track.source is TrafficSource.MANNED
         plans = [route, v1, stop, side1, v2, side2] if manned else [route, side1, v1, stop, side2, v2]
-        window = (approach.loss_in_s, approach.loss_out_s)
         threats = self._threats(tracks, p.margin)
         must = [th for th in threats if role(self.system_id, th.track, own.vel_ned_m_s, _relative(own, th.track)[0])
                 is Role.GIVE_WAY]  # fmt: skip
         return resolver.choose(plans, window, threats, must)
+
+
+def _down_to_floor(resolver: Resolver, down_m: float, window: tuple[float, float]) -> float:
+    """The descent ``down_m`` (m), cut so that the detour's curve stays above the altitude floor (CA_MIN_AGL_M).
+
+    The NMAC half-height (30 m) is more than a delivery drone's cruise height: sized for the grown volume, a descent
+    from an aircraft flying 35-45 m up reaches under the floor and was refused, although the floor itself clears the
+    half-height. The curve through the offset points sags below them over a long window, so the cut is iterated
+    on the fitted curve's lowest point (a few fits, only in a manned conflict)."""
+    floor_m = resolver.limits.down_max_m
+    start_m = resolver.own.pos_home_ned_m[2]
+    down = min(down_m, floor_m - start_m - FLOOR_SLACK_M)
+    for _ in range(FLOOR_FITS):
+        if down < 1.0:  # no room above the floor: the candidate as sized (the floor check refuses it)
+            return down_m
+        path, _ = resolver.offset(Maneuver.DESCEND, (0.0, 0.0, down), window)
+        below_m = float(path.sample(1.0)[:, 2].max()) - (floor_m - FLOOR_SLACK_M)
+        if below_m <= 0.0:
+            return down
+        down -= below_m
+    return down_m if down < 1.0 else down
 
 
 def on_ground(track: TrafficTrack, t_us: int) -> bool:

@@ -34,3 +34,14 @@ def test_no_aircraft_in_the_air_changes_nothing() -> None:
     empty.update(1.0, np.zeros((1, 3)))
     late.update(100.0, np.zeros((1, 3)))  # past the end of its path: gone
     assert np.isinf(empty.min_distance_m).all() and np.isinf(late.min_distance_m).all()
+
+
+def test_a_vehicle_standing_on_the_ground_under_a_low_aircraft_is_not_an_nmac() -> None:
+    """NMACs are between aircraft in flight: a pad under a helicopter's path at 25 m is recorded apart."""
+    proximity = MannedProximity(_heli(25.0), 3)
+    # one standing on its pad, one holding its take-off 20 cm up, one hovering 5 m up beside them
+    pos_ned = np.array([[0.0, 0.0, 0.0], [0.0, 20.0, -0.2], [0.0, 10.0, -5.0]])
+    for t_s in np.arange(0.0, 40.0, 0.1):
+        proximity.update(float(t_s), pos_ned, np.array([True, False, False]))
+    assert proximity.nmac_at_s[:2] == [None, None] and None not in proximity.ground_nmac_at_s[:2]
+    assert proximity.nmac_at_s[2] is not None and proximity.ground_nmac_at_s[2] is None

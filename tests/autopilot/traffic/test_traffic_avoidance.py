@@ -164,3 +164,23 @@ def test_a_hovering_uav_owns_the_column_below_it_and_is_passed_beside_not_under(
     assert res is not None and res.safe and res.maneuver in (Maneuver.LEFT, Maneuver.RIGHT), res
     moving = report(TrafficSource.UAV, 2, np.array((60.0, 1.0, -27.0)), np.array((5.0, 0.0, 0.0)), 1_000_000)
     assert not _avoidance(TrafficAction.AVOID).update(_own(), [moving], LIMITS).conflicts  # 7 m above: separated
+
+
+def test_low_under_a_manned_aircraft_a_descent_to_the_floor_keeps_the_nmac_volume() -> None:
+    """Cruising at 15 m with a light aircraft at 38 m coming head-on (16 s to the loss of separation) and a 60 m
+    ceiling: no climb over it, no sidestep of 150 m in time, but the altitude floor (2 m) is 36 m under it, more
+    than the 30 m half-height. The planned descent (sized for the grown volume) is cut at the floor instead of
+    refused, and the vehicle keeps the NMAC volume."""
+    limits = AvoidLimits(down_min_m=-60.0, down_max_m=-2.0)
+    own = _own(pos=(0.0, 0.0, -15.0), goal=(300.0, 0.0, -15.0))
+    plane_pos, plane_vel = np.array((900.0, 0.0, -38.0)), np.array((-45.0, 0.0, 0.0))
+    plane = report(TrafficSource.MANNED, 0xA1B2C3, plane_pos, plane_vel, 1_000_000)
+    res = _avoidance(TrafficAction.AVOID).update(own, [plane], limits).resolution
+    assert res is not None and res.path is not None and res.maneuver is Maneuver.DESCEND
+    times_s = np.arange(0.0, min(res.path.duration_s, 40.0), 0.1)  # the aircraft is past by then
+    assert times_s[-1] > 25.0
+    pos = np.array([res.path.state_tuple(float(t))[0] for t in times_s])
+    assert pos[:, 2].max() <= -2.0 + 0.1  # never below the floor
+    rel = plane_pos + np.outer(times_s, plane_vel) - pos
+    inside = (np.hypot(rel[:, 0], rel[:, 1]) < 150.0) & (np.abs(rel[:, 2]) < 30.0)
+    assert not inside.any()
