@@ -196,3 +196,18 @@ def test_land_handed_a_falling_reference_brakes_within_the_limits() -> None:
         assert gen.acc_ned[2] <= LIMITS.acc_down_m_s2 + 1e-9 and abs(gen.acc_ned[1]) <= LIMITS.acc_xy_m_s2 + 1e-9
     assert peak < 2.7 + LIMITS.acc_down_m_s2**2 / (2 * LIMITS.jerk_m_s3) + 0.05  # the jerk-limited ramp-down only
     assert gen.vel_ned[2] == pytest.approx(1.5, abs=1e-3)
+
+
+def test_position_target_handed_a_falling_reference_brakes_within_the_limits() -> None:
+    """Case 128: a detour's reference at 18 m/s² down, then a position target 10 m below: the reference descends
+    at most at the descent speed, never the 10 m/s fall through the target that the jerk limit alone gave."""
+    gen = SetpointGenerator(LIMITS)
+    gen.reset((0.0, 0.0, -21.0), (0.0, 0.0, 0.0), 0.0)
+    gen.set_reference((0.0, 0.0, -21.6), (-3.7, -1.8, -1.0), (2.0, 1.0, 18.4))
+    hold = NavTarget(TargetKind.POSITION, (-5.0, -2.0, -11.0), math.nan, 5.0, 3.0, 1.5)
+    deepest = -21.6
+    for _ in range(round(15.0 / DT)):
+        gen.update(hold, DT, tuple(gen.pos_ned))  # type: ignore[arg-type]
+        deepest = max(deepest, gen.pos_ned[2])
+        assert gen.vel_ned[2] <= 1.5 + LIMITS.acc_down_m_s2**2 / (2 * LIMITS.jerk_m_s3) + 1e-6
+    assert deepest < -11.0 + 0.5 and gen.pos_ned[2] == pytest.approx(-11.0, abs=0.05)
