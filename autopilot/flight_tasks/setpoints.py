@@ -19,11 +19,7 @@ Per step (horizontal plane and vertical axis shaped separately, as PX4 does):
 
 ``LAND`` targets descend at a fixed speed instead of stopping; the reference is kept at
 most :data:`LAND_MAX_LEAD_M` below the vehicle so that, on the ground, the controller asks
-for less-than-hover thrust (what the land detector looks for) without winding up. Every step starts from the
-reference in force, but with its vertical acceleration within the limits (a landing: all of it): an avoidance
-detour handed over mid-maneuver (``set_reference``) may have left more, which the jerk limit would take seconds
-to unwind (encounter cases 85 and 128: a 12-18 m/s² downward reference became a 10-11 m/s descent into the
-ground, in a LAND item and toward a position target). ``DESCEND``
+for less-than-hover thrust (what the land detector looks for) without winding up. ``DESCEND``
 (landing without a horizontal position) descends the same way with no position control: the horizontal
 position reference stays on the vehicle (no position error, ever) while the velocity reference brakes to
 ``vel_ned_m_s`` (zero) within the acceleration and jerk limits, so the cascade stops the vehicle on its
@@ -276,10 +272,6 @@ class SetpointGenerator:
         # jerk limit (each component moves at most jerk·dt toward its goal), then integrate (semi-implicit Euler)
         dj = jerk * dt_s
         a0, a1, a2 = acc
-        # a reference handed over beyond the limits (set_reference) never inherits a fall: see the module docstring
-        a2 = max(-lim.acc_up_m_s2, min(lim.acc_down_m_s2, a2))
-        if kind is TargetKind.LAND or kind is TargetKind.DESCEND:
-            a0, a1 = max(-acc_xy, min(acc_xy, a0)), max(-acc_xy, min(acc_xy, a1))
         a0 = a0 + dj if an_des > a0 + dj else (a0 - dj if an_des < a0 - dj else an_des)
         a1 = a1 + dj if ae_des > a1 + dj else (a1 - dj if ae_des < a1 - dj else ae_des)
         a2 = a2 + dj if ad_des > a2 + dj else (a2 - dj if ad_des < a2 - dj else ad_des)

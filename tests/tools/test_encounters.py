@@ -58,12 +58,16 @@ def test_head_on_pairs_fly_opposite_courses_and_vertical_pairs_cross_altitudes()
             ub = (ends[b][0] - pads[b][0], ends[b][1] - pads[b][1])
             cos = (ua[0] * ub[0] + ua[1] * ub[1]) / (math.hypot(*ua) * math.hypot(*ub))
             assert cos < -0.99
-            if kind == "vertical":
+            if kind == "vertical":  # take-off altitude and the last waypoint's: one climbs as the other descends
                 alts = [
-                    (v["mission"][0]["takeoff"]["alt_m"], v["mission"][1]["waypoint"]["alt_m"])
+                    (v["mission"][0]["takeoff"]["alt_m"], v["mission"][-2]["waypoint"]["alt_m"])
                     for v in world["vehicles"]
                 ]
                 assert alts[a] == alts[b][::-1] and alts[a][0] != alts[a][1]
+                # the change happens between two waypoints either side of the meeting point (the area's centre)
+                (n0, e0), (n1, e1) = [(w["waypoint"]["north_m"], w["waypoint"]["east_m"]) for w in
+                                      world["vehicles"][a]["mission"][1:3]]  # fmt: skip
+                assert math.hypot(n0, e0) < 12.0 and math.hypot(n1, e1) < 12.0
 
 
 def test_manned_traffic_crosses_the_area_inside_the_nmac_height() -> None:

@@ -180,34 +180,3 @@ def test_velocity_yaw_rate_turns_the_heading_within_the_limit() -> None:
     assert gen.yaw_rad == pytest.approx(0.0, abs=1e-9) and worst["yaw_rate"] <= LIMITS.yaw_rate_rad_s * 1.0001
     gen, _ = _fly(_velocity((0.0, 0.0, 0.0), yaw=1.0, yaw_rate=0.25), 4.0, gen)  # a yaw wins over a yaw rate
     assert gen.yaw_rad == pytest.approx(1.0)
-
-
-def test_land_handed_a_falling_reference_brakes_within_the_limits() -> None:
-    """An avoidance detour's reference (set_reference) with 12 m/s² down, then the LAND item: the descent is back at
-    the landing speed within the limits, never the 11 m/s fall the inherited acceleration gave (case 85)."""
-    gen = SetpointGenerator(LIMITS)
-    gen.reset((0.0, 0.0, -10.0), (0.0, 0.0, 0.0), 0.0)
-    gen.set_reference((0.0, 0.0, -9.7), (0.7, -1.6, 2.7), (-2.1, 5.5, 11.7))
-    land = NavTarget(TargetKind.LAND, (0.0, 0.0, 0.0), math.nan, 5.0, 3.0, 1.5)
-    peak = 0.0
-    for _ in range(round(4.0 / DT)):
-        gen.update(land, DT, tuple(gen.pos_ned))  # type: ignore[arg-type]
-        peak = max(peak, gen.vel_ned[2])
-        assert gen.acc_ned[2] <= LIMITS.acc_down_m_s2 + 1e-9 and abs(gen.acc_ned[1]) <= LIMITS.acc_xy_m_s2 + 1e-9
-    assert peak < 2.7 + LIMITS.acc_down_m_s2**2 / (2 * LIMITS.jerk_m_s3) + 0.05  # the jerk-limited ramp-down only
-    assert gen.vel_ned[2] == pytest.approx(1.5, abs=1e-3)
-
-
-def test_position_target_handed_a_falling_reference_brakes_within_the_limits() -> None:
-    """Case 128: a detour's reference at 18 m/s² down, then a position target 10 m below: the reference descends
-    at most at the descent speed, never the 10 m/s fall through the target that the jerk limit alone gave."""
-    gen = SetpointGenerator(LIMITS)
-    gen.reset((0.0, 0.0, -21.0), (0.0, 0.0, 0.0), 0.0)
-    gen.set_reference((0.0, 0.0, -21.6), (-3.7, -1.8, -1.0), (2.0, 1.0, 18.4))
-    hold = NavTarget(TargetKind.POSITION, (-5.0, -2.0, -11.0), math.nan, 5.0, 3.0, 1.5)
-    deepest = -21.6
-    for _ in range(round(15.0 / DT)):
-        gen.update(hold, DT, tuple(gen.pos_ned))  # type: ignore[arg-type]
-        deepest = max(deepest, gen.pos_ned[2])
-        assert gen.vel_ned[2] <= 1.5 + LIMITS.acc_down_m_s2**2 / (2 * LIMITS.jerk_m_s3) + 1e-6
-    assert deepest < -11.0 + 0.5 and gen.pos_ned[2] == pytest.approx(-11.0, abs=0.05)
