@@ -136,9 +136,12 @@ class FleetSim:
             self.end_reason[members] = batch.end_reason
             self.on_ground[members] = batch.on_ground
 
-    def _gaps(self) -> np.ndarray:
-        """(n, n) surface-to-surface distances between vehicles (inf on the diagonal)."""
-        d = np.linalg.norm(self.pos_ned[:, None, :] - self.pos_ned[None, :, :], axis=2)
+    def _gaps(self, diff_ned: np.ndarray | None = None) -> np.ndarray:
+        """(n, n) surface-to-surface distances between vehicles (inf on the diagonal); ``diff_ned`` (n, n, 3):
+        the pairwise position differences when already computed."""
+        if diff_ned is None:
+            diff_ned = self.pos_ned[:, None, :] - self.pos_ned[None, :, :]
+        d = np.linalg.norm(diff_ned, axis=2)
         gap = d - self.radius_m[:, None] - self.radius_m[None, :]
         np.fill_diagonal(gap, np.inf)
         return gap
@@ -173,9 +176,10 @@ class FleetSim:
             self._contacts()
 
     def _contacts(self) -> None:
-        gap = self._gaps()
+        diff_ned = self.pos_ned[:, None, :] - self.pos_ned[None, :, :]  # one pairwise difference per step
+        gap = self._gaps(diff_ned)
         np.minimum(self.min_separation_m, gap.min(axis=1), out=self.min_separation_m)
-        self._volume_separation()
+        self._volume_separation(diff_ned)
         touching = gap <= 0.0
         new = touching & ~self._touching
         self._touching |= touching
@@ -185,12 +189,12 @@ class FleetSim:
             self.contacts.append((int(i), int(j), self.t_s))
             self.end(EndReason.COLLISION, [int(i), int(j)])
 
-    def _volume_separation(self) -> None:
-        """Fold the airborne pairs' separations in the volume's measure into ``min_volume_sep_m``."""
+    def _volume_separation(self, d: np.ndarray) -> None:
+        """Fold the airborne pairs' separations in the volume's measure into ``min_volume_sep_m``; ``d``
+        (n, n, 3): the pairwise position differences."""
         airborne = ~self.on_ground
         if np.count_nonzero(airborne) < 2:
             return
-        d = self.pos_ned[:, None, :] - self.pos_ned[None, :, :]
         sep = np.maximum(np.hypot(d[..., 0], d[..., 1]), np.abs(d[..., 2]) * (UAV_VOLUME_HOR_M / UAV_VOLUME_VER_M))
         pair = airborne[:, None] & airborne[None, :]
         np.fill_diagonal(pair, False)

@@ -204,11 +204,12 @@ def fly_world(
     ends = run.summaries(end, np.ones(n, dtype=bool), [None] * n, links, [0] * n)
     cpu_s = time.process_time() - cpu0
     summary = run.summary(end, ends, seed=seed, speed=None, wall_s=wall_s, timing_s=(wait_s, 0.0, physics_s, cpu_s))
-    out = record({"sim": asdict(summary), "vehicles": [_row(v, wall_s) for v in vehicles]})
+    rows = [_row(v, wall_s) for v in vehicles]
+    out = record({"sim": asdict(summary), "vehicles": rows})
     out["error"] = out.get("error") or error or "; ".join(v.upload_error for v in vehicles if v.upload_error)
     out["timed_out"] = timed_out
     out["wall_s"] = wall_s
-    out["vehicle_rows"] = [_row(v, wall_s) for v in vehicles]
+    out["vehicle_rows"] = rows
     return out
 
 
