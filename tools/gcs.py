@@ -26,6 +26,7 @@ from autopilot.mission.files import MissionFileError, load_fleet_missions, load_
 from autopilot.mission.plan import MissionPlan
 from mavlink_bridge.contract.about import version_text
 from mavlink_bridge.contract.frames import GeoPoint
+from mavlink_bridge.contract.status_texts import is_bypassed, is_failsafe
 from mavlink_bridge.contract.vehicle_api import (
     CommandResult,
     FlightMode,
@@ -280,7 +281,7 @@ def fly(client: GcsClient, plan: MissionPlan, timeout_s: float, progress: bool =
     if reason and texts:
         reason += f" (last error: {texts[-1]})"
     reason = reason or failsafe_reason(client.statustexts_since(text_serial))
-    bypassed = sum(t.text.startswith(BYPASSED_PREFIX) for t in client.statustexts_since(text_serial))
+    bypassed = sum(is_bypassed(t.text) for t in client.statustexts_since(text_serial))
     landed = status.landed_state is LandedState.ON_GROUND
     ok = not reason and landed and not status.armed and mission_done(status, total)
     return FlySummary(
@@ -296,16 +297,11 @@ def fly(client: GcsClient, plan: MissionPlan, timeout_s: float, progress: bool =
     )
 
 
-#: STATUSTEXT prefixes of the autopilot's failsafes (fence breach included) and of a waypoint flown around.
-FAILSAFE_PREFIX = "Failsafe:"
-BYPASSED_PREFIX = "Bypassed item"
-
-
 def failsafe_reason(texts: Sequence[StatusText]) -> str:
     """A mission during which a failsafe fired (a geofence breach too, even when GF_ACTION only warns) failed:
     the first such STATUSTEXT is the reason; empty when none fired."""
     for text in texts:
-        if text.text.startswith(FAILSAFE_PREFIX):
+        if is_failsafe(text.text):
             return f"failsafe during the mission: {text.text}"
     return ""
 

@@ -26,11 +26,11 @@ from pathlib import Path
 from autopilot.mission.files import MissionFileError, load_fleet_missions
 from autopilot.mission.plan import MissionPlan
 from mavlink_bridge.contract.frames import LocalNedFrame
+from mavlink_bridge.contract.status_texts import is_bypassed
 from mavlink_bridge.contract.vehicle_api import FlightMode, LandedState
 from mavlink_bridge.gcs_client.client import CommandFailedError, GcsClient, GcsError, VehicleStatus
 from mavlink_bridge.gcs_client.fleet_link import FleetLink
 from tools.gcs import (
-    BYPASSED_PREFIX,
     FlySummary,
     GcsScriptError,
     arm_when_ready,
@@ -210,7 +210,7 @@ def _summary(v: _Vehicle, t0: float) -> FlySummary:
         landed=landed,
         disarmed=not status.armed,
         reason=reason,
-        items_bypassed=sum(t.text.startswith(BYPASSED_PREFIX) for t in texts),
+        items_bypassed=sum(is_bypassed(t.text) for t in texts),
     )
 
 

@@ -23,6 +23,7 @@ from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import PlannerState
 from autopilot.safety.failsafe import FailsafeAction, FailsafeEvent, FailsafeKind
 from mavlink_bridge.contract.frames import Vec3
+from mavlink_bridge.contract.status_texts import failsafe_text
 from mavlink_bridge.contract.vehicle_api import Severity
 from mavlink_bridge.contract.wire import ObstacleDetection
 
@@ -121,7 +122,7 @@ class LegRouting:
         failsafe = None
         if step.action is not None:
             failsafe = FailsafeEvent(FailsafeKind.NO_ROUTE, FailsafeAction(step.action),
-                                     f"Failsafe: no route to {label}: {step.reason}")  # fmt: skip
+                                     failsafe_text(f"no route to {label}", step.reason))  # fmt: skip
         if step is not self._step or target is not self._src:
             self._step, self._src = step, target
             goal = step.goal_ned_m

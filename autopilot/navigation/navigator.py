@@ -54,6 +54,7 @@ from autopilot.planner.param_decls import PlannerParams
 from autopilot.planner.planner import AvoidancePlanner
 from mavlink_bridge.contract.frames import Vec3
 from mavlink_bridge.contract.mav_enums import MissionState
+from mavlink_bridge.contract.status_texts import bypassed_text, reached_text
 from mavlink_bridge.contract.vehicle_api import (
     FlightMode,
     MissionItem,
@@ -282,11 +283,11 @@ class Navigator:
                 bypassed=out.bypassed + then.bypassed,
             )
         for seq in out.reached:
-            self._say(f"Reached item {seq}")
+            self._say(reached_text(seq))
         for seq in out.bypassed:
             self.bypassed_seqs.append(seq)
             why = self.bypass_reasons.setdefault(seq, REJOINED_PAST)
-            self._say(f"Bypassed item {seq}: {why}", Severity.WARNING)
+            self._say(bypassed_text(seq, why), Severity.WARNING)
         gripper = None
         for action in out.actions:
             gripper = action.kind is ActionKind.GRIPPER_RELEASE

@@ -27,6 +27,7 @@ from typing import Protocol
 
 from autopilot.estimation.state import EstimatorStatus
 from autopilot.parameters.store import ParamStore
+from mavlink_bridge.contract.status_texts import failsafe_text
 
 BATTERY_FULL_V = 16.8
 BATTERY_EMPTY_V = 14.0
@@ -159,7 +160,7 @@ class FailsafeMonitor:
         for kind, (param, message) in now.items():
             if kind not in self.active:
                 action = self._action(param) if param else FailsafeAction.WARN
-                events.append(FailsafeEvent(kind, action, f"Failsafe: {kind.value}: {message}"))
+                events.append(FailsafeEvent(kind, action, failsafe_text(kind.value, message)))
         self.active = set(now)
         return events
 
@@ -256,10 +257,10 @@ class SensorFailsafe:
         self._landing = round(p("COM_POS_LOSS_ACT")) == PositionLossAction.LAND
         if self._landing:
             height = "baro height" if status.baro_fused else "no height source"
-            message = f"Failsafe: position lost ({why}): landing without position control on {height}"
+            message = failsafe_text(f"position lost ({why})", f"landing without position control on {height}")
             events.append(FailsafeEvent(FailsafeKind.POSITION_LOSS, FailsafeAction.LAND, message))
         else:
-            message = f"Failsafe: position lost ({why}): still dead reckoning (COM_POS_LOSS_ACT 0)"
+            message = failsafe_text(f"position lost ({why})", "still dead reckoning (COM_POS_LOSS_ACT 0)")
             events.append(FailsafeEvent(FailsafeKind.POSITION_LOSS, FailsafeAction.WARN, message))
 
     def _baro_mag(self, status: EstimatorStatus, events: list[FailsafeEvent]) -> None:

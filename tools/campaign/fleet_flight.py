@@ -34,6 +34,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from mavlink_bridge.contract.status_texts import failsafe_in
 from sim.fleet import UAV_VOLUME_HOR_M
 
 #: The ``base`` a case of an encounter campaign records (its world is generated, not read from a file).
@@ -92,8 +93,8 @@ def record(summary: dict[str, Any]) -> dict[str, Any]:
     texts = []
     for row in rows:
         reason = str(row.get("reason") or "")
-        if "Failsafe:" in reason:
-            texts.append(reason[reason.index("Failsafe:") :])
+        if failsafe_in(reason):
+            texts.append(failsafe_in(reason))
     manned = [float(v["min_manned_distance_m"]) for v in truth if v.get("min_manned_distance_m") is not None]
     separations = [float(v["min_separation_m"]) for v in truth if v.get("min_separation_m") is not None]
     volume_seps = [float(v["min_volume_sep_m"]) for v in truth if v.get("min_volume_sep_m") is not None]

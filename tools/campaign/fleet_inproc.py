@@ -39,6 +39,7 @@ from autopilot.mission.files import load_fleet_missions
 from autopilot.mission.plan import MissionPlan
 from autopilot.runner import Autopilot, AutopilotConfig
 from autopilot.vehicle_adapter import VehicleAdapter
+from mavlink_bridge.contract.status_texts import is_bypassed
 from mavlink_bridge.contract.vehicle_api import LandedState, MissionResult, MissionType
 from mavlink_bridge.lockstep.answer_kernel import ANSWER_OK, AnswerWriter, read_answer
 from sim.end_reason import EndReason
@@ -49,7 +50,7 @@ from sim.world import load_world
 from tools.campaign.cases import MISSION_START_DELAY_S
 from tools.campaign.fleet_flight import record
 from tools.campaign.inproc_flight import CONTROL_HZ, FrameAssembler, as_on_the_wire
-from tools.gcs import BYPASSED_PREFIX, failsafe_reason
+from tools.gcs import failsafe_reason
 
 DEFAULT_ARM_AT_S = 3.0
 DEFAULT_STALL_S = 120.0  # as the fleet ground station's --stall-s
@@ -264,7 +265,7 @@ def _row(v: _Vehicle, wall_s: float) -> dict[str, Any]:
         "ok": not reason and landed and disarmed and mission_done,
         "items_total": total,
         "items_reached": len(reached),
-        "items_bypassed": sum(t.text.startswith(BYPASSED_PREFIX) for t in v.texts),
+        "items_bypassed": sum(is_bypassed(t.text) for t in v.texts),
         "sim_time_s": s["sim_time_s"],
         "landed": landed,
         "disarmed": disarmed,

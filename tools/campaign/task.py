@@ -24,14 +24,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from mavlink_bridge.contract.status_texts import is_failsafe, is_geofence_breach
 from tools.campaign import fleet_flight
 from tools.campaign.cases import Case, CaseFiles, write_case_files
 from tools.campaign.fleet_flight import ENCOUNTER_BASE
 from tools.campaign.spec import PassRule
 
 STATUSES = ("ok", "fail", "timeout", "error")
-FAILSAFE_PREFIX = "Failsafe:"
-GEOFENCE_PREFIX = "Failsafe: geofence"
 #: Wall seconds between SIGTERM and SIGKILL of a case's process group at its deadline.
 KILL_GRACE_S = 3.0
 
@@ -159,7 +158,7 @@ def row(payload: CasePayload, flight: dict[str, Any], wall_s: float) -> dict[str
     """One results row: inputs, outcome and why, metrics, truth hash, versions (docs/campaigns.md lists them)."""
     sim, ap = flight.get("sim") or {}, flight.get("autopilot") or {}
     texts = [str(t) for t in flight.get("texts") or []]
-    failsafes = [t for t in texts if t.startswith(FAILSAFE_PREFIX)]
+    failsafes = [t for t in texts if is_failsafe(t)]
     total, reached = int(ap.get("items_total", 0)), int(ap.get("items_reached", 0))
     out: dict[str, Any] = {
         "case_id": payload.case.case_id,
@@ -184,7 +183,7 @@ def row(payload: CasePayload, flight: dict[str, Any], wall_s: float) -> dict[str
         "disarmed": bool(ap.get("disarmed", False)),
         "collisions": int(sim.get("collisions", 0)),
         "min_clearance_m": _num(sim.get("min_clearance_m")),
-        "fence_breaches": sum(t.startswith(GEOFENCE_PREFIX) for t in texts),
+        "fence_breaches": sum(is_geofence_breach(t) for t in texts),
         "tracking_pos_rms_m": _num(ap.get("tracking_pos_err_rms_m")),
         "tracking_pos_max_m": _num(ap.get("tracking_pos_err_max_m")),
         "tracking_att_rms_deg": _num(ap.get("tracking_att_err_rms_deg")),
