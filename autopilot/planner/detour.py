@@ -1,10 +1,8 @@
 """Detour candidates around the threat (paper §3.3): over, under, left, right; least Euclidean cost wins.
 
-For each side the detour lies in a plane through the obstacle centre spanned by the horizontal
-route direction ``e1`` and the side direction ``e2`` (up/down for over/under, right/left for the
-sides); the third coordinate is interpolated linearly from the vehicle to the rejoin point. In that
-plane the shortest path from the vehicle to the rejoin point around the safety circle of radius
-``ρ = r + R_safe + margin`` is tangent–arc–tangent; its length is the candidate's Euclidean cost.
+For each side the detour is the tangent–arc–tangent path from the vehicle to the rejoin point around the
+safety circle of radius ``ρ = r + R_safe + margin`` in that side's plane (:mod:`.detour_geometry`); its
+length is the candidate's Euclidean cost. Its checks are in :mod:`.detour_checks`.
 
 The rejoin point lies ``ρ + rejoin_m`` along the route past the route's *first* pass by the
 obstacle (progress along a self-crossing route is monotone: a later pass of the same place is not
@@ -42,20 +40,28 @@ from __future__ import annotations
 import heapq
 import itertools
 import math
-from collections.abc import Collection, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from .bezier import fit_detour
+from .detour_checks import (
+    Obstacles,
+    altitude_rule,
+    as_arrays,
+    check_samples,
+    clearance_need,
+    near_hull,
+    polyline_blocker,
+)
+from .detour_geometry import V3, RoutePolyline, side_polyline
 from .detour_types import CandidateReport, CandidateStatus, DetourLimits, DetourPlan, DetourResult, DetourSide
 from .geometry import path_clear_of_fences
 from .obstacle_map import ObstacleArrays, ObstacleKind, TrackedObstacle, row_signed_distance
-from .path_shapes import SAMPLE_STEP_M as _SAMPLE_STEP_M
-from .path_shapes import enclosing_volume
+from .path_shapes import SAMPLE_STEP_M, enclosing_volume
 from .reachability import unreachable_reason
 
-_ARC_STEP_RAD = math.radians(30.0)
 #: How many times blocking neighbours may be merged into the threat's volume before giving up.
 MAX_CLUSTER_MERGES = 3
 #: The route after the rejoin point is checked for the stopping distance plus this many seconds of flight.
@@ -68,146 +74,6 @@ _MAX_REJOIN_PUSHES = 3
 _AT_WAYPOINT_M = 0.5
 #: ``_Search._handoff``: the route after the rejoin point leaves the fence.
 _FENCE_AFTER = -2
-
-V3 = tuple[float, float, float]
-#: ``ObstacleArrays.rows``: (id, north, east, down, radius, is_sphere, top_down).
-Row = tuple[int, float, float, float, float, bool, float]
-
-
-def _seg_distance(a: V3, b: V3, c: V3, planar: bool) -> tuple[float, float]:
-    """Distance from point c to segment a->b (horizontal only when ``planar``) and the closest fraction t."""
-    dx, dy = b[0] - a[0], b[1] - a[1]
-    fx, fy = c[0] - a[0], c[1] - a[1]
-    if planar:
-        dd = dx * dx + dy * dy
-        t = 0.0 if dd < 1e-12 else min(max((fx * dx + fy * dy) / dd, 0.0), 1.0)
-        return math.hypot(fx - t * dx, fy - t * dy), t
-    dz, fz = b[2] - a[2], c[2] - a[2]
-    dd = dx * dx + dy * dy + dz * dz
-    t = 0.0 if dd < 1e-12 else min(max((fx * dx + fy * dy + fz * dz) / dd, 0.0), 1.0)
-    ex, ey, ez = fx - t * dx, fy - t * dy, fz - t * dz
-    return math.sqrt(ex * ex + ey * ey + ez * ez), t
-
-
-def _polyline_blocker(points: Sequence[V3], rows: Sequence[Row], need: Sequence[float]) -> int:
-    """Id of the obstacle whose clearance along the polyline falls furthest below ``need`` (-1: none).
-
-    Exact per segment (sphere: 3D segment distance; column: horizontal, skipped where the segment
-    passes ``need`` above a known top); obstacles out of reach of the polyline's bounding box are skipped.
-    """
-    xs, ys, zs = [p[0] for p in points], [p[1] for p in points], [p[2] for p in points]
-    x0, x1, y0, y1, z0, z1 = min(xs), max(xs), min(ys), max(ys), min(zs), max(zs)
-    worst, worst_id = 0.0, -1
-    for k, row in enumerate(rows):
-        oid, cx, cy, cz, r, sphere, top = row
-        reach = r + need[k]
-        if cx < x0 - reach or cx > x1 + reach or cy < y0 - reach or cy > y1 + reach:
-            continue
-        if sphere and (cz < z0 - reach or cz > z1 + reach):
-            continue
-        c = (cx, cy, cz)
-        for i in range(len(points) - 1):
-            a, b = points[i], points[i + 1]
-            if not sphere and max(a[2], b[2]) < top - need[k]:
-                continue
-            short = reach - _seg_distance(a, b, c, not sphere)[0]
-            if short > worst:
-                worst, worst_id = short, oid
-    return worst_id
-
-
-class _Route:
-    """The route ahead as a polyline (vehicle first) with cumulative arc lengths."""
-
-    def __init__(self, points: list[V3]) -> None:
-        self.points = points
-        self.cum = [0.0]
-        for a, b in itertools.pairwise(points):
-            self.cum.append(self.cum[-1] + math.dist(a, b))
-
-    def first_pass(self, center: V3, planar: bool, rho: float) -> float:
-        """Arc length of the point nearest ``center`` on the route's first pass within ``rho`` of it.
-
-        A pass is a run of consecutive segments within ``rho``; the nearest point over the whole
-        route is the fallback when no segment comes that close.
-        """
-        best_d, best_s = math.inf, 0.0
-        pass_d, pass_s = math.inf, -1.0
-        pts, cum = self.points, self.cum
-        for i in range(len(pts) - 1):
-            d, t = _seg_distance(pts[i], pts[i + 1], center, planar)
-            s = cum[i] + t * (cum[i + 1] - cum[i])
-            if d < best_d:
-                best_d, best_s = d, s
-            if d <= rho:
-                if d < pass_d:
-                    pass_d, pass_s = d, s
-            elif pass_s >= 0.0:
-                break
-        return pass_s if pass_s >= 0.0 else best_s
-
-    def at(self, s_m: float) -> tuple[V3, V3, int]:
-        """Point at arc length ``s_m`` (clamped to the ends), the unit direction there and the segment index."""
-        pts, cum = self.points, self.cum
-        s_m = max(s_m, 0.0)
-        direction, index = (1.0, 0.0, 0.0), 0
-        for i in range(len(pts) - 1):
-            seg = cum[i + 1] - cum[i]
-            if seg < 1e-9:
-                continue
-            a, b = pts[i], pts[i + 1]
-            direction, index = ((b[0] - a[0]) / seg, (b[1] - a[1]) / seg, (b[2] - a[2]) / seg), i
-            if s_m <= cum[i + 1]:
-                t = (s_m - cum[i]) / seg
-                return (a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2])), direction, i
-        return pts[-1], direction, index
-
-    def stretch(self, s_from: float, length_m: float) -> list[V3]:
-        """The route polyline from arc length ``s_from`` for ``length_m`` (clamped to its end)."""
-        start, _, i = self.at(s_from)
-        out = [start]
-        s_end = s_from + length_m
-        for j in range(i + 1, len(self.points)):
-            if self.cum[j] >= s_end:
-                out.append(self.at(s_end)[0])
-                return out
-            out.append(self.points[j])
-        return out
-
-
-# ------------------------------------------------------------------------------- candidates
-
-
-def _tangent_angle(pu: float, pw: float, rho: float) -> float:
-    """Angle of the tangent point from p to the circle |x| = ρ on the +w side (radial if inside)."""
-    d = math.hypot(pu, pw)
-    alpha = math.atan2(pw, pu)
-    if d <= rho:
-        return alpha
-    beta = math.acos(rho / d)
-    a1, a2 = alpha + beta, alpha - beta
-    return a1 if math.sin(a1) >= math.sin(a2) else a2
-
-
-def _arc_polyline_uw(
-    p: tuple[float, float], j: tuple[float, float], rho: float
-) -> tuple[list[tuple[float, float]], float]:
-    """Tangent–arc–tangent from p to j passing the circle on the +w side: via points (u, w) and length."""
-    two_pi = 2.0 * math.pi
-    th_p = _tangent_angle(p[0], p[1], rho) % two_pi
-    th_j = _tangent_angle(j[0], j[1], rho) % two_pi
-    # angles measured so that moving from p (behind, u < 0) to j (ahead) decreases θ through π/2
-    if th_j > th_p:
-        th_j -= two_pi
-    sweep = th_p - th_j
-    if sweep > math.pi * 1.5 or (p[1] >= rho and j[1] >= rho):
-        return [], math.dist(p, j)  # the straight line already clears
-    n = max(1, math.ceil(sweep / _ARC_STEP_RAD))
-    step = sweep / n
-    r_via = rho / math.cos(step / 2.0)  # circumscribed polygon: its chords stay outside ρ
-    via = [(r_via * math.cos(th_p - step * i), r_via * math.sin(th_p - step * i)) for i in range(n + 1)]
-    chord = 2.0 * r_via * math.sin(step / 2.0)
-    return via, math.dist(p, via[0]) + n * chord + math.dist(via[-1], j)
 
 
 @dataclass(slots=True)
@@ -245,18 +111,6 @@ class _Level:
 _SIDES = (DetourSide.LEFT, DetourSide.RIGHT, DetourSide.OVER, DetourSide.UNDER)
 
 
-def _side_axes(side: DetourSide, e1: V3) -> tuple[V3, V3]:
-    """The side direction e2 and the normal e3 = e1 × e2 of a candidate's plane (e1 horizontal)."""
-    ex, ey = e1[0], e1[1]
-    if side is DetourSide.OVER:
-        return (0.0, 0.0, -1.0), (-ey, ex, 0.0)
-    if side is DetourSide.UNDER:
-        return (0.0, 0.0, 1.0), (ey, -ex, 0.0)
-    if side is DetourSide.RIGHT:
-        return (-ey, ex, 0.0), (0.0, 0.0, 1.0)
-    return (ey, -ex, 0.0), (0.0, 0.0, -1.0)
-
-
 def _build_candidate(
     side: DetourSide, level: int, pos: V3, rejoin: V3, volume: TrackedObstacle, e1: V3, rho: float, limits: DetourLimits
 ) -> _Candidate:
@@ -264,121 +118,11 @@ def _build_candidate(
     if volume.kind is ObstacleKind.COLUMN and side in (DetourSide.OVER, DetourSide.UNDER):
         rule = "stands on the ground" if side is DetourSide.UNDER else "top unknown"
         return _Candidate(side, level, [], math.inf, CandidateStatus.RULED_OUT, rule)
-    e2, e3 = _side_axes(side, e1)
-    c = volume.center_ned
-    rp = (pos[0] - c[0], pos[1] - c[1], pos[2] - c[2])
-    rj = (rejoin[0] - c[0], rejoin[1] - c[1], rejoin[2] - c[2])
-    p_l = tuple(e[0] * rp[0] + e[1] * rp[1] + e[2] * rp[2] for e in (e1, e2, e3))
-    j_l = tuple(e[0] * rj[0] + e[1] * rj[1] + e[2] * rj[2] for e in (e1, e2, e3))
-    via_uw, length = _arc_polyline_uw((p_l[0], p_l[1]), (j_l[0], j_l[1]), rho)
-    du = j_l[0] - p_l[0]
-    points = [pos]
-    for u, w in via_uw:
-        frac = min(max((u - p_l[0]) / du, 0.0), 1.0) if abs(du) > 1e-9 else 0.5
-        t3 = p_l[2] + frac * (j_l[2] - p_l[2])
-        points.append(tuple(c[k] + u * e1[k] + w * e2[k] + t3 * e3[k] for k in range(3)))
-    points.append(rejoin)
-    cand = _Candidate(side, level, points, length)
-    alt_lo, alt_hi = -max(p[2] for p in points), -min(p[2] for p in points)
-    if alt_lo < max(limits.min_agl_m, 0.0) - 1e-9:
-        cand.status, cand.reason = CandidateStatus.RULED_OUT, "ground"
-    elif alt_lo < limits.alt_floor_m - 1e-9:
-        cand.status, cand.reason = CandidateStatus.RULED_OUT, "altitude floor"
-    elif alt_hi > limits.alt_ceiling_m + 1e-9:
-        cand.status, cand.reason = CandidateStatus.RULED_OUT, "ceiling"
-    return cand
-
-
-# ------------------------------------------------------------------------------- checks
-
-
-Obstacles = Sequence[TrackedObstacle] | ObstacleArrays
-
-
-def as_arrays(obstacles: Obstacles) -> ObstacleArrays:
-    """The obstacles as :class:`ObstacleArrays` (passed through when they already are)."""
-    return obstacles if isinstance(obstacles, ObstacleArrays) else ObstacleArrays(tuple(obstacles))
-
-
-def path_clearance(samples_ned: np.ndarray, obstacles: Obstacles) -> tuple[float, int]:
-    """Smallest surface distance of the samples to any obstacle, and that obstacle's id (-1 if none)."""
-    arrays = as_arrays(obstacles)
-    if not len(arrays):
-        return math.inf, -1
-    per_obstacle = arrays.signed_distance(samples_ned).min(axis=0)
-    i = int(per_obstacle.argmin())
-    return float(per_obstacle[i]), int(arrays.ids[i])
-
-
-def _need(start: V3, arrays: ObstacleArrays, clearance_m: float) -> list[float]:
-    """Clearance each obstacle must keep along a path from ``start``: ``clearance_m``, or for an obstacle already
-    nearer than that at the start, not nearer than it is now (less 5 cm)."""
-    return [min(clearance_m, row_signed_distance(row, start) - 0.05) for row in arrays.rows]
-
-
-def _check_samples(
-    samples_ned: np.ndarray,
-    need: list[float],
-    arrays: ObstacleArrays,
-    limits: DetourLimits,
-    near: list[int] | None = None,
-) -> tuple[str, float]:
-    """``check_path``'s verdict (``need``: per-obstacle clearance) and the samples' smallest clearance (inf: none).
-
-    ``near``: indices of the only obstacles that can come within reach (the others are not evaluated).
-    """
-    clearance = math.inf
-    index = list(range(len(arrays))) if near is None else near
-    if index:
-        per_obstacle = arrays.signed_distance(samples_ned, near).min(axis=0).tolist()
-        clearance = min(per_obstacle)
-        short, worst = min((d - need[k], k) for d, k in zip(per_obstacle, index, strict=True))
-        if short < 0.0:
-            return f"obstacle {arrays.rows[worst][0]}", clearance
-    down = samples_ned[:, 2]
-    if -float(down.max()) < max(limits.min_agl_m, limits.alt_floor_m) - 1e-6:
-        return ("ground" if limits.min_agl_m >= limits.alt_floor_m else "altitude floor"), clearance
-    if -float(down.min()) > limits.alt_ceiling_m + 1e-6:
-        return "ceiling", clearance
-    if limits.fences and path_clear_of_fences(limits.fences, samples_ned, 0.0) is not None:
-        return "fence", clearance
-    return "", clearance
-
-
-def _near_hull(ctrl_ned: np.ndarray, rows: Sequence[Row], reach_m: Sequence[float]) -> list[int]:
-    """Indices of the obstacles within ``reach_m`` of the bounding box of a Bézier chain's control points
-    (the curve lies in their convex hull, so the others are farther than their reach from every point of it)."""
-    pts = ctrl_ned.reshape(-1, 3)
-    (x0, y0, z0), (x1, y1, z1) = pts.min(axis=0).tolist(), pts.max(axis=0).tolist()
-    near = []
-    for k, (_, cx, cy, cz, r, sphere, _top) in enumerate(rows):
-        reach = r + reach_m[k]
-        in_plane = x0 - reach <= cx <= x1 + reach and y0 - reach <= cy <= y1 + reach
-        if in_plane and (not sphere or z0 - reach <= cz <= z1 + reach):
-            near.append(k)
-    return near
-
-
-def check_path(
-    samples_ned: np.ndarray,
-    start_ned: np.ndarray,
-    obstacles: Obstacles,
-    limits: DetourLimits,
-    tol_m: float = 0.5 * _SAMPLE_STEP_M,
-    obstacle_ids: Collection[int] | None = None,
-) -> str:
-    """Why a sampled path is unsafe ("" when it is safe).
-
-    Clearance to every obstacle (or only to those in ``obstacle_ids``, e.g. the ones that changed since the
-    path was last checked) must be >= R_safe + ``tol_m`` (default half the sample spacing: points between
-    two samples are within that of one); an obstacle already nearer than that at the start must not get
-    nearer. Altitudes stay in [max(min AGL, floor), ceiling]; fences are checked per segment.
-    """
-    arrays = as_arrays(obstacles)
-    start = np.asarray(start_ned, float).tolist()
-    need = _need((start[0], start[1], start[2]), arrays, limits.r_safe_m + tol_m)
-    near = None if obstacle_ids is None else [k for k, row in enumerate(arrays.rows) if row[0] in obstacle_ids]
-    return _check_samples(np.asarray(samples_ned, float), need, arrays, limits, near)[0]
+    points, length = side_polyline(side, pos, rejoin, volume.center_ned, e1, rho)
+    rule = altitude_rule(points, limits)
+    if rule:
+        return _Candidate(side, level, points, length, CandidateStatus.RULED_OUT, rule)
+    return _Candidate(side, level, points, length)
 
 
 def _densify(points: Sequence[V3], step_m: float) -> np.ndarray:
@@ -416,7 +160,7 @@ class _Search:
     ) -> None:
         self.pos_np, self.vel_np = pos, vel
         self.pos: V3 = (float(pos[0]), float(pos[1]), float(pos[2]))
-        self.route = _Route([self.pos] + [(float(p[0]), float(p[1]), float(p[2])) for p in route])
+        self.route = RoutePolyline([self.pos] + [(float(p[0]), float(p[1]), float(p[2])) for p in route])
         # the route rows a detour flies through or rejoins at instead of passing: mission items (via points around
         # the fence may be passed), checked for reachability only when a detour would pass them
         self.route_np = route
@@ -425,8 +169,8 @@ class _Search:
         self.arrays, self.limits = arrays, limits
         self.rows = arrays.rows
         # an obstacle the vehicle is already nearer than R_safe must not get nearer (cf. check_path)
-        self.need = _need(self.pos, arrays, limits.r_safe_m)
-        self.need_curve = _need(self.pos, arrays, limits.r_safe_m + 0.5 * _SAMPLE_STEP_M)
+        self.need = clearance_need(self.pos, arrays, limits.r_safe_m)
+        self.need_curve = clearance_need(self.pos, arrays, limits.r_safe_m + 0.5 * SAMPLE_STEP_M)
         self.reach_curve = [n + _CLEARANCE_REACH_M for n in self.need_curve]
         self.need_route = [limits.r_safe_m] * len(self.rows)
         speed = math.sqrt(float(vel[0]) ** 2 + float(vel[1]) ** 2 + float(vel[2]) ** 2)
@@ -447,7 +191,7 @@ class _Search:
             if blocked_by < 0 or blocked_by not in members:
                 break
             # the route passes the volume again soon after the rejoin point: rejoin after that pass
-            sub = _Route(continuation)
+            sub = RoutePolyline(continuation)
             s_rejoin += sub.first_pass(volume.center_ned, planar, rho) + rho + lim.rejoin_m
         stop = False
         s_waypoint = self._reachable_before(s_rejoin, s_start)
@@ -479,7 +223,7 @@ class _Search:
             if blocked_by == _FENCE_AFTER:
                 cand.status, cand.reason = CandidateStatus.BLOCKED, "fence after the rejoin point"
                 continue
-            oid = blocked_by if blocked_by >= 0 else _polyline_blocker(cand.via, self.rows, self.need)
+            oid = blocked_by if blocked_by >= 0 else polyline_blocker(cand.via, self.rows, self.need)
             if oid >= 0:
                 _block(lvl, cand, oid)
             elif lim.fences and path_clear_of_fences(lim.fences, np.array(cand.via), 0.0) is not None:
@@ -502,7 +246,7 @@ class _Search:
             m = self.continuation_m
             paths.append([(x, y, z), (x + dx * m, y + dy * m, z + dz * m)])
         for path in paths:
-            blocker = _polyline_blocker(path, self.rows, self.need_route)
+            blocker = polyline_blocker(path, self.rows, self.need_route)
             if blocker >= 0:
                 return continuation, blocker
         fences = self.limits.fences
@@ -533,7 +277,7 @@ class _Search:
                 continue
             if not self._is_reachable(k):
                 break
-            if _polyline_blocker(self.route.stretch(s_end, s_k - s_end), self.rows, self.need) >= 0:
+            if polyline_blocker(self.route.stretch(s_end, s_k - s_end), self.rows, self.need) >= 0:
                 break  # the route to it is not clear: leave it before
             s_end, k_end = s_k, k
         if k_end < 0:
@@ -568,16 +312,16 @@ class _Search:
         path = fit_detour(cand.via, self.vel_np, vel_end, lim.v_max_m_s, lim.a_max_m_s2)
         if not path.limits_ok:
             return "dynamic limits"
-        samples, times = path.sample_with_times(_SAMPLE_STEP_M)
-        near = _near_hull(path.ctrl_ned, self.rows, self.reach_curve)
-        why, clearance = _check_samples(samples, self.need_curve, self.arrays, lim, near)
+        samples, times = path.sample_with_times(SAMPLE_STEP_M)
+        near = near_hull(path.ctrl_ned, self.rows, self.reach_curve)
+        why, clearance = check_samples(samples, self.need_curve, self.arrays, lim, near)
         if why:
             return why
         samples.setflags(write=False)
         times.setflags(write=False)
         via = np.array(cand.via)
         via.setflags(write=False)
-        continuation = _densify(lvl.continuation, _SAMPLE_STEP_M)
+        continuation = _densify(lvl.continuation, SAMPLE_STEP_M)
         continuation.setflags(write=False)
         return DetourPlan(
             cand.side,

@@ -28,13 +28,8 @@ import numpy as np
 from mavlink_bridge.contract.wire import ObstacleDetection
 
 from .bezier import BezierPath
-from .detour import (
-    DetourLimits,
-    DetourPlan,
-    DetourSide,
-    check_path,
-    plan_detour,
-)
+from .detour import DetourLimits, DetourPlan, DetourSide, plan_detour
+from .detour_checks import check_path
 from .geometry import FenceZone
 from .obstacle_map import ObstacleMap, TrackedObstacle
 from .param_decls import PlannerParams

@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 from autopilot.planner.bezier import bezier_eval, fit_detour, hodograph
-from autopilot.planner.detour import _polyline_blocker, _Route
+from autopilot.planner.detour_checks import polyline_blocker
+from autopilot.planner.detour_geometry import RoutePolyline
 from autopilot.planner.obstacle_map import ObstacleArrays, ObstacleKind, TrackedObstacle, row_signed_distance
 from autopilot.planner.threat import _entry_fraction, inflated_segment_hit
 
@@ -67,13 +68,13 @@ def test_polyline_blocker_matches_dense_sampling() -> None:
         dense = np.concatenate([a + (b - a) * np.linspace(0, 1, 2000)[:, None] for a, b in itertools.pairwise(poly)])
         short = (2.0 - arrays.signed_distance(dense)).max(axis=0)
         expected = int(arrays.ids[int(short.argmax())]) if short.max() > 1e-3 else -1
-        got = _polyline_blocker([tuple(p) for p in poly.tolist()], arrays.rows, need)
+        got = polyline_blocker([tuple(p) for p in poly.tolist()], arrays.rows, need)
         if abs(short.max()) > 1e-3:
             assert got == expected
 
 
 def test_route_arc_length_lookups() -> None:
-    route = _Route([(0.0, 0.0, 0.0), (10.0, 0.0, 0.0), (10.0, 0.0, 0.0), (10.0, 5.0, 0.0)])
+    route = RoutePolyline([(0.0, 0.0, 0.0), (10.0, 0.0, 0.0), (10.0, 0.0, 0.0), (10.0, 5.0, 0.0)])
     assert route.at(4.0) == ((4.0, 0.0, 0.0), (1.0, 0.0, 0.0), 0)
     assert route.at(12.0) == ((10.0, 2.0, 0.0), (0.0, 1.0, 0.0), 2)  # the zero-length leg is skipped
     assert route.at(99.0) == ((10.0, 5.0, 0.0), (0.0, 1.0, 0.0), 2)  # clamped to the end
