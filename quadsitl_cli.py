@@ -2,9 +2,9 @@
 
 ``sim`` and ``autopilot`` never import each other, so this dispatcher imports
 the chosen side only by name: ``quadsitl sim`` runs ``sim.cli``, ``quadsitl autopilot``
-runs ``autopilot.cli`` and ``quadsitl up`` runs ``autopilot.fleet_launcher`` (``autopilot.launcher`` for a
-one-vehicle world), which starts them as separate processes; ``quadsitl campaign`` runs ``tools.campaign.cli``
-(many flights on Dask).
+runs ``autopilot.cli`` and ``quadsitl up`` runs ``autopilot.launcher``, which starts them as separate processes
+(one autopilot per vehicle of a fleet world); ``quadsitl campaign`` runs ``tools.campaign.cli`` (many flights on
+Dask).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ _COMMANDS = {
     "sim": ("sim.cli", "run the lockstep simulator (UDP server)"),
     "autopilot": ("autopilot.cli", "run the autopilot (client of the simulator, GCS and API links)"),
     "up": (
-        "autopilot.fleet_launcher",
+        "autopilot.launcher",
         "start the simulator and the autopilot (one per vehicle of a fleet world); Ctrl-C stops all",
     ),
     "campaign": ("tools.campaign.cli", "fly many seeded flights on Dask; results table, report, replay"),

@@ -18,7 +18,7 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
-from autopilot.launcher import stop_process
+from autopilot.launch_processes import stop_process
 from autopilot.mission.plan import MissionPlan
 from mavlink_bridge.contract.vehicle_api import LandedState, MissionType
 from mavlink_bridge.gcs_client.client import CommandFailedError, GcsClient, VehicleStatus
@@ -55,7 +55,7 @@ __all__ = [
 #: The single-vehicle tests' home (Hangzhou) and the fleet tests' (PX4's default SITL home, Zurich), as YAML.
 WORLD_HOME_YAML = "{lat_deg: 30.2635, lon_deg: 120.1233, alt_m: 12.0}"
 FLEET_HOME_YAML = "{lat_deg: 47.3977, lon_deg: 8.5456, alt_m: 488}"
-#: The fleet launcher's per-vehicle port bases (+N+i; autopilot/fleet_launcher.py) and the one GCS port (+N).
+#: The launcher's per-vehicle port bases (+N+i; autopilot/launch_plan.py) and the one GCS port (+N).
 _FLEET_PORT_BASES = (14560, 18570, 14580, 14540)
 _FLEET_GCS_PORT = 14550
 

@@ -29,7 +29,8 @@ IO_EDGES = {
     "sim.fleet_run",
     "autopilot.cli",
     "autopilot.launcher",
-    "autopilot.fleet_launcher",
+    "autopilot.launch_plan",
+    "autopilot.launch_commands",
     "autopilot.io_loop",
 }
 MAX_LINES = 420

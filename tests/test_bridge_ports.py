@@ -9,6 +9,8 @@ import pytest
 from autopilot import launcher
 from autopilot.cli import build_parser as autopilot_parser
 from autopilot.cli import link_urls
+from autopilot.launch_commands import commands
+from autopilot.launch_plan import plan_launch
 from mavlink_bridge.wire.link import PortInUseError, UdpLink, check_ports_free, resolve_url
 from sim.cli import build_parser as sim_parser
 from sim.cli import config_from_args
@@ -47,15 +49,16 @@ def test_instance_shifts_default_ports_only() -> None:
 
 def test_up_passes_typed_urls_as_typed_and_lets_each_process_shift_its_defaults() -> None:
     args = launcher.build_parser().parse_args(["--instance", "11", "--gcs", "udpout:127.0.0.1:24561"])
-    sim_cmd, ap_cmd = launcher.commands(args)
+    sim_cmd, [ap_cmd] = commands(args, plan_launch(args))
     assert "--listen" not in sim_cmd and sim_cmd[sim_cmd.index("--instance") + 1] == "11"
     assert ap_cmd[ap_cmd.index("--gcs") + 1] == "udpout:127.0.0.1:24561"
     assert "--sim" not in ap_cmd and "--api" not in ap_cmd and ap_cmd[ap_cmd.index("--instance") + 1] == "11"
     listen = launcher.build_parser().parse_args(["--listen", "udp:127.0.0.1:15000", "--sim-loss", "0.1"])
-    sim_cmd, ap_cmd = launcher.commands(listen)
+    sim_cmd, [ap_cmd] = commands(listen, plan_launch(listen))
     assert ap_cmd[ap_cmd.index("--sim") + 1] == "udpout:127.0.0.1:15000"
     assert sim_cmd[sim_cmd.index("--sim-loss") + 1] == "0.1"
-    assert launcher.listen_urls(args) == ["udpin:127.0.0.1:14571", "udpout:127.0.0.1:24561", "udpin:127.0.0.1:14591"]
+    expected = ["udpin:127.0.0.1:14571", "udpout:127.0.0.1:24561", "udpin:127.0.0.1:14591"]
+    assert plan_launch(args).listen_urls() == expected
     with pytest.raises(SystemExit):
         launcher.build_parser().parse_args(["--sim-loss", "1.5"])
 

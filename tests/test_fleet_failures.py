@@ -10,7 +10,8 @@ import pytest
 
 from autopilot import cli as autopilot_cli
 from autopilot.commander.script import ScriptError, failure_steps, load_world_failures
-from autopilot.fleet_launcher import commands, fleet_entries, plan_links
+from autopilot.launch_commands import commands
+from autopilot.launch_plan import plan_launch
 from autopilot.launcher import build_parser
 from autopilot.mission.files import load_fleet_missions
 from mavlink_bridge.contract.failure_schedule import ScheduledFailure, vehicle_failures
@@ -103,7 +104,7 @@ def test_a_vehicles_failures_are_never_dropped_unsaid(tmp_path: Path) -> None:
 def test_quadsitl_up_gives_each_autopilot_its_own_failures(tmp_path: Path) -> None:
     path = _write(tmp_path, FLEET)
     args = build_parser().parse_args(["--world", str(path), "--instance", "3000", "--rerun", "off"])
-    _, autopilots = commands(args, plan_links(args, fleet_entries(str(path)), "x500"))
+    _, autopilots = commands(args, plan_launch(args))
     injected = []
     for cmd in autopilots:
         ap = autopilot_cli.build_parser().parse_args(cmd[cmd.index("autopilot") + 1 :])

@@ -30,7 +30,7 @@ from datetime import datetime
 from pathlib import Path
 
 from autopilot.estimation import DEFAULT_ESTIMATOR, ESTIMATORS
-from autopilot.launcher import stop_process
+from autopilot.launch_processes import stop_process
 from autopilot.mission.files import MissionFileError, load_mission_file
 from autopilot.preflight import InputFileError, check_autopilot_inputs
 from sim.vehicle_config import VehicleConfigError, load_vehicle

@@ -24,7 +24,7 @@ import time
 from datetime import datetime
 from pathlib import Path
 
-from autopilot.fleet_launcher import API_LOCAL_PORT, GCS_LOCAL_PORT, GCS_PORT, SIM_PORT
+from autopilot.launch_plan import API_LOCAL_PORT, GCS_LOCAL_PORT, GCS_PORT, SIM_PORT
 from autopilot.mission.files import MissionFileError, load_fleet_missions
 from tools.run_delivery import (
     _STARTUP_MARGIN_S,

@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from autopilot.estimation import DEFAULT_ESTIMATOR
-from autopilot.launcher import stop_process
+from autopilot.launch_processes import stop_process
 from autopilot.mission.files import load_mission_file
 from mavlink_bridge.gcs_client.client import GcsClient
 

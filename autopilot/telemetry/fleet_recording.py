@@ -1,6 +1,6 @@
 """One Rerun recording for a fleet world (issue 23 item 7): each autopilot logs under its vehicle's name.
 
-A fleet's autopilots all write with one recording id (``autopilot.fleet_launcher.fleet_recording_id``, from the
+A fleet's autopilots all write with one recording id (``autopilot.launch_recording.fleet_recording_id``, from the
 world file and the seed), so their ``.rrd`` files, and the simulator's world part, open in the viewer as one recording.
 :class:`VehicleRecording` wraps a recording stream and moves a single-vehicle recording's entities
 (:mod:`autopilot.telemetry.entities`) under the vehicle's name:

@@ -13,6 +13,8 @@ from autopilot_loop import SimLoop
 from autopilot import launcher
 from autopilot.geofence.fence import circle_fence_items
 from autopilot.io_loop import Links, run_loop
+from autopilot.launch_commands import commands
+from autopilot.launch_plan import plan_launch
 from autopilot.runner import Autopilot, AutopilotConfig
 from autopilot.telemetry import entities as ent
 from autopilot.telemetry import make_listener
@@ -141,19 +143,26 @@ def test_uploads_are_handed_to_the_listener() -> None:
     ],
 )
 def test_up_passes_the_world_to_the_recording_and_signing_to_the_autopilot(argv: list[str], expect: list[str]) -> None:
-    _sim, ap = launcher.commands(launcher.build_parser().parse_args(argv))
+    _sim, ap = _up_commands(argv)
     i = ap.index(expect[0])
     assert ap[i : i + len(expect)] == expect
 
 
 def test_up_without_a_recording_draws_no_world() -> None:
-    _sim, ap = launcher.commands(launcher.build_parser().parse_args(["--world", "m.yaml"]))
+    _sim, ap = _up_commands(["--world", "m.yaml"])
     assert "--rerun-world" not in ap
 
 
 def test_up_gives_both_processes_the_same_lockstep_spin() -> None:
-    sim, ap = launcher.commands(launcher.build_parser().parse_args(["--lockstep-spin-us", "0"]))
+    sim, ap = _up_commands(["--lockstep-spin-us", "0"])
     for argv in (sim, ap):
         assert float(argv[argv.index("--lockstep-spin-us") + 1]) == 0.0
     with pytest.raises(SystemExit):
         launcher.build_parser().parse_args(["--lockstep-spin-us", "-1"])
+
+
+def _up_commands(argv: list[str]) -> tuple[list[str], list[str]]:
+    """``quadsitl up``'s simulator and (one) autopilot command lines for ``argv``."""
+    args = launcher.build_parser().parse_args(argv)
+    sim, [ap] = commands(args, plan_launch(args))
+    return sim, ap

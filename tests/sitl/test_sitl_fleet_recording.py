@@ -14,7 +14,7 @@ from conftest import REPO_ROOT
 from rerun.chunk import RrdReader
 from sitl_procs import free_instance_block, write_fleet_world
 
-from autopilot.fleet_launcher import fleet_recording_id
+from autopilot.launch_recording import fleet_recording_id
 from autopilot.telemetry.recording_reader import read_layout, read_recording
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]

@@ -1,4 +1,5 @@
-"""``quadsitl up``: both processes start, stop together on SIGTERM, and the exit status tells the outcome."""
+"""``quadsitl up``: both processes start, stop together on SIGTERM, and the exit status tells the outcome; one
+launcher for one vehicle and a fleet: both print their banner and stop cleanly on SIGINT."""
 
 from __future__ import annotations
 
@@ -6,11 +7,13 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
 from conftest import REPO_ROOT
-from sitl_procs import Ports, read_json
+from pymavlink import mavutil
+from sitl_procs import Ports, free_instance_block, read_json
 
 from mavlink_bridge.gcs_client.client import GcsClient
 
@@ -57,3 +60,47 @@ def test_up_exit_status_reports_a_failed_start(tmp_path: Path) -> None:
     up = _up(tmp_path, ports, "--vehicle", "no_such_vehicle")
     rc = up.wait(timeout=120)
     assert rc == 2, (tmp_path / "up.log").read_text(errors="replace")
+
+
+@pytest.mark.parametrize(
+    ("world", "names"),
+    [("missions/delivery.yaml", []), ("missions/depot_fleet.yaml", ["alpha", "bravo", "charlie", "delta"])],
+)
+def test_one_vehicle_and_a_fleet_print_their_banner_and_stop_cleanly_on_sigint(
+    tmp_path: Path, world: str, names: list[str]
+) -> None:
+    count = max(len(names), 1)
+    block = free_instance_block(count)
+    gcs = mavutil.mavlink_connection(f"udpin:127.0.0.1:{14550 + block}", source_system=255)
+    args = [sys.executable, "-m", "quadsitl_cli", "up", "--world", world, "--instance", str(block), "--api", "off"]
+    args += ["--speed", "max", "--log-dir", str(tmp_path / "logs"), "--sim-timeout-s", "60"]
+    log = open(tmp_path / "up.log", "wb")  # noqa: SIM115 (the child keeps its own copy)
+    up = subprocess.Popen(args, cwd=REPO_ROOT, env=dict(os.environ, PYTHONUNBUFFERED="1"), stdout=log, stderr=log)
+    try:
+        flying: set[int] = set()  # the systems whose autopilot reports sim time: the lockstep runs for each
+        deadline = time.monotonic() + 180.0
+        while len(flying) < count and time.monotonic() < deadline and up.poll() is None:
+            msg = gcs.recv_match(type="ATTITUDE", blocking=True, timeout=1.0)
+            if msg is not None and msg.time_boot_ms > 1000:
+                flying.add(msg.get_srcSystem())
+        assert sorted(flying) == list(range(1, count + 1)), (tmp_path / "up.log").read_text(errors="replace")
+        up.send_signal(signal.SIGINT)
+        rc = up.wait(timeout=90)
+    finally:
+        if up.poll() is None:
+            up.kill()
+            up.wait()
+        log.close()
+        gcs.close()
+    text = (tmp_path / "up.log").read_text(errors="replace")
+    assert rc == 0, text
+    if names:
+        assert f"one simulator + {count} autopilots" in text and "Ctrl-C stops every process." in text
+        for i, name in enumerate(names):
+            assert f"  {name:<10} sys id {i + 1}, x500: sim on 127.0.0.1:{14560 + block + i}" in text
+    else:
+        assert "simulator + autopilot" in text and f"lockstep on udp 127.0.0.1:{14560 + block}" in text
+        assert f"GCS link   listens on 127.0.0.1:{18570 + block}, sends to 127.0.0.1:{14550 + block}" in text
+    assert read_json(tmp_path / "logs" / "sim_summary.json")["end_reason"] == "STOPPED"
+    for folder in [tmp_path / "logs" / name for name in names] or [tmp_path / "logs"]:
+        assert read_json(folder / "autopilot_summary.json")["frames"] > 250  # type: ignore[operator]

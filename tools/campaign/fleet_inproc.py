@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from autopilot.commander.script import CommandScript, ScriptStep, failure_steps, merged, parse_script
-from autopilot.fleet_launcher import fleet_recording_id, vehicle_rerun_spec, world_rerun_path
+from autopilot.launch_recording import fleet_recording_id, vehicle_rerun_spec, world_rerun_path
 from autopilot.mission.files import load_fleet_missions
 from autopilot.mission.plan import MissionPlan
 from autopilot.runner import Autopilot, AutopilotConfig

@@ -62,7 +62,7 @@ def _start(args: list[str], log: Path) -> subprocess.Popen[bytes]:
 def _stop(proc: subprocess.Popen[bytes] | None, timeout_s: float = 20.0) -> int | None:
     if proc is None:
         return None
-    from autopilot.launcher import stop_process
+    from autopilot.launch_processes import stop_process
 
     return stop_process(proc, timeout_s)
 
