@@ -121,6 +121,10 @@ class FleetSim:
                 self.rows[i] = (len(self.batches), row)
             self.batches.append(batch)
             self.members.append(members)
+        # each batch's vehicles as an index: a slice when they are consecutive (one airframe: no fancy indexing)
+        self._index = [
+            slice(m[0], m[-1] + 1) if np.array_equal(m, np.arange(m[0], m[-1] + 1)) else m for m in self.members
+        ]
         self.sensors = [SensorModel(airframes[i], world.home, self.seeds[i], noise=sensor_noise) for i in range(n)]
         self.values = [SensorValues(self.batches[b], self.sensors[i], row) for i, (b, row) in enumerate(self.rows)]
         self.obstacle_sensors = [ObstacleSensor(world, self.seeds[i]) for i in range(n)]
@@ -143,7 +147,8 @@ class FleetSim:
             )
         self._motor_cmd = [np.zeros((len(m), 4)) for m in self.members]
         self.hashes = [hashlib.sha256() for _ in range(n)]
-        self.max_xy2 = np.zeros(n)  # per vehicle, the max of x² + y² of q_ned_frd recorded: its max tilt
+        self.max_xy2 = [0.0] * n  # per vehicle, the max of x² + y² of q_ned_frd recorded: its max tilt
+        self._state_rows = [self.state_row(i) for i in range(n)]  # views (the batches' states are updated in place)
 
     # ---- state ---------------------------------------------------------------------------------------
     @property
@@ -167,7 +172,7 @@ class FleetSim:
     def gather(self) -> None:
         """Refresh ``pos_ned``, ``vel_ned`` and ``end_reason`` (instance order) from the batches (after a step, or
         after writing a batch state directly)."""
-        for batch, members in zip(self.batches, self.members, strict=True):
+        for batch, members in zip(self.batches, self._index, strict=True):
             self.pos_ned[members] = batch.state[:, 0:3]
             self.vel_ned[members] = batch.state[:, 3:6]
             self.end_reason[members] = batch.end_reason
@@ -258,16 +263,19 @@ class FleetSim:
 
     def detect(self, i: int) -> tuple:
         """Vehicle i's obstacle detections now (world obstacles and the other vehicles)."""
-        state = self.state_row(i)
-        return self.obstacle_sensors[i].detect(state[0:3], state[6:10], self.t_us, self.others_of(i))
+        state = self._state_rows[i]
+        others = self.others_of(i) if self.n > 1 else None
+        return self.obstacle_sensors[i].detect(state[0:3], state[6:10], self.t_us, others)
 
     def record(self) -> None:
         """Add every vehicle's truth state of now to its hash and its tilt to ``max_xy2``."""
-        for i, h in enumerate(self.hashes):
-            h.update(self.state_row(i))
-        for batch, members in zip(self.batches, self.members, strict=True):
-            q = batch.state[:, 7:9]
-            self.max_xy2[members] = np.maximum(self.max_xy2[members], q[:, 0] * q[:, 0] + q[:, 1] * q[:, 1])
+        max_xy2 = self.max_xy2
+        for i, (h, state) in enumerate(zip(self.hashes, self._state_rows, strict=True)):
+            h.update(state)
+            qx, qy = state[7:9].tolist()
+            xy2 = qx * qx + qy * qy
+            if xy2 > max_xy2[i]:
+                max_xy2[i] = xy2
 
     def max_tilt_deg(self, i: int) -> float:
         """Vehicle i's largest tilt over the recorded steps (°)."""
