@@ -1,8 +1,9 @@
 """``quadsitl sim`` / ``python -m sim``: the lockstep simulator process (SPEC §12).
 
-Exit status: 0 when the run completed or was stopped (SIGINT/SIGTERM, ``--duration-s``),
-3 when the autopilot vanished (AUTOPILOT_LOST), 4 when the vehicle ended the run
-(collision, ground impact, non-finite state), 2 for bad options or files. In every case
+One server (``sim.server.SimServer``) for a world of one vehicle and a fleet world alike. Exit status: 0 when
+the run completed or was stopped (SIGINT/SIGTERM, ``--duration-s``), 3 when the autopilot vanished (a fleet:
+every autopilot; AUTOPILOT_LOST), 4 when the vehicle (every vehicle) ended the run (collision, ground impact,
+non-finite state), 2 for bad options or files. In every case
 after start-up ``--log-dir/sim_summary.json`` is written.
 """
 
@@ -20,7 +21,6 @@ from mavlink_bridge.lockstep import DEFAULT_SIM_PORT, add_spin_option
 from mavlink_bridge.wire.link import LinkMode, LinkUrl, LinkUrlError, resolve_url
 from mavlink_bridge.wire.lossy import loss_fraction
 from sim.end_reason import EndReason
-from sim.fleet_server import FleetServer
 from sim.fleet_world import load_fleet
 from sim.server import DEFAULT_VEHICLE, SimConfig, SimServer, SimSetupError, mission_vehicle
 from sim.traffic import DEFAULT_TRAFFIC_RANGE_M
@@ -195,9 +195,7 @@ def main(argv: list[str] | None = None) -> int:
         fleet = load_fleet(args.world) if args.world is not None and args.world.is_file() else None
         if fleet is not None and not args.traffic_range_m > 0.0:
             raise SimSetupError(f"--traffic-range-m: expected a positive distance, got {args.traffic_range_m}")
-        server: SimServer | FleetServer = (
-            FleetServer(config, fleet) if fleet is not None and fleet.is_fleet else SimServer(config)
-        )
+        server = SimServer(config, fleet)
     except (ValueError, OSError) as exc:  # refused world/vehicle/options, or the port is taken
         print(f"quadsitl sim: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -206,7 +204,7 @@ def main(argv: list[str] | None = None) -> int:
         server.request_stop()
 
     pace = "as fast as possible" if args.speed is None else f"{args.speed:g}x real time"
-    if isinstance(server, FleetServer):
+    if not server.solo:
         ports = ", ".join(
             f"{v.name} (sys id {v.sys_id}) udp {host}:{port}"
             for v, (host, port) in zip(server.fleet.vehicles, server.local_addresses, strict=True)

@@ -1,4 +1,7 @@
-"""Several vehicles in one world, stepped together (SPEC §13); no sockets (``sim.fleet_server`` serves them).
+"""The vehicles of one world, stepped together (SPEC §13); no sockets (``sim.server`` serves them).
+
+A world without ``vehicles:`` is a fleet of one (:func:`world_vehicles`): instance 0 at home, seeded with the run's
+seed itself, so it flies what the single-vehicle simulator always flew.
 
 Vehicles of one airframe share one :class:`BatchSim` (one compiled call steps them all); a fleet of mixed
 airframes has one batch per airframe. Each vehicle has its own seeded streams (gusts, sensor noise, obstacle
@@ -14,17 +17,20 @@ approach to another airborne vehicle in the default UAV separation volume's own 
 (closer than 10 m horizontally and than 5 m vertically at once, NAV_TRAFF_U_HOR / NAV_TRAFF_U_VER), and e.g.
 16 m is "8 m above or below" or "16 m beside". Vehicles standing on the ground are parked traffic, not in
 conflict (pads are spaced for it): the measure counts pairs while both are airborne.
+
+Each recorded step also folds every vehicle's tilt into ``max_xy2`` (see :func:`tilt_deg`).
 """
 
 from __future__ import annotations
 
 import hashlib
+import math
 
 import numpy as np
 
 from sim.batch import BatchSim
 from sim.end_reason import EndReason
-from sim.fleet_world import FleetSpec
+from sim.fleet_world import FleetSpec, FleetVehicle
 from sim.frame_kernel import SensorValues
 from sim.obstacle_sensor import ObstacleSensor
 from sim.sensors import SensorModel
@@ -36,6 +42,8 @@ _RUNNING = int(EndReason.RUNNING)
 #: airborne vehicles is inside it when both closer than 10 m horizontally and than 5 m vertically.
 UAV_VOLUME_HOR_M = 10.0
 UAV_VOLUME_VER_M = 5.0
+#: The name of the one vehicle of a world without ``vehicles:``.
+SOLO_NAME = "vehicle"
 
 
 def vehicle_seed(seed: int, instance: int) -> int:
@@ -45,8 +53,35 @@ def vehicle_seed(seed: int, instance: int) -> int:
     return int(state) >> 1
 
 
+def world_vehicles(fleet: FleetSpec) -> tuple[FleetVehicle, ...]:
+    """The vehicles of a world: its ``vehicles:``, or for a world without them the one vehicle at home (instance
+    0, MAV_SYS_ID 1)."""
+    if fleet.is_fleet:
+        return fleet.vehicles
+    return (FleetVehicle(0, SOLO_NAME, None, 0.0, 0.0, (), None, None),)
+
+
+def fleet_seeds(seed: int, fleet: FleetSpec) -> tuple[int, ...]:
+    """Each vehicle's seed: :func:`vehicle_seed` per instance in a fleet world, the run's ``seed`` itself for the
+    one vehicle of a world without ``vehicles:`` (what the single-vehicle simulator always used)."""
+    if not fleet.is_fleet:
+        return (seed,)
+    return tuple(vehicle_seed(seed, i) for i in range(len(fleet.vehicles)))
+
+
+def tilt_deg(q_ned_frd: np.ndarray) -> float:
+    """Angle between body down and NED down (°): ``acos(R_zz)``, ``R_zz = 1 − 2(x² + y²)``."""
+    x, y = float(q_ned_frd[1]), float(q_ned_frd[2])
+    return tilt_deg_from_xy2(x * x + y * y)
+
+
+def tilt_deg_from_xy2(xy2: float) -> float:
+    """:func:`tilt_deg` from ``x² + y²`` of the quaternion (monotonic in it: the max tilt is that of the max)."""
+    return math.degrees(math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * float(xy2)))))
+
+
 class FleetSim:
-    """The vehicles of a fleet world: their batches, sensors and contacts (row i = instance i)."""
+    """The vehicles of a world: their batches, sensors and contacts (row i = instance i)."""
 
     def __init__(
         self,
@@ -62,11 +97,12 @@ class FleetSim:
         """``airframes[i]`` is vehicle i's (ValueError for a bad rate or vehicles placed in contact)."""
         self.world = world
         self.fleet = fleet
-        n = len(fleet.vehicles)
+        self.vehicles = vehicles = world_vehicles(fleet)
+        n = len(vehicles)
         self.n = n
-        self.seeds = tuple(vehicle_seed(seed, i) for i in range(n))
+        self.seeds = fleet_seeds(seed, fleet)
         self.radius_m = np.array([a.collision_radius_m for a in airframes])
-        home_ned = np.array([(v.home_north_m, v.home_east_m, 0.0) for v in fleet.vehicles]).reshape(n, 3)
+        home_ned = np.array([(v.home_north_m, v.home_east_m, 0.0) for v in vehicles]).reshape(n, 3)
         self.batches: list[BatchSim] = []
         self.rows: list[tuple[int, int]] = [(0, 0)] * n  # vehicle -> (batch, row)
         self.members: list[np.ndarray] = []  # batch -> vehicle indices
@@ -85,6 +121,10 @@ class FleetSim:
                 self.rows[i] = (len(self.batches), row)
             self.batches.append(batch)
             self.members.append(members)
+        # each batch's vehicles as an index: a slice when they are consecutive (one airframe: no fancy indexing)
+        self._index = [
+            slice(m[0], m[-1] + 1) if np.array_equal(m, np.arange(m[0], m[-1] + 1)) else m for m in self.members
+        ]
         self.sensors = [SensorModel(airframes[i], world.home, self.seeds[i], noise=sensor_noise) for i in range(n)]
         self.values = [SensorValues(self.batches[b], self.sensors[i], row) for i, (b, row) in enumerate(self.rows)]
         self.obstacle_sensors = [ObstacleSensor(world, self.seeds[i]) for i in range(n)]
@@ -102,11 +142,13 @@ class FleetSim:
         if n > 1 and float(gap.min()) <= 0.0:
             i, j = np.unravel_index(int(np.argmin(gap)), gap.shape)
             raise ValueError(
-                f"vehicles[{j}].home: {fleet.vehicles[j].name} starts in contact with {fleet.vehicles[i].name}; "
+                f"vehicles[{j}].home: {vehicles[j].name} starts in contact with {vehicles[i].name}; "
                 "fix: move their homes further apart"
             )
         self._motor_cmd = [np.zeros((len(m), 4)) for m in self.members]
         self.hashes = [hashlib.sha256() for _ in range(n)]
+        self.max_xy2 = [0.0] * n  # per vehicle, the max of x² + y² of q_ned_frd recorded: its max tilt
+        self._state_rows = [self.state_row(i) for i in range(n)]  # views (the batches' states are updated in place)
 
     # ---- state ---------------------------------------------------------------------------------------
     @property
@@ -130,7 +172,7 @@ class FleetSim:
     def gather(self) -> None:
         """Refresh ``pos_ned``, ``vel_ned`` and ``end_reason`` (instance order) from the batches (after a step, or
         after writing a batch state directly)."""
-        for batch, members in zip(self.batches, self.members, strict=True):
+        for batch, members in zip(self.batches, self._index, strict=True):
             self.pos_ned[members] = batch.state[:, 0:3]
             self.vel_ned[members] = batch.state[:, 3:6]
             self.end_reason[members] = batch.end_reason
@@ -221,10 +263,20 @@ class FleetSim:
 
     def detect(self, i: int) -> tuple:
         """Vehicle i's obstacle detections now (world obstacles and the other vehicles)."""
-        state = self.state_row(i)
-        return self.obstacle_sensors[i].detect(state[0:3], state[6:10], self.t_us, self.others_of(i))
+        state = self._state_rows[i]
+        others = self.others_of(i) if self.n > 1 else None
+        return self.obstacle_sensors[i].detect(state[0:3], state[6:10], self.t_us, others)
 
     def record(self) -> None:
-        """Add every vehicle's truth state of now to its hash."""
-        for i, h in enumerate(self.hashes):
-            h.update(self.state_row(i))
+        """Add every vehicle's truth state of now to its hash and its tilt to ``max_xy2``."""
+        max_xy2 = self.max_xy2
+        for i, (h, state) in enumerate(zip(self.hashes, self._state_rows, strict=True)):
+            h.update(state)
+            qx, qy = state[7:9].tolist()
+            xy2 = qx * qx + qy * qy
+            if xy2 > max_xy2[i]:
+                max_xy2[i] = xy2
+
+    def max_tilt_deg(self, i: int) -> float:
+        """Vehicle i's largest tilt over the recorded steps (°)."""
+        return tilt_deg_from_xy2(self.max_xy2[i])

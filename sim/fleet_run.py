@@ -1,23 +1,24 @@
-"""One fleet world run without sockets (SPEC §13): what the simulator does for every vehicle each control step.
+"""One world's run without sockets (SPEC §12, §13): what the simulator does for every vehicle each control step.
 
-``FleetRun`` owns the vehicles (:class:`~sim.fleet.FleetSim`), their transponder receivers
-(:class:`~sim.traffic.TrafficReceiver`), the manned-traffic proximity truth and the world part of the recording.
-Per control step its user (the UDP server ``sim.fleet_server`` or the in-process campaign flight
-``tools.campaign.fleet_inproc``) does::
+``FleetRun`` owns the vehicles (:class:`~sim.fleet.FleetSim`; a world without ``vehicles:`` is a fleet of one),
+their transponder receivers (:class:`~sim.traffic.TrafficReceiver`; a world of one vehicle without ``traffic:``
+has none: its datagrams are the single-vehicle simulator's), the manned-traffic proximity truth and the world part
+of the recording. Per control step its user (the UDP server ``sim.server`` or the in-process flight
+``tools.campaign.inproc_flight``) does::
 
     frames = run.frames(alive)          # per live vehicle: receiver HEARTBEAT + traffic due + sensors -> datagram
     ...each autopilot answers...        # run.apply(i, answer) / run.stop_motors(i) for a lost one
     run.advance()                       # physics of all batches, contacts, manned proximity, recording
 
 so both transports fly the same bytes and the same physics. ``summaries`` turns the end state into the
-per-vehicle part of ``sim_summary.json``.
+per-vehicle part of ``sim_summary.json``, ``summary`` into the whole (``sim.summary_file``).
 """
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Iterator
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -27,81 +28,22 @@ from mavlink_bridge.wire.codec import Encoder, Heartbeat
 from mavlink_bridge.wire.frame_writer import FrameWriter
 from mavlink_bridge.wire.traffic_codec import MAV_COMP_ID_ADSB, MAV_TYPE_ADSB
 from sim.end_reason import EndReason
-from sim.fleet import FleetSim
+from sim.fleet import FleetSim, world_vehicles
 from sim.fleet_world import FleetSpec
-from sim.summary_file import SummaryFile
+from sim.summary_file import FleetSummary, FleetVehicleSummary, LinkCounts
 from sim.traffic import DEFAULT_TRAFFIC_RANGE_M, MannedProximity, ScriptedTraffic, TrafficReceiver
 from sim.vehicle_config import VehicleConfig, load_vehicle
 from sim.world import World
 from sim.world_recording import WorldRecorder
 
+log = logging.getLogger(__name__)
 _MAV_AUTOPILOT_INVALID = 8
 _MAV_STATE_ACTIVE = 4
 _RUNNING = int(EndReason.RUNNING)
 
 
-@dataclass(frozen=True, slots=True)
-class LinkCounts:
-    """One vehicle's lockstep link counters (all 0 but ``frames`` when no link carries the frames)."""
-
-    frames: int = 0
-    resends: int = 0
-    stale_answers: int = 0
-    foreign: int = 0
-    invalid_answers: int = 0
-
-
-@dataclass(frozen=True, slots=True)
-class FleetVehicleSummary:
-    """One vehicle's part of a fleet ``sim_summary.json``."""
-
-    name: str
-    sys_id: int
-    vehicle: str
-    sim_port: int  # its lockstep port (0: flown in process)
-    end_reason: str
-    autopilot_connected: bool
-    autopilot_lost_at_s: float | None  # when its autopilot stopped answering (None: it never did)
-    contacts: list[str]  # the vehicles it touched (each a COLLISION for both)
-    min_separation_m: float | None  # closest approach to another vehicle, surface to surface
-    min_volume_sep_m: float | None  # closest airborne approach, max(hor, ver * 2): < 10 m is inside (sim.fleet)
-    min_clearance_m: float | None  # to the world's obstacles
-    payload_released_at_s: float | None
-    final_pos_ned_m: tuple[float, float, float]
-    truth_sha256: str
-    frames: int
-    resends: int
-    stale_answers: int
-    foreign_datagrams: int
-    invalid_answers: int
-    traffic_reports: int  # reports its receiver sent (UTM + ADS-B)
-    min_manned_distance_m: float | None  # closest 3D approach to a scripted aircraft (None: none flew)
-    nmac_at_s: float | None  # first NMAC with a scripted aircraft (sim.traffic.NMAC_HOR_M/VER_M; None: none)
-
-
-@dataclass(frozen=True, slots=True)
-class FleetSummary(SummaryFile):
-    """``sim_summary.json`` of a fleet world: the run, what bounds its speed, then one entry per vehicle."""
-
-    end_reason: str
-    sim_time_s: float
-    wall_time_s: float
-    real_time_factor: float
-    seed: int
-    speed: float | None
-    collisions: int  # vehicles that ended in a COLLISION (obstacles or each other)
-    vehicle_contacts: int  # pairs of vehicles that touched
-    manned_nmacs: int  # vehicles that came inside the NMAC volume of a scripted aircraft
-    frames: int  # control steps
-    sim_step_us: float  # mean wall time per step in the sim's own work (physics, sensors, datagrams, hashes)
-    physics_us: float  # of which the batched physics and contacts
-    answer_wait_us: float  # waiting for the slowest autopilot's answer (autopilot steps + transport)
-    sim_cpu_us_per_step: float
-    vehicles: list[FleetVehicleSummary]
-
-
 class FleetRun:
-    """The vehicles, receivers and truth of one fleet run, stepped by a transport (see the module docstring)."""
+    """The vehicles, receivers and truth of one run, stepped by a transport (see the module docstring)."""
 
     def __init__(
         self,
@@ -123,20 +65,22 @@ class FleetRun:
         self.sim = sim = FleetSim(
             world, fleet, airframes, seed=seed, physics_hz=physics_hz, control_hz=control_hz, sensor_noise=sensor_noise
         )
+        self.vehicles = vehicles = sim.vehicles
         self.receiver = TrafficReceiver(
             world.home,
-            tuple(v.sys_id for v in fleet.vehicles),
+            tuple(v.sys_id for v in vehicles),
             ScriptedTraffic(fleet.traffic),
             control_hz,
             traffic_range_m,
         )
+        self.receiving = fleet.is_fleet or bool(fleet.traffic)  # a lone vehicle in an empty sky has no receiver
         self.proximity = MannedProximity(self.receiver.traffic, sim.n)
-        names = [v.name for v in fleet.vehicles]
+        names = [v.name for v in vehicles]
         self.recorder = (
             WorldRecorder(names, self.receiver.traffic, recording, recording_id) if recording is not None else None
         )
-        self.writers = [FrameWriter(v.sys_id) for v in fleet.vehicles]
-        self.receiver_encoders = [Encoder(v.sys_id, MAV_COMP_ID_ADSB) for v in fleet.vehicles]
+        self.writers = [FrameWriter(v.sys_id) for v in vehicles]
+        self.receiver_encoders = [Encoder(v.sys_id, MAV_COMP_ID_ADSB) for v in vehicles]
         self._receiver_heartbeat = Heartbeat(MAV_TYPE_ADSB, _MAV_AUTOPILOT_INVALID, 0, 0, _MAV_STATE_ACTIVE)
         n = sim.n
         period_us = round(1e6 / sim.obstacle_sensors[0].config.rate_hz)
@@ -145,6 +89,7 @@ class FleetRun:
         # staggered over the period (vehicle i's first at i/n of it, on a control step): no step senses for all
         self._next_detection_us = [(i * period_us // n) // control_us * control_us for i in range(n)]
         self.traffic_sent = np.zeros(n, dtype=np.int64)
+        self._no_reports: list[list] = [[] for _ in range(n)]
 
     @property
     def n(self) -> int:
@@ -156,8 +101,10 @@ class FleetRun:
         A generator (a transport sends each before the next is built); consume it whole, once per step."""
         sim = self.sim
         t_us = sim.t_us
-        heartbeat_due = self.receiver.heartbeat_due(sim.steps)
-        reports = self.receiver.reports(sim.steps, t_us, sim.pos_ned, sim.vel_ned, alive)
+        heartbeat_due, reports = False, self._no_reports
+        if self.receiving:
+            heartbeat_due = self.receiver.heartbeat_due(sim.steps)
+            reports = self.receiver.reports(sim.steps, t_us, sim.pos_ned, sim.vel_ned, alive)
         for i in np.flatnonzero(alive).tolist():
             detect = t_us >= self._next_detection_us[i]
             if detect:
@@ -178,6 +125,8 @@ class FleetRun:
         gripper release drops its payload."""
         if answer[A_GRIPPER_RELEASE] == 1.0 and self.sim.payload_kg(i) > 0.0:
             self.sim.release_payload(i)
+            who = f"{self.vehicles[i].name}: " if self.fleet.is_fleet else ""
+            log.info("%spayload released at t=%.3f s", who, self.sim.t_s)
         self.sim.set_motors(i, answer[A_MOTORS : A_MOTORS + 4] if answer[A_ARMED] == 1.0 else 0.0)
 
     def stop_motors(self, i: int) -> None:
@@ -205,14 +154,16 @@ class FleetRun:
         links: list[LinkCounts],
         ports: list[int],
     ) -> list[FleetVehicleSummary]:
-        """Every vehicle's end state: a vehicle still running ends with ``end`` (or AUTOPILOT_LOST when its
-        autopilot never connected or was lost)."""
+        """Every vehicle's end state: a vehicle still running ends with ``end``, or AUTOPILOT_LOST when its autopilot
+        was lost or never connected while others flew."""
         sim = self.sim
         out = []
-        for i, spec in enumerate(self.fleet.vehicles):
+        anyone = bool(np.any(connected))
+        for i, spec in enumerate(self.vehicles):
             code = int(sim.end_reason[i])
             if code == _RUNNING:
-                code = int(EndReason.AUTOPILOT_LOST if lost_at_s[i] is not None or not connected[i] else end)
+                lost = lost_at_s[i] is not None or (anyone and not connected[i])
+                code = int(EndReason.AUTOPILOT_LOST if lost else end)
             b, row = sim.rows[i]
             batch = sim.batches[b]
             link = links[i]
@@ -226,7 +177,7 @@ class FleetRun:
                     end_reason=EndReason(code).name,
                     autopilot_connected=bool(connected[i]),
                     autopilot_lost_at_s=lost_at_s[i],
-                    contacts=[self.fleet.vehicles[j].name for j in sim.contacts_of(i)],
+                    contacts=[self.vehicles[j].name for j in sim.contacts_of(i)],
                     min_separation_m=_finite(sim.min_separation_m[i]),
                     min_volume_sep_m=_finite(sim.min_volume_sep_m[i]),
                     min_clearance_m=_finite(batch.min_clearance_m[row]),
@@ -280,7 +231,7 @@ class FleetRun:
 
 def fleet_airframes(fleet: FleetSpec, default: str) -> tuple[VehicleConfig, ...]:
     """Each vehicle's airframe (its ``vehicle:``, else ``default``), each airframe file loaded once."""
-    names = [v.vehicle or default for v in fleet.vehicles]
+    names = [v.vehicle or default for v in world_vehicles(fleet)]
     loaded = {name: load_vehicle(name) for name in dict.fromkeys(names)}
     return tuple(loaded[name] for name in names)
 

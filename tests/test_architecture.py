@@ -25,7 +25,6 @@ PACKAGES = ("sim", "autopilot", "mavlink_bridge")
 IO_EDGES = {
     "sim.cli",
     "sim.server",
-    "sim.fleet_server",
     "sim.fleet_run",
     "autopilot.cli",
     "autopilot.launcher",

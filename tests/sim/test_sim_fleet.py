@@ -19,9 +19,9 @@ from mavlink_bridge.lockstep.answer_kernel import A_ARMED, A_MOTORS
 from sim.end_reason import EndReason
 from sim.fleet import FleetSim, vehicle_seed
 from sim.fleet_run import FleetRun, fleet_airframes
-from sim.fleet_server import FleetServer, FleetSummary
 from sim.fleet_world import load_fleet
-from sim.server import SimConfig
+from sim.server import SimConfig, SimServer
+from sim.summary_file import FleetSummary
 from sim.vehicle_config import load_vehicle
 from sim.world import WorldConfigError, load_world
 
@@ -181,7 +181,7 @@ class ScriptedAutopilot(threading.Thread):
 
 
 def _run_fleet(path: Path, autopilots: list[dict], duration_s: float, **config: object) -> tuple[FleetSummary, list]:
-    server = FleetServer(
+    server = SimServer(
         SimConfig(
             listen_url="udpin:127.0.0.1:0",
             world_path=path,
@@ -203,7 +203,7 @@ def _run_fleet(path: Path, autopilots: list[dict], duration_s: float, **config: 
 
 def test_time_advances_only_when_every_autopilot_answered(tmp_path: Path) -> None:
     path = _write(tmp_path, FLEET_YAML)
-    server = FleetServer(SimConfig(listen_url="udpin:127.0.0.1:0", world_path=path, duration_s=0.2))
+    server = SimServer(SimConfig(listen_url="udpin:127.0.0.1:0", world_path=path, duration_s=0.2))
     alpha, bravo = (ScriptedAutopilot(a, 0.0) for a in server.local_addresses)
     bravo.hold.clear()  # bravo computes slowly
     for p in (alpha, bravo):

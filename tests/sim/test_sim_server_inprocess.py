@@ -23,7 +23,9 @@ from sim.cli import (
     exit_code,
     main,
 )
-from sim.server import SimConfig, SimServer, SimSetupError, SimSummary, tilt_deg
+from sim.fleet import tilt_deg
+from sim.server import SimConfig, SimServer, SimSetupError
+from sim.summary_file import SimSummary
 
 Law = Callable[[LockstepFrame], ActuatorCommand]
 
@@ -36,7 +38,7 @@ def fly(config: SimConfig, law: Law, loss: LossProfile | None = None) -> tuple[S
     if proxy:
         host, port = proxy.listen_address
     result: list[SimSummary] = []
-    thread = threading.Thread(target=lambda: result.append(server.run()), daemon=True)
+    thread = threading.Thread(target=lambda: result.append(server.run()), daemon=True)  # type: ignore[arg-type]
     thread.start()
     frames: list[LockstepFrame] = []
     with LockstepClient(f"udpout:{host}:{port}", heartbeat_period_s=0.02) as client:

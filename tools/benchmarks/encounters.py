@@ -4,7 +4,7 @@ traffic avoidance and with warnings only, on the campaign engine.
 ``missions/campaigns/encounters.yaml`` (360 cases: 2-8 x500s head-on, crossing, overtaking, vertical, converging
 on one depot with staggered take-offs; manned traffic in about one case of six) and
 ``encounters_warn_only.yaml`` (the same cases with NAV_TRAFF_AVOID 1) are flown on a LocalCluster (every case a
-fleet flight in one process, ``tools.campaign.fleet_inproc``: the simulator's fleet step and one autopilot per
+fleet flight in one process, ``tools.campaign.inproc_flight``: the simulator's fleet step and one autopilot per
 vehicle with the EKF). ``--quick`` flies the first 4 cases of each. Keys: ``traffic_contacts`` (vehicle-vehicle
 contacts over all cases, target 0), ``traffic_min_sep_m`` (the closest two airborne vehicles came in the UAV
 volume's measure, max(horizontal, 2 x vertical) between centres: target >= 10 m, i.e. never inside 10 m / 5 m),

@@ -91,9 +91,9 @@ def run_case(payload: CasePayload) -> dict[str, Any]:
         if payload.case.base == ENCOUNTER_BASE:  # a fleet (tools.campaign.fleet_flight)
             stagger_s = float(dict(payload.case.overrides).get("encounter.stagger_s", 0.0))
             if payload.mode == "inproc":
-                from tools.campaign import fleet_inproc
+                from tools.campaign import inproc_flight
 
-                flight = fleet_inproc.fly(case_dir, payload.deadline_s, stagger_s, payload.rerun)
+                flight = inproc_flight.fly(case_dir, payload.deadline_s, payload.rerun, stagger_s=stagger_s)
             else:
                 flight = fleet_flight.fly(case_dir, payload.deadline_s, stagger_s, kill_group)
         elif payload.mode == "inproc":

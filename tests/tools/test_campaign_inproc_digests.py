@@ -1,0 +1,65 @@
+"""The one in-process flight flies what the two it replaced flew: fixed truth digests of a single-vehicle campaign
+case (the old ``inproc_flight`` over ``VehicleSim``) and of a fleet world (the old ``fleet_inproc`` over
+``FleetRun``), recorded from the code before they were merged (commit 51a0bc0). The single-vehicle case's digest
+is also what its ``mode: sitl`` flight gives (``test_campaign_local``: sitl = inproc bit for bit)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from campaign_files import write_campaign
+
+from tools.campaign.cases import draw, materialise
+from tools.campaign.inproc_flight import fly_world
+from tools.campaign.runner import payload_for
+from tools.campaign.spec import load_campaign
+from tools.campaign.task import run_case
+
+pytestmark = [pytest.mark.slow]
+
+PAIR = """\
+name: pair
+home: {lat_deg: 47.3977, lon_deg: 8.5456, alt_m: 488}
+world: {wind: {north_m_s: 1.0, gust_m_s: 0.5}}
+vehicles:
+  - name: alpha
+    home: {north_m: 0, east_m: 0}
+    mission: [{takeoff: {alt_m: 8}}, {waypoint: {north_m: 20, east_m: 10, alt_m: 8}}, {land: {}}]
+  - name: bravo
+    home: {north_m: 0, east_m: 8}
+    mission: [{takeoff: {alt_m: 6}}, {waypoint: {north_m: 20, east_m: -2, alt_m: 6}}, {land: {}}]
+traffic:
+  - callsign: HELI1
+    icao: 0xA1B2C3
+    emitter: rotorcraft
+    path: [{north_m: -100, east_m: 60, alt_m: 40}, {north_m: 1500, east_m: 60, alt_m: 40}]
+    speed_m_s: 40
+"""
+
+
+@pytest.mark.parametrize(
+    ("case_id", "end_reason", "sim_time_s", "digest"),
+    [
+        (0, "GROUND_IMPACT", 13.036, "ddc45d2dbf3f0617b8f4ffcc6d231ac14b70e14927b1524ebaae4eee4ee04667"),
+        (1, "COMPLETED", 25.0, "5e5f9957c7db8dcb893e99b18f987287dd16bd05ccacda1d014e50b92e08bf50"),
+    ],
+)
+def test_a_single_vehicle_case_keeps_its_digest(
+    tmp_path: Path, case_id: int, end_reason: str, sim_time_s: float, digest: str
+) -> None:
+    spec = load_campaign(write_campaign(tmp_path / "campaign", cases=2))
+    case = draw(spec, case_id)
+    row = run_case(payload_for(spec, case, materialise(spec, case), tmp_path / "out"))
+    assert (row["end_reason"], row["sim_time_s"], row["truth_hash"]) == (end_reason, sim_time_s, digest)
+
+
+def test_a_fleet_world_keeps_its_per_vehicle_digests(tmp_path: Path) -> None:
+    world = tmp_path / "pair.yaml"
+    world.write_text(PAIR)
+    out = fly_world(world, seed=9, stagger_s=2.0, sim_time_s=30.0)
+    assert [v["truth_sha256"] for v in out["sim"]["vehicles"]] == [
+        "77fe2cf3dc82f6e3f160bd626f6dd81a8d3e91a7bece055eb0670a2334ccc61e",
+        "903b868ba13265c2f9adae8603b7aa85a50ec7ce355193749907190b90d9dea5",
+    ]
+    assert [v["traffic_reports"] for v in out["sim"]["vehicles"]] == [60, 60]
