@@ -33,14 +33,14 @@ test: venv
 	$(BIN)/python -m pytest -q
 
 bench: venv
-	$(BIN)/python -m tools.bench
+	$(BIN)/python -m tools.benchmarks
 
 lint: venv
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 
 paper: venv
-	$(BIN)/python -m tools.paper_table
+	$(BIN)/python -m tools.research.paper_table
 
 # Third-party GCS interoperability (MAVProxy, MAVSDK-Python, dev dependencies): only their tests (`make test` runs
 # them too).
