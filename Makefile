@@ -7,11 +7,14 @@ STAMP  := $(VENV)/.installed
 .PHONY: venv run run-fleet test bench lint paper interop screenshot clean
 
 # The first setup takes about 2.5 min (pip ~1.5 min, then the kernel compile ~1 min); it says what it does.
-$(STAMP): pyproject.toml
+# MAVProxy (interop tests) comes without its GUI dependencies: --no-deps, its console's needs listed with it.
+INTEROP_REQUIREMENTS := tests/interop_clients/requirements.txt
+$(STAMP): pyproject.toml $(INTEROP_REQUIREMENTS)
 	@echo "[setup] creating $(VENV) and installing quadsitl with its dependencies (pip, 1-2 min the first time)..."
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	$(BIN)/python -m pip install --quiet --no-deps -r $(INTEROP_REQUIREMENTS)
 	touch $(STAMP)
 	@echo "[setup] packages installed"
 
@@ -33,14 +36,14 @@ test: venv
 	$(BIN)/python -m pytest -q
 
 bench: venv
-	$(BIN)/python -m tools.bench
+	$(BIN)/python -m tools.benchmarks
 
 lint: venv
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 
 paper: venv
-	$(BIN)/python -m tools.paper_table
+	$(BIN)/python -m tools.research.paper_table
 
 # Third-party GCS interoperability (MAVProxy, MAVSDK-Python, dev dependencies): only their tests (`make test` runs
 # them too).

@@ -79,7 +79,7 @@ def make_param_store(
     params_file: str | Path | None = None, *, payload_nominal_kg: float = 0.0, airframe: str | None = None
 ) -> ParamStore:
     """A ParamStore with every parameter at its default, then ``params_file`` applied: YAML ``NAME: value``
-    pairs, or a gains file as ``tools.tune_es`` writes it (:data:`PARAM_FILE_FORMATS`).
+    pairs, or a gains file as ``tools.research.tune_es`` writes it (:data:`PARAM_FILE_FORMATS`).
 
     ``payload_nominal_kg`` (the airframe's) is the default of ``PLD_MASS_KG``; ``airframe`` picks the controller
     gains' defaults (its own file if shipped, ``autopilot.control.param_decls.default_gains_path``).
@@ -91,7 +91,7 @@ def make_param_store(
 
 
 def _gains_file_params(data: dict) -> dict[str, float]:
-    """A gains file (``tools.tune_es`` output, ``format: quadsitl.cascade_gains/1``) as ``NV_*`` values."""
+    """A gains file (``tools.research.tune_es`` output, ``format: quadsitl.cascade_gains/1``) as ``NV_*`` values."""
     return params_from_gains(CascadeGains.from_dict(data))
 
 

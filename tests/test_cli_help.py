@@ -18,7 +18,7 @@ COMMANDS = [
     "autopilot.launcher",
     "tools.gcs",
     "tools.run_delivery",
-    "tools.bench",
+    "tools.benchmarks.__main__",
     "tools.rrd_figures",
     "tools.monitor",
     "tools.screenshot",

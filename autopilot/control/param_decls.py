@@ -8,7 +8,7 @@ CH ∈ {X, Y, Z, ROLL, PITCH, YAW}; ``NV_<CH>_DLT1`` / ``_DLT2`` for δ1/δ2; ``
 loop's normalised time (pid.py), so one set flies every wheelbase.
 
 Defaults of the gains and δ: the airframe's own ES-tuned gains, ``autopilot/control/airframe_gains/<name>.yaml``
-(:func:`airframe_gains_path`, written by ``python -m tools.tune_es --ship --vehicle <name>``, tuned on that
+(:func:`airframe_gains_path`, written by ``python -m tools.research.tune_es --ship --vehicle <name>``, tuned on that
 airframe's own closed loop with the EKF), else the generic set :data:`DEFAULT_GAINS_PATH`
 (``autopilot/control/default_gains.yaml``). Each file records the command and seeds that produced it. A
 malformed file is an error, never a silent fallback.
@@ -32,9 +32,9 @@ from autopilot.control.pid import Schedule
 from autopilot.parameters.store import ParamSpec
 
 TERMS = ("P", "I", "D")
-#: The shipped default gains (a gains file, ``CascadeGains.from_yaml``), written by ``tools.tune_es --ship``.
+#: The shipped default gains (a gains file, ``CascadeGains.from_yaml``), written by ``tools.research.tune_es --ship``.
 DEFAULT_GAINS_PATH = Path(__file__).resolve().parent / "default_gains.yaml"
-#: Per-airframe default gains (``<airframe>.yaml``), written by ``tools.tune_es --ship --vehicle <airframe>``.
+#: Per-airframe default gains (``<airframe>.yaml``), written by ``tools.research.tune_es --ship --vehicle <airframe>``.
 AIRFRAME_GAINS_DIR = Path(__file__).resolve().parent / "airframe_gains"
 _LIMIT_PARAMS: tuple[tuple[str, str, float, float, str, str, float], ...] = (
     # name, CascadeLimits field, min, max, unit, description, scale (param value × scale = field value)

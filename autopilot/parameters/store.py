@@ -140,7 +140,8 @@ class ParamStore:
                 data = convert(data)
             except (TypeError, ValueError) as exc:
                 raise ParamError(
-                    f"{source.where()}: {' '.join(str(exc).split())}; fix: rewrite it with python -m tools.tune_es"
+                    f"{source.where()}: {' '.join(str(exc).split())}; "
+                    "fix: rewrite it with python -m tools.research.tune_es"
                 ) from None
         checked = {}
         for name, value in data.items():

@@ -1,7 +1,7 @@
 """Extremum-seeking gain tuning as pure code over a batched cost (SPEC §6.3, paper section 3.2).
 
 The cost is any callable ``J(K: (m, d)) -> (m,)``; the closed-loop rollouts that define it for the
-NLVG-PID cascade live in ``tools/experiments/rollout.py`` (tools may compose sim and autopilot).
+NLVG-PID cascade live in ``tools/research/experiments/rollout.py`` (tools may compose sim and autopilot).
 """
 
 from autopilot.tuning.es_central import CentralEsConfig, central_es

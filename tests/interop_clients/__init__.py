@@ -1,7 +1,8 @@
 """Third-party MAVLink clients for the interoperability tests (issue 5): where they are, how to run them.
 
-The clients are dev dependencies (pinned in pyproject's ``dev`` extra, installed by ``make test``); a test whose
-client is missing fails with :data:`MISSING_CLIENT`. ``QUADSITL_INTEROP_PYTHON`` may name another interpreter that
+The clients are dev dependencies, installed by ``make test`` (MAVSDK pinned in pyproject's ``dev`` extra, MAVProxy
+without its GUI dependencies from ``requirements.txt`` here); a test whose client is missing fails with
+:data:`MISSING_CLIENT`. ``QUADSITL_INTEROP_PYTHON`` may name another interpreter that
 has them (e.g. ``/tmp/interop/bin/python``, whose ``bin/`` also holds ``mavproxy.py``); it is tried first, then the
 interpreter running pytest and then ``PATH``. The driver scripts in this
 package import nothing from quadsitl: they use the vehicle exactly as an outside application would.
@@ -24,7 +25,8 @@ _PROBE_TIMEOUT_S = 60.0
 #: Why an interop test fails when its client is missing (they are dev dependencies: never skipped).
 MISSING_CLIENT = (
     "{client} not found in this interpreter, $QUADSITL_INTEROP_PYTHON or PATH: it is a dev dependency of quadsitl; "
-    "install it with `make test` or `pip install -e '.[dev]'`"
+    "install it with `make test`, or `pip install -e '.[dev]'` and "
+    "`pip install --no-deps -r tests/interop_clients/requirements.txt`"
 )
 _MAVSDK4_PROBE = "import mavsdk, sys; sys.exit(0 if int(mavsdk.__version__.split('.')[0]) >= 4 else 1)"
 

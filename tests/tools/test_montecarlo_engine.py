@@ -43,8 +43,8 @@ def test_es_tune_is_the_same_in_process_and_on_one_or_two_engine_workers() -> No
     from dataclasses import replace
 
     from tools.campaign.engine import TaskEngine
-    from tools.experiments.noisy_pipeline import noisy_config
-    from tools.experiments.tuner import engine_rollouts, tune
+    from tools.research.experiments.noisy_pipeline import noisy_config
+    from tools.research.experiments.tuner import engine_rollouts, tune
 
     cfg = noisy_config("attitude", "x500")  # noisy feedback on two seeds, three step experiments
     cfg = replace(cfg, experiments=tuple(replace(e, duration_s=0.2) for e in cfg.experiments))

@@ -1,4 +1,4 @@
-"""``tools.bench --quick`` prints its smoke-check numbers and never overwrites the committed full results."""
+"""``tools.benchmarks --quick`` prints its smoke-check numbers and never overwrites the committed full results."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from tools import bench
 from tools.benchmarks import BenchResult
+from tools.benchmarks import __main__ as bench
 
 
 @pytest.fixture

@@ -1,6 +1,6 @@
 """Gains tuned where they fly (issue 22 item 1): the in-process closed-loop rollout (sensors -> EKF -> the
 autopilot), its ES cost normalised by the paper's PID, the delivery campaign's pipeline and the per-airframe
-default gains. Small versions only: the numbers come from ``tools.tune_es --ship`` and ``make bench``."""
+default gains. Small versions only: the numbers come from ``tools.research.tune_es --ship`` and ``make bench``."""
 
 from __future__ import annotations
 
@@ -22,10 +22,10 @@ from autopilot.control.param_decls import (
 from autopilot.param_schema import make_param_store
 from autopilot.runner import Autopilot, AutopilotConfig
 from tools.benchmarks import gains_campaign
-from tools.experiments.gain_vector import Structure
-from tools.experiments.loop_rollout import LoopRollout, fly_route
-from tools.experiments.loop_tuner import LoopTuneConfig, in_process, loop_cost, reference, tune_loop
-from tools.experiments.loop_tuner import paper_position_on as paper_position
+from tools.research.experiments.gain_vector import Structure
+from tools.research.experiments.loop_rollout import LoopRollout, fly_route
+from tools.research.experiments.loop_tuner import LoopTuneConfig, in_process, loop_cost, reference, tune_loop
+from tools.research.experiments.loop_tuner import paper_position_on as paper_position
 
 
 def test_rollout_flies_the_product_loop_and_measures_the_true_error() -> None:
@@ -66,7 +66,7 @@ def test_per_airframe_defaults_fly_that_airframe(tmp_path: Path) -> None:
     for name in ("x500", "delivery650"):
         path = default_gains_path(name)
         assert path == airframe_gains_path(name) and path.is_file()
-        assert "tools.tune_es --ship" in path.read_text()
+        assert "tune_es --ship" in path.read_text()  # the command as run (tools.tune_es before tools.research)
         ap = Autopilot(AutopilotConfig(vehicle=name))
         assert gains_from_params(ap.params.values()) == shipped_gains(name)
         store = make_param_store(payload_nominal_kg=ap.airframe.payload_nominal_kg, airframe=name)

@@ -1,4 +1,5 @@
-"""tools.paper_table on a tiny budget: SPEC §12 schema of paper_table.json, the report files, budget fairness."""
+"""tools.research.paper_table on a tiny budget: SPEC §12 schema of paper_table.json, the report files, budget
+fairness."""
 
 from __future__ import annotations
 
@@ -8,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from tools import paper_table
-from tools.experiments.paper_pipeline import equal_budget_iterations, recovery_time_s
-from tools.experiments.rollout import MassChangeTrace
+from tools.research import paper_table
+from tools.research.experiments.paper_pipeline import equal_budget_iterations, recovery_time_s
+from tools.research.experiments.rollout import MassChangeTrace
 
 
 def test_equal_budget_gives_the_pid_at_least_the_nlvg_rollouts() -> None:

@@ -12,11 +12,11 @@ import pytest
 from conftest import REPO_ROOT
 
 from autopilot.control.gains import CascadeGains
-from tools.experiments.gain_vector import GainParametrisation, Structure
-from tools.experiments.tune_config import TuneConfigError, load_tune_config, tune_config_from_dict
-from tools.experiments.tuner import tune, write_outputs
+from tools.research.experiments.gain_vector import GainParametrisation, Structure
+from tools.research.experiments.tune_config import TuneConfigError, load_tune_config, tune_config_from_dict
+from tools.research.experiments.tuner import tune, write_outputs
 
-CONFIG_DIR = REPO_ROOT / "tools" / "experiments"
+CONFIG_DIR = REPO_ROOT / "tools" / "research" / "experiments"
 BOUNDS = {"kp": (0.5, 60.0), "ki": (0.001, 5.0), "kd": (0.3, 30.0)}
 
 

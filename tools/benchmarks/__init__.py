@@ -1,4 +1,4 @@
-"""Benchmark suites run by ``make bench`` (``python -m tools.bench``).
+"""Benchmark suites run by ``make bench`` (``python -m tools.benchmarks``).
 
 Each module here exposes ``run(quick: bool) -> list[BenchResult]``; the runner prints one
 table and writes ``bench/results.json`` with flat, unit-suffixed keys (SPEC §12).

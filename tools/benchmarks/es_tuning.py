@@ -1,11 +1,11 @@
 """ES tuning wall time (SPEC §11): a full central-difference ES tune of one cascade level.
 
-The level is the attitude loop of the x500 (``tools/experiments/attitude_nlvg.yaml``): k1 and k2 of
+The level is the attitude loop of the x500 (``tools/research/experiments/attitude_nlvg.yaml``): k1 and k2 of
 (kp, ki, kd), 6 parameters, 5 restarts, 20 iterations, each iteration one batch of 5·13 = 65 closed-loop
 rollouts per step experiment (roll and pitch steps of 1 s at 250 Hz control / 1 kHz physics).
 Quick mode: 3 iterations, 2 restarts (a smoke check, not comparable with the target). The rollouts run on the
 campaign engine as in ``make paper`` (one task per step experiment and batch, ``--workers`` / ``--scheduler`` of
-``tools.bench``); an untimed tune first warms every worker's kernels.
+``tools.benchmarks``); an untimed tune first warms every worker's kernels.
 """
 
 from __future__ import annotations
@@ -14,10 +14,10 @@ from pathlib import Path
 
 from tools.benchmarks import BenchResult
 from tools.campaign.engine import TaskEngine
-from tools.experiments.tune_config import load_tune_config
-from tools.experiments.tuner import engine_rollouts, tune
+from tools.research.experiments.tune_config import load_tune_config
+from tools.research.experiments.tuner import engine_rollouts, tune
 
-CONFIG = Path(__file__).resolve().parent.parent / "experiments" / "attitude_nlvg.yaml"
+CONFIG = Path(__file__).resolve().parent.parent / "research" / "experiments" / "attitude_nlvg.yaml"
 TARGET_WALL_S = 60.0
 
 

@@ -4,7 +4,7 @@ Each flight is ``estimator.fly_delivery`` with its own seed (sensor noise and bi
 position error above 5 m at any step, a collision an end in a collision or ground impact (targets: 0 of each).
 Also writes ``bench/estimator_error_model.json`` (``estimator.error_model`` of the seed-1 delivery flight and the
 first Monte Carlo flights), the feedback-noise model for controller tuning. The flights run one task per seed on
-the campaign engine (:func:`tools.campaign.engine.run_tasks`, ``--workers`` / ``--scheduler`` of ``tools.bench``).
+the campaign engine (:func:`tools.campaign.engine.run_tasks`, ``--workers`` / ``--scheduler`` of ``tools.benchmarks``).
 """
 
 from __future__ import annotations

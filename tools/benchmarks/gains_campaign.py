@@ -6,7 +6,7 @@ Per airframe the same held-out seeds (sensor noise and biases) fly three gain se
 defaults (``shipped``), the paper's fixed PID (``CascadeGains.fixed_pid()``, ``paper_pid``) and the fixed PID
 tuned by the same extremum seeking on the same loop with the same budget (``es_pid``,
 ``results/loop_tuning/<tuned on>/pid.yaml``, the airframe the shipped set was tuned on). Each flight is
-:func:`tools.experiments.loop_rollout.fly_route`
+:func:`tools.research.experiments.loop_rollout.fly_route`
 (true tracking error |setpoint − true position| RMS over the mission while airborne, motor chatter RMS); the
 flights are one campaign (:func:`tools.campaign.engine.run_tasks`).
 
@@ -33,8 +33,8 @@ from autopilot.control.gains import CascadeGains
 from autopilot.control.param_decls import default_gains_path, shipped_gains
 from tools.benchmarks import BenchResult
 from tools.campaign.engine import run_tasks
-from tools.experiments.loop_rollout import LoopOutcome, LoopRollout, fly_route
-from tools.experiments.loop_ship import default_out_dir
+from tools.research.experiments.loop_rollout import LoopOutcome, LoopRollout, fly_route
+from tools.research.experiments.loop_ship import default_out_dir
 
 VEHICLES = ("x500", "delivery650")
 SETS = ("shipped", "paper_pid", "es_pid", "es_nlvg")
@@ -223,7 +223,7 @@ def run(quick: bool) -> list[BenchResult]:
 
 def main(argv: list[str] | None = None) -> int:
     """Fly parts of the campaign ahead into a flight cache (``--vehicles``, ``--sets``), or the whole bench suite
-    with that cache (``--bench``: ``tools.bench --only gains_campaign --merge``)."""
+    with that cache (``--bench``: ``tools.benchmarks --only gains_campaign --merge``)."""
     global CACHE, WORKERS
     parser = argparse.ArgumentParser(prog="python -m tools.benchmarks.gains_campaign", description=main.__doc__)
     parser.add_argument("--cache", type=Path, required=True, help="JSON-lines flight cache (created if missing)")
@@ -234,8 +234,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     CACHE, WORKERS = args.cache, args.workers
     if args.bench:
-        import tools.benchmarks.gains_campaign as suite  # the module tools.bench runs (not this __main__)
-        from tools import bench
+        import tools.benchmarks.gains_campaign as suite  # the module tools.benchmarks runs (not this __main__)
+        from tools.benchmarks import __main__ as bench
 
         suite.CACHE, suite.WORKERS = args.cache, args.workers
         return bench.main(["--only", "gains_campaign", "--merge"])

@@ -1,6 +1,6 @@
 """GCS link benchmark: mission upload throughput over loopback and the per-step cost of telemetry publishing.
 
-``python -m tools.bench --only gcs``. The server is polled in a thread the way the
+``python -m tools.benchmarks --only gcs``. The server is polled in a thread the way the
 autopilot runner polls it between lockstep frames.
 """
 

@@ -7,10 +7,11 @@ spheres) near the legs and the fence-routed path. Every world is checked at uplo
 reason* (counted, never flown). The others are flown in-process with the autopilot's own parts: the
 :class:`MissionRouter` (route on the known world: fences, and tracked obstacles after a HOLD), the reactive
 :class:`AvoidancePlanner` (Bézier detours for what is newly sensed) and the sim's :class:`ObstacleSensor`,
-glued as :func:`fly_mission` does (the navigator's route logic), on the point-mass follower of
-:mod:`tools.benchmarks._planner_follower`. The worlds are drawn in order from one seeded generator, then flown
-one task per world on the campaign engine (:func:`tools.campaign.engine.run_tasks`, ``--workers`` /
-``--scheduler`` of ``tools.bench``): results in world order, the same numbers whatever the number of workers.
+glued as :func:`fly_mission` does (the navigator's route logic), on a point-mass follower (PD on the reference
+plus its acceleration feed-forward, the gains below; the planner tests fly the same). The worlds are drawn in
+order from one seeded generator, then flown one task per world on the campaign engine
+(:func:`tools.campaign.engine.run_tasks`, ``--workers`` / ``--scheduler`` of ``tools.benchmarks``): results in
+world order, the same numbers whatever the number of workers.
 
 Worlds are flyable by construction where it matters: an obstacle is only added when the route still exists
 with every obstacle known (inflated by R_safe + 1 m), so a world that ends stuck is the planners' failure.
@@ -45,11 +46,15 @@ from mavlink_bridge.contract.vehicle_api import FlightMode, MissionItem, Mission
 from sim.obstacle_sensor import ObstacleSensor
 from sim.world import Box, Cylinder, Sphere, WindConfig, World, empty_world
 from tools.benchmarks import BenchResult
-from tools.benchmarks._planner_follower import ACCEPT_RADIUS_M, KD_VEL, KP_POS, VEHICLE_ACC_MAX_M_S2
 from tools.campaign.engine import run_tasks
 
 #: Seed of the benchmark's world sequence (world i is the i-th of it, flown with sensor seed i).
 WORLD_SEED = 20261123
+#: Follower gains (1/s², 1/s) and limits: stiffer and more agile than the planner's limits.
+KP_POS = 4.0
+KD_VEL = 4.0
+VEHICLE_ACC_MAX_M_S2 = 6.0
+ACCEPT_RADIUS_M = 1.5
 #: Cruise speed of the follower (m/s; the navigator's targets ask for MIS_CRUISE_SPD, capped here).
 CRUISE_M_S = 5.0
 #: Worlds flown by ``make bench`` (and by ``--quick``).

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from autopilot.control.param_decls import DEFAULT_GAINS_PATH
-from tools.plot_gain_schedule import main
+from tools.research.plot_gain_schedule import main
 
 
 def test_gain_schedule_plot_is_written(tmp_path: Path) -> None:

@@ -35,7 +35,7 @@ def test_defaults_are_the_shipped_gains_and_default_limits() -> None:
     g = gains_from_params(store.values())
     shipped = CascadeGains.from_yaml(DEFAULT_GAINS_PATH)
     assert g == shipped
-    assert g.x.k1 != g.x.k2  # the shipped defaults are a variable gain (tools.tune_es --ship)
+    assert g.x.k1 != g.x.k2  # the shipped defaults are a variable gain (tools.research.tune_es --ship)
     lim = limits_from_params(store.values())
     assert lim.tilt_max_rad == pytest.approx(CascadeLimits().tilt_max_rad)
 

@@ -8,12 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from planner_follower import benchmark_fields, fly_route, random_field
 
 from autopilot.mission.files import expand_pattern
 from autopilot.planner.geometry import CircleZone, PolygonZone
 from autopilot.planner.param_decls import PlannerParams
 from sim.world import load_world
-from tools.benchmarks._planner_follower import benchmark_fields, fly_route, random_field
 
 PARAMS = PlannerParams()
 FLOOR_M = PARAMS.r_safe_m - PARAMS.track_tol_m

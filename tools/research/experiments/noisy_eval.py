@@ -23,11 +23,11 @@ from scipy import stats
 
 from autopilot.control.gains import CascadeGains
 from autopilot.tuning.metrics import T_PEAK_ATTITUDE_S, T_PEAK_POSITION_S, iae, itae, itse
-from tools.experiments.feedback_noise import FeedbackNoise
-from tools.experiments.paper_pipeline import STEP_CHANNELS, STRUCTURES, WIND_GUST_M_S, WIND_MEAN_NED_M_S
-from tools.experiments.references import make_reference
-from tools.experiments.rollout import Reference, ReferenceSample, StepTrace, TrackTrace, gusty_world, run_step
-from tools.experiments.rollout import run_tracking as _run_tracking
+from tools.research.experiments.feedback_noise import FeedbackNoise
+from tools.research.experiments.paper_pipeline import STEP_CHANNELS, STRUCTURES, WIND_GUST_M_S, WIND_MEAN_NED_M_S
+from tools.research.experiments.references import make_reference
+from tools.research.experiments.rollout import Reference, ReferenceSample, StepTrace, TrackTrace, gusty_world, run_step
+from tools.research.experiments.rollout import run_tracking as _run_tracking
 
 #: the routes are flown this much higher than in the noise-free table: the storm waits 20 s on the pad
 #: (z = 0), where noisy altitude feedback puts the vehicle on the ground (ground contact, integrators winding

@@ -1,4 +1,5 @@
-"""The ES tuning config file (``tools/experiments/*.yaml``): what to tune, on which experiments, with what budget.
+"""The ES tuning config file (``tools/research/experiments/*.yaml``): what to tune, on which experiments, with
+what budget.
 
 Example (keys and meaning)::
 
@@ -37,8 +38,8 @@ import yaml
 from autopilot.control.gains import CHANNELS, CascadeGains
 from autopilot.tuning import CentralEsConfig, PerturbationEsConfig
 from sim.world import WindConfig
-from tools.experiments.feedback_noise import DEFAULT_FEEDBACK_NOISE, FeedbackNoise
-from tools.experiments.gain_vector import TERMS, GainParametrisation, Structure
+from tools.research.experiments.feedback_noise import DEFAULT_FEEDBACK_NOISE, FeedbackNoise
+from tools.research.experiments.gain_vector import TERMS, GainParametrisation, Structure
 
 _KEYS = {
     "name", "vehicle", "structure", "method", "groups", "base_gains", "experiments", "bounds", "es",

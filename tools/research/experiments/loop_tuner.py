@@ -1,6 +1,6 @@
 """Extremum seeking on the product's own closed loop (issue 22 item 1, SPEC §6.3, paper §3.2).
 
-Every ES probe is flown by the product itself (:func:`tools.experiments.loop_rollout.fly_route`: the
+Every ES probe is flown by the product itself (:func:`tools.research.experiments.loop_rollout.fly_route`: the
 simulator's sensor models -> the EKF -> commander, navigator and the NLVG-PID cascade, in process, seeded) on
 short segments like the user's flights: ``leg`` (a delivery leg in wind with the parcel: cruise, lower,
 release, climb) and ``steps`` (the paper's small position steps, 1 m and 0.5 m, as the product flies them).
@@ -34,9 +34,9 @@ import numpy as np
 from autopilot.control.gains import POSITION_CHANNELS, CascadeGains
 from autopilot.tuning import CentralEsConfig, EsResult, central_es
 from tools.campaign.engine import TaskEngine
-from tools.experiments.gain_vector import GainParametrisation, Structure
-from tools.experiments.loop_rollout import LoopOutcome, LoopRollout, fly_route
-from tools.experiments.paper_pipeline import equal_budget_iterations
+from tools.research.experiments.gain_vector import GainParametrisation, Structure
+from tools.research.experiments.loop_rollout import LoopOutcome, LoopRollout, fly_route
+from tools.research.experiments.paper_pipeline import equal_budget_iterations
 
 #: λ of the shipped tuning (see the module docstring)
 LOOP_EFFORT_WEIGHT = 0.25

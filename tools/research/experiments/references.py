@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from autopilot.flight_tasks.trajectories import make_trajectory
-from tools.experiments.rollout import Reference, ReferenceSample
+from tools.research.experiments.rollout import Reference, ReferenceSample
 
 #: the paper's storm route: takeoff at 20 s of 140 s
 PAPER_STORM_DURATION_S = 140.0

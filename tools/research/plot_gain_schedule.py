@@ -2,14 +2,14 @@
 
 Usage::
 
-    python -m tools.plot_gain_schedule [--out results/gain_schedule.png] [--k1 2 --k2 6]
-    python -m tools.plot_gain_schedule --gains autopilot/control/default_gains.yaml --out results/gains_k_of_s.png
+    python -m tools.research.plot_gain_schedule [--out results/gain_schedule.png] [--k1 2 --k2 6]
+    python -m tools.research.plot_gain_schedule --gains autopilot/control/default_gains.yaml --out gains_k_of_s.png
 
 Default: the raised-cosine default against the paper-literal formula (eq. 5 as printed), one term. The literal
 formula completes a whole cosine period inside [δ1, δ2], returns to ≈ k1 at δ2 and then jumps to k2; the raised
 cosine rises monotonically and continuously from k1 to k2.
 
-``--gains FILE`` (a gains file, e.g. the shipped defaults or ``tools.tune_es`` output): one panel per channel
+``--gains FILE`` (a gains file, e.g. the shipped defaults or ``tools.research.tune_es`` output): one panel per channel
 (x, y, z, roll, pitch, yaw), each with k_p(|e|), k_i(|e|) and k_d(|e|) over the channel's error (m or rad), δ1 and δ2
 marked; every curve's legend names the term and the channel.
 """
@@ -86,7 +86,9 @@ def plot_gain_set(gains: CascadeGains, out: Path, title: str = "") -> Path:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tools.plot_gain_schedule", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m tools.research.plot_gain_schedule", description=__doc__.splitlines()[0]
+    )
     parser.add_argument("--out", type=Path, default=Path("results/gain_schedule.png"))
     parser.add_argument("--k1", type=float, default=2.0)
     parser.add_argument("--k2", type=float, default=6.0)

@@ -1,4 +1,4 @@
-"""``tools.tune_es --ship``: tune both structures on one airframe's own closed loop and write the gain files.
+"""``tools.research.tune_es --ship``: tune both structures on one airframe's own closed loop and write the gain files.
 
 Writes into ``out_dir`` (default ``results/loop_tuning/<vehicle>``): ``pid.yaml`` (the ES-tuned fixed PID) and
 ``nlvg.yaml`` (the ES-tuned NLVG-PID), each with its provenance (command, vehicle, routes, seeds, λ, J), and
@@ -20,9 +20,9 @@ import numpy as np
 from autopilot.control.gains import CascadeGains
 from autopilot.control.param_decls import airframe_gains_path, shipped_gains
 from tools.campaign.engine import TaskEngine
-from tools.experiments.loop_tuner import LoopOutcomeOfTune, LoopPair, engine_mapper, in_process, tune_pair
+from tools.research.experiments.loop_tuner import LoopOutcomeOfTune, LoopPair, engine_mapper, in_process, tune_pair
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 
 
 def default_out_dir(vehicle: str) -> Path:
@@ -61,7 +61,7 @@ def ship_paper_pid(vehicle: str, command: str, candidates_from: str | None = Non
         "vehicle": vehicle,
         "structure": "paper_pid",
         "reason": "the tuned NLVG-PID and fixed PID did not beat the paper's fixed PID on both true tracking error "
-        "and motor chatter on the delivery mission in wind with the EKF (python -m tools.bench --only "
+        "and motor chatter on the delivery mission in wind with the EKF (python -m tools.benchmarks --only "
         "gains_campaign), so this airframe keeps the paper's PID",
     }
     if candidates_from:

@@ -1,6 +1,6 @@
 """``make bench``: run every benchmark suite, print one table, write ``bench/results.json``.
 
-Usage: ``python -m tools.bench [--quick] [--only SUITE ...] [--out PATH] [--workers N] [--scheduler ADDR]``.
+Usage: ``python -m tools.benchmarks [--quick] [--only SUITE ...] [--out PATH] [--workers N] [--scheduler ADDR]``.
 The Monte Carlo suites (routing, estimator_mc, es_tuning; campaign sizes its own clusters) run their cases on
 the campaign engine (:mod:`tools.campaign.engine`): ``--workers N`` sizes its embedded LocalCluster (default: one
 per core),
@@ -46,7 +46,7 @@ def _print_table(rows: list[tuple[str, BenchResult]]) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
-        prog="python -m tools.bench",
+        prog="python -m tools.benchmarks",
         description="Run the benchmark suites, print one table and write bench/results.json (make bench).",
         epilog="Numbers are measured in one run on one machine: compare ratios, not absolutes.",
     )
@@ -80,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
         try:
             rows += [(name, r) for r in module.run(quick=args.quick, **(engine if takes_engine else {}))]
         except SchedulerError as exc:
-            print(f"tools.bench: {name}: {exc}", file=sys.stderr)
+            print(f"tools.benchmarks: {name}: {exc}", file=sys.stderr)
             return 2
         print(f"[bench] {name} done in {time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
     _print_table(rows)
@@ -89,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     out = Path(args.out) if args.out is not None else FULL_RESULTS
     if args.quick and out.resolve() == FULL_RESULTS.resolve():
-        note = f"tools.bench: --quick numbers are not written to {FULL_RESULTS} (a full run's); use another --out"
+        note = f"tools.benchmarks: --quick numbers are not written to {FULL_RESULTS} (a full run's); use another --out"
         print(note, file=sys.stderr)
         return 2
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -1,7 +1,7 @@
 """Run one ES tune from a :class:`TuneConfig`: the batched closed-loop cost and its outputs (SPEC §6.3).
 
 The cost of a batch of parameter vectors ``K (m, d)`` flies ``m`` vehicles at once per experiment and noise
-seed (:func:`tools.experiments.rollout.run_step`; every probe meets the same seeded feedback noise) and is,
+seed (:func:`tools.research.experiments.rollout.run_step`; every probe meets the same seeded feedback noise) and is,
 averaged over the training seeds, on the TRUE error::
 
     J = Σ_e w_e · 1/(tf−t0) ∫ e² dt  +  λ · mean_e chatter_e²  +  μ · Σ_e overshoot_e²
@@ -12,7 +12,7 @@ averaged over the training seeds, on the TRUE error::
 the steps flown in the config's ``wind`` if it has one.
 With λ = μ = 0 and no noise this is the paper's J. Each cost evaluation is one rollout task per experiment
 (:func:`fly_experiment`), mapped in order in this process or on the campaign engine (:func:`engine_rollouts`,
-``tools.paper_table --workers/--scheduler``): the tasks are the same either way, so are the numbers.
+``tools.research.paper_table --workers/--scheduler``): the tasks are the same either way, so are the numbers.
 A ``warm_start`` gain set (a tuned PID, k1 = k2) adds one restart that starts there, so the NLVG never ends
 above that PID on the same cost ("best kept").
 """
@@ -34,11 +34,11 @@ from autopilot.tuning import CentralEsConfig, EsResult, central_es, perturbation
 from autopilot.tuning.es_result import IterationCallback
 from sim.world import World, empty_world
 from tools.campaign.engine import TaskEngine
-from tools.experiments.feedback_noise import FeedbackNoise
-from tools.experiments.gain_vector import GainParametrisation
-from tools.experiments.references import make_reference
-from tools.experiments.rollout import mean_square_cost, run_step, run_tracking
-from tools.experiments.tune_config import StepExperiment, TrackExperiment, TuneConfig
+from tools.research.experiments.feedback_noise import FeedbackNoise
+from tools.research.experiments.gain_vector import GainParametrisation
+from tools.research.experiments.references import make_reference
+from tools.research.experiments.rollout import mean_square_cost, run_step, run_tracking
+from tools.research.experiments.tune_config import StepExperiment, TrackExperiment, TuneConfig
 
 
 @dataclass(frozen=True, slots=True)
@@ -230,7 +230,7 @@ def write_outputs(outcome: TuneOutcome, out_dir: str | Path, command: str = "") 
         for i, row in enumerate(res.j_history):
             w.writerow([i, *[f"{v:.9g}" for v in row], f"{running[i]:.9g}"])
     plot_convergence(res, outcome.config.name, paths["plot"])
-    from tools.plot_gain_schedule import plot_gain_set
+    from tools.research.plot_gain_schedule import plot_gain_set
 
     cfg = outcome.config
     plot_gain_set(outcome.gains, paths["k_of_s"], f"{cfg.name} ({cfg.vehicle}): k(|e|) per channel and term")

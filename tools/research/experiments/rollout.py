@@ -6,7 +6,7 @@ ES cost (SPEC §6.3, ``J = 1/(tf - t0) ∫ e² dt``) are computed from. Vehicles
 (non-finite state, ground impact) get ``diverged = True``; their cost is +inf.
 
 :func:`run_step` and :func:`run_tracking` take an optional ``noise``
-(:class:`~tools.experiments.feedback_noise.FeedbackNoise`) and ``seeds``: the batch is then
+(:class:`~tools.research.experiments.feedback_noise.FeedbackNoise`) and ``seeds``: the batch is then
 ``len(seeds)`` blocks of the ``m`` gain sets, the controller is fed the noisy state of its seed (the same
 draws for every gain set of a block), while errors are measured on the true state. Every trace also
 carries the motor-command chatter (RMS rate of the motor commands, 1/s, yaw mode excluded).
@@ -35,7 +35,7 @@ from autopilot.tuning.metrics import es_cost
 from sim.batch import BatchSim
 from sim.vehicle_config import VehicleConfig, load_vehicle
 from sim.world import WindConfig, World, empty_world
-from tools.experiments.feedback_noise import FeedbackNoise, NoiseStream
+from tools.research.experiments.feedback_noise import FeedbackNoise, NoiseStream
 
 ATTITUDE_CHANNELS = ("roll", "pitch", "yaw")
 POSITION_AXES = {"x": 0, "y": 1, "z": 2}

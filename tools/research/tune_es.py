@@ -2,11 +2,11 @@
 
 Usage::
 
-    python -m tools.tune_es --config tools/experiments/attitude_nlvg.yaml --out runs/tune_attitude
+    python -m tools.research.tune_es --config tools/research/experiments/attitude_nlvg.yaml --out runs/tune_attitude
         [--vehicle delivery650] [--iterations N] [--restarts R] [--seed S] [--quiet]
-    python -m tools.tune_es --ship --vehicle x500 [--iterations N] [--restarts R] [--workers W]
+    python -m tools.research.tune_es --ship --vehicle x500 [--iterations N] [--restarts R] [--workers W]
         [--ship-structure nlvg|pid|none] [--out DIR]
-    python -m tools.tune_es --ship-noise-model [--vehicle delivery650] [--effort-scale S]
+    python -m tools.research.tune_es --ship-noise-model [--vehicle delivery650] [--effort-scale S]
 
 ``--config``: writes into ``--out``: ``gains.yaml`` (a gains file: ``CascadeGains.from_yaml`` and the
 autopilot's ``--params`` take it as it is), ``j_per_iteration.csv``, ``convergence.png``, ``k_of_s.png`` (the
@@ -16,7 +16,7 @@ tuned k_p, k_i, k_d per channel against |e|) and ``summary.json``.
 ``--ship``: an airframe's default gains, tuned on its own closed loop (issue 22): the simulator's sensor models
 -> the EKF -> the autopilot's commander, navigator and cascade, in process and seeded, on short delivery legs
 in wind with the parcel and the paper's small steps; cost on the TRUE tracking error plus motor chatter
-(:mod:`tools.experiments.loop_tuner`), rollouts on the campaign engine (``--workers``). The fixed PID and the
+(:mod:`tools.research.experiments.loop_tuner`), rollouts on the campaign engine (``--workers``). The fixed PID and the
 NLVG-PID are tuned with the same cost and budget; both land in ``--out`` (default
 ``results/loop_tuning/<vehicle>``: ``pid.yaml``, ``nlvg.yaml``, ``summary.json``) and ``--ship-structure``
 is copied to ``autopilot/control/airframe_gains/<vehicle>.yaml``, the airframe's parameter defaults.
@@ -35,8 +35,8 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from autopilot.control.param_decls import DEFAULT_GAINS_PATH
 from autopilot.tuning import EsError, EsIteration
-from tools.experiments.tune_config import TuneConfigError, load_tune_config
-from tools.experiments.tuner import provenance, tune, write_outputs
+from tools.research.experiments.tune_config import TuneConfigError, load_tune_config
+from tools.research.experiments.tuner import provenance, tune, write_outputs
 
 DEFAULT_VEHICLE = "delivery650"
 #: ES budget of ``--ship`` (the NLVG's; the fixed PID gets at least as many rollouts)
@@ -46,9 +46,9 @@ SHIP_RESTARTS = 1
 
 def ship(args: argparse.Namespace, argv: list[str] | None, console: Console) -> int:
     """``--ship``: both structures tuned on ``--vehicle``'s own closed loop, the chosen one to its defaults."""
-    from tools.experiments.loop_ship import ship_loop, ship_paper_pid
+    from tools.research.experiments.loop_ship import ship_loop, ship_paper_pid
 
-    command = "python -m tools.tune_es " + " ".join(sys.argv[1:] if argv is None else argv)
+    command = "python -m tools.research.tune_es " + " ".join(sys.argv[1:] if argv is None else argv)
     if args.ship_structure == "paper":
         target = ship_paper_pid(args.vehicle, command, args.candidates_from)
         console.print(f"the paper's fixed PID is the default of {args.vehicle}: {target}")
@@ -73,18 +73,19 @@ def ship(args: argparse.Namespace, argv: list[str] | None, console: Console) -> 
 
 def ship_noise_model(vehicle: str, iterations: int | None, effort_scale: float, console: Console) -> int:
     """``--ship-noise-model``: the generic default gains of issue 14 (:data:`DEFAULT_GAINS_PATH`), tuned in the
-    batched rollouts with the estimated feedback-noise model (:mod:`tools.experiments.noisy_pipeline`); they
+    batched rollouts with the estimated feedback-noise model (:mod:`tools.research.experiments.noisy_pipeline`); they
     fly airframes without their own tuned file. Written as ``--ship --vehicle V --effort-scale S`` before
     issue 22."""
-    from tools.experiments.noisy_pipeline import tune_noisy_pair
+    from tools.research.experiments.noisy_pipeline import tune_noisy_pair
 
     try:
         pair = tune_noisy_pair(vehicle, effort_scale, iterations, log=lambda msg: console.print(msg))
     except (EsError, TuneConfigError, ValueError) as exc:
         console.print(f"[red]ship failed:[/red] {exc}")
         return 1
-    command = f"python -m tools.tune_es --ship-noise-model --vehicle {vehicle} --effort-scale {effort_scale:g}" + (
-        f" --iterations {iterations}" if iterations is not None else ""
+    command = (
+        f"python -m tools.research.tune_es --ship-noise-model --vehicle {vehicle} --effort-scale {effort_scale:g}"
+        + (f" --iterations {iterations}" if iterations is not None else "")
     )
     levels = {}
     for level in ("attitude", "position"):
@@ -97,8 +98,8 @@ def ship_noise_model(vehicle: str, iterations: int | None, effort_scale: float, 
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tools.tune_es", description=__doc__.splitlines()[0])
-    parser.add_argument("--config", help="tuning config YAML (tools/experiments/*.yaml)")
+    parser = argparse.ArgumentParser(prog="python -m tools.research.tune_es", description=__doc__.splitlines()[0])
+    parser.add_argument("--config", help="tuning config YAML (tools/research/experiments/*.yaml)")
     parser.add_argument("--ship", action="store_true", help="tune the shipped default gains (see the docstring)")
     parser.add_argument("--vehicle", default=DEFAULT_VEHICLE, help="airframe to tune (default %(default)s)")
     parser.add_argument("--out", help="output directory (--config) or gains file (--ship)")
@@ -159,7 +160,9 @@ def main(argv: list[str] | None = None) -> int:
             console.print(f"[red]ES failed:[/red] {exc}")
             return 1
     paths = write_outputs(
-        outcome, args.out, command="python -m tools.tune_es " + " ".join(sys.argv[1:] if argv is None else argv)
+        outcome,
+        args.out,
+        command="python -m tools.research.tune_es " + " ".join(sys.argv[1:] if argv is None else argv),
     )
     res = outcome.result
     console.print(

@@ -25,8 +25,8 @@ import numpy as np
 from autopilot.control.gains import CascadeGains
 from autopilot.tuning import CentralEsConfig
 from autopilot.tuning.metrics import T_PEAK_ATTITUDE_S, T_PEAK_POSITION_S, iae, itae, itse, rms
-from tools.experiments.references import make_reference
-from tools.experiments.rollout import (
+from tools.research.experiments.references import make_reference
+from tools.research.experiments.rollout import (
     MassChangeTrace,
     StepTrace,
     TrackTrace,
@@ -35,8 +35,8 @@ from tools.experiments.rollout import (
     run_step,
     run_tracking,
 )
-from tools.experiments.tune_config import TuneConfig, load_tune_config
-from tools.experiments.tuner import RolloutMap, TuneOutcome, in_process, tune
+from tools.research.experiments.tune_config import TuneConfig, load_tune_config
+from tools.research.experiments.tuner import RolloutMap, TuneOutcome, in_process, tune
 
 CONFIG_DIR = Path(__file__).resolve().parent
 LEVELS = ("attitude", "position")
@@ -65,7 +65,7 @@ class PaperSettings:
     payload_hover_s: float = 3.0
     payload_after_s: float = 30.0
     tune_step_scale: float = 1.0  # multiplies the tuning configs' step durations (quick mode shortens them)
-    # the noisy, effort-aware setting (tools/experiments/noisy_pipeline.py, noisy_eval.py)
+    # the noisy, effort-aware setting (tools/research/experiments/noisy_pipeline.py, noisy_eval.py)
     effort_scales: tuple[float, ...] = (0.0, 1.0, 4.0)  # λ multipliers of the sweep; 1.0 is the headline
     noisy_iterations: int | None = 4  # NLVG ES iterations per noisy tune (the PID: equal rollouts); None: configs'
     hover_s: float = 10.0
@@ -233,7 +233,7 @@ def payload_table(
     P = 0.3 / 0.7 · m_airframe (slightly above the rated payload for delivery650). +30 %: it starts with its
     rated payload and picks up 30 % of its total mass. The controller is told the starting mass only.
     """
-    from tools.experiments.rollout import _vehicle
+    from tools.research.experiments.rollout import _vehicle
 
     v = _vehicle(settings.payload_vehicle)
     starts = {"-30%": (-0.3, 0.3 / 0.7 * v.mass_kg), "+30%": (0.3, v.payload_max_kg)}

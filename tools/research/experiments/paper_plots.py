@@ -14,7 +14,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from tools.experiments.rollout import MassChangeTrace, StepTrace, TrackTrace
+from tools.research.experiments.rollout import MassChangeTrace, StepTrace, TrackTrace
 
 LABELS = ("PID (ES-tuned)", "NLVG-PID (ES-tuned)")
 COLOURS = ("tab:blue", "tab:red")

@@ -11,7 +11,7 @@ airborne:
 * true tracking error: ``|position setpoint − TRUE position|`` every 5th step (50 Hz); the setpoint is in the
   estimator's frame, moved into the simulator's frame by the estimator origin's offset from home;
 * motor chatter: RMS rate of the motor commands (1/s) every step, the yaw mode projected out
-  (:class:`tools.experiments.rollout.MotorChatter`, the same measure as the batched tuner's).
+  (:class:`tools.research.experiments.rollout.MotorChatter`, the same measure as the batched tuner's).
 
 :func:`fly_route` takes one small frozen :class:`LoopRollout` and is top level, so a campaign engine can ship
 it to worker processes as it is.
@@ -44,9 +44,9 @@ from sim.sensors import SensorModel
 from sim.vehicle import VehicleSim
 from sim.vehicle_config import load_vehicle
 from sim.world import World, load_world
-from tools.experiments.rollout import MotorChatter
+from tools.research.experiments.rollout import MotorChatter
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 #: the routes: short tuning segments (``loop_routes/*.yaml``) and the user's delivery mission
 ROUTES = {
     "leg": Path(__file__).resolve().parent / "loop_routes" / "leg.yaml",

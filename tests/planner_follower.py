@@ -26,12 +26,8 @@ from autopilot.planner.planner import AvoidancePlanner, PlannerState
 from mavlink_bridge.contract.frames import quat_from_euler
 from sim.obstacle_sensor import ObstacleSensor, ObstacleSensorConfig
 from sim.world import Box, Cylinder, Sphere, WindConfig, World, empty_world
+from tools.benchmarks.routing import ACCEPT_RADIUS_M, KD_VEL, KP_POS, VEHICLE_ACC_MAX_M_S2  # the bench's follower
 
-#: Follower gains (1/s², 1/s) and limits: stiffer and more agile than the planner's limits.
-KP_POS = 4.0
-KD_VEL = 4.0
-VEHICLE_ACC_MAX_M_S2 = 6.0
-ACCEPT_RADIUS_M = 1.5
 #: Closer than this to a waypoint, the nose turns to the next one (the camera looks around the corner).
 LOOK_NEXT_WITHIN_M = 10.0
 #: The route handed to the planner reaches at least this many look-ahead lengths past the current target

@@ -1,5 +1,5 @@
-"""The noisy, effort-aware tuning of both structures (issue 14, SPEC §6.3), shared by ``tools.tune_es --ship``
-and ``tools.paper_table``.
+"""The noisy, effort-aware tuning of both structures (issue 14, SPEC §6.3), shared by ``tools.research.tune_es --ship``
+and ``tools.research.paper_table``.
 
 Per level (attitude, then position on the same structure's tuned attitude loop), from one config
 (``attitude_noisy.yaml``, ``position_noisy.yaml``):
@@ -18,10 +18,10 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from autopilot.control.gains import CascadeGains
-from tools.experiments.gain_vector import Structure
-from tools.experiments.paper_pipeline import equal_budget_iterations
-from tools.experiments.tune_config import StepExperiment, TuneConfig, load_tune_config
-from tools.experiments.tuner import RolloutMap, TuneOutcome, in_process, tune
+from tools.research.experiments.gain_vector import Structure
+from tools.research.experiments.paper_pipeline import equal_budget_iterations
+from tools.research.experiments.tune_config import StepExperiment, TuneConfig, load_tune_config
+from tools.research.experiments.tuner import RolloutMap, TuneOutcome, in_process, tune
 
 CONFIG_DIR = Path(__file__).resolve().parent
 NOISY_LEVELS = ("attitude", "position")
