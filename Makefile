@@ -32,8 +32,11 @@ run: venv
 run-fleet: venv
 	$(BIN)/python -m tools.run_fleet --world missions/depot_fleet.yaml --speed max
 
+# Two pytest workers (pytest-xdist), one per core: a lockstep flight is a ping-pong between two processes that
+# keeps about one core busy, so two test files fly side by side (docs/testing.md has the timings). Each file runs
+# whole on one worker (--dist loadfile: a module's shared fixture is built once).
 test: venv
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
 bench: venv
 	$(BIN)/python -m tools.benchmarks
