@@ -16,7 +16,7 @@ COMMANDS = [
     "sim.cli",
     "autopilot.cli",
     "autopilot.launcher",
-    "tools.gcs",
+    "tools.gcs.cli",
     "tools.run_delivery",
     "tools.bench",
     "tools.rrd_figures",

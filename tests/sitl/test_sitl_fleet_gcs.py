@@ -23,7 +23,7 @@ from autopilot.mission.files import load_fleet_missions
 from mavlink_bridge.contract.frames import LocalNedFrame
 from mavlink_bridge.contract.vehicle_api import MissionItem
 from mavlink_bridge.gcs_client.fleet_link import FleetLink
-from tools import gcs as gcs_script
+from tools.gcs.fly import FlyOptions, fly
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 
@@ -169,7 +169,7 @@ def test_mavsdk_on_vehicle_2s_api_port_while_the_bundled_client_flies_vehicle_1(
             ]  # fmt: skip
             with open(tmp_path / "mavsdk.log", "wb") as log:
                 driver = subprocess.Popen(driver_cmd, cwd=tmp_path, stdout=log, stderr=subprocess.STDOUT)
-            flown = gcs_script.fly(alpha, alpha_plan, 240.0, progress=False)
+            flown = fly(link, [alpha], [alpha_plan], FlyOptions(timeout_s=240.0, progress=False)).vehicles[0].summary
             driver.wait(timeout=150)
             held = bravo.download_mission()  # the bundled client sees bravo's MAVSDK mission on its own system id
     finally:
