@@ -17,7 +17,7 @@ COMMANDS = [
     "autopilot.cli",
     "autopilot.launcher",
     "tools.gcs.cli",
-    "tools.run_delivery",
+    "tools.run.cli",
     "tools.bench",
     "tools.rrd_figures",
     "tools.monitor",

@@ -10,7 +10,7 @@ vehicle's script arms it at ``arm_at_s + i * stagger_s`` of sim time and starts 
 case is a function of its world, parameters and seed: re-flying it gives the same per-vehicle truth hashes
 (``quadsitl campaign replay``), which the sitl mode's wall-clock ground station cannot promise.
 
-Each vehicle is judged as the fleet ground station judges it (``tools.gcs_fleet``): done when landed and
+Each vehicle is judged as the fleet ground station judges it (``tools.gcs.fly``): done when landed and
 disarmed after flying, when it crashed, or after ``stall_s`` of sim time without progress; ok when its mission
 was completed, it landed and disarmed, and no failsafe fired. The run ends when every vehicle is done or at
 ``sim_time_s``. The record has the shape ``fleet_flight.record`` reads (``sim``: the fleet ``sim_summary``;
