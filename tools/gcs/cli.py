@@ -51,7 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--instance", type=int, default=0, help="the quadsitl --instance N to talk to (port + N)")
     parser.add_argument("--signing-key", default=None, help="MAVLink 2 signing key: 64 hex digits or a passphrase")
-    parser.add_argument("--wait-s", type=float, default=60.0, help="how long to wait for the vehicle's heartbeat")
+    parser.add_argument("--wait-s", type=float, default=60.0, help="how long to wait to hear the vehicle(s)")
     parser.add_argument("--timeout-step-s", type=float, default=5.0, help="timeout of one protocol exchange")
     parser.add_argument(
         "--system", type=int, default=1, help="target system id (fly with a fleet world: the first vehicle's)"
@@ -87,11 +87,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(run=cmd_takeoff)
     sub.add_parser("land", help="land where it is").set_defaults(run=cmd_land)
     sub.add_parser("rtl", help="return to launch").set_defaults(run=cmd_rtl)
-    p = sub.add_parser("fly", help="upload, arm, start and wait until landed and disarmed")
-    p.add_argument("file", help="mission file: .yaml, .plan or .waypoints")
+    p = sub.add_parser("fly", help="upload, arm, start and wait until landed and disarmed (every vehicle of a fleet)")
+    p.add_argument("file", help="mission file (.yaml, .plan or .waypoints) or fleet world (vehicles:)")
     p.add_argument("--summary", default=None, help="write the JSON summary here")
     p.add_argument("--timeout-s", type=float, default=600.0, help="wall-clock limit")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.add_argument(
         "--stagger-s", type=float, default=0.0, help="fleet world: sim seconds between two vehicles' take-offs"
     )
