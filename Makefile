@@ -25,12 +25,12 @@ venv: $(STAMP)
 	@$(BIN)/python -m tools.warm_jit
 
 run: venv
-	$(BIN)/python -m tools.run_delivery --speed max
+	$(BIN)/python -m tools.run --world missions/delivery.yaml --speed max
 
 # A fleet end to end: missions/depot_fleet.yaml (four x500s from one depot, crossing routes, a helicopter), one
 # simulator, one autopilot per vehicle, the ground station flying all of them (docs/traffic.md).
 run-fleet: venv
-	$(BIN)/python -m tools.run_fleet --world missions/depot_fleet.yaml --speed max
+	$(BIN)/python -m tools.run --world missions/depot_fleet.yaml --speed max
 
 # Two pytest workers (pytest-xdist), one per core: a lockstep flight is a ping-pong between two processes that
 # keeps about one core busy, so two test files fly side by side (docs/testing.md has the timings). Each file runs

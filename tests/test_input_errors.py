@@ -2,7 +2,7 @@
 
 Covers the mission (YAML, QGC .waypoints, .plan), the world (the simulator's half of a mission YAML), the
 ``--params`` and ``--script`` files and the vehicle name, through the library readers, ``quadsitl sim --check``,
-``quadsitl up`` and ``make run`` (``tools.run_delivery``), which must leave no run folder behind.
+``quadsitl up`` and ``make run`` (``tools.run``), which must leave no run folder behind.
 """
 
 from __future__ import annotations
@@ -172,17 +172,17 @@ def test_up_refuses_bad_files_before_starting_anything(tmp_path: Path, kind: str
 
 def test_make_run_refuses_a_bad_mission_and_leaves_no_run_folder(tmp_path: Path) -> None:
     path, line = _typo_mission(tmp_path)
-    proc = _run("-m", "tools.run_delivery", "--mission", str(path), cwd=tmp_path)
+    proc = _run("-m", "tools.run", "--mission", str(path), cwd=tmp_path)
     assert proc.returncode == 2
-    assert _one_line(proc.stderr).startswith(f"run_delivery: error: {path}:{line}: mission item 1")
+    assert _one_line(proc.stderr).startswith(f"run: error: {path}:{line}: mission item 1")
     assert "FAILED" not in proc.stdout and "?" not in proc.stdout
     assert not (tmp_path / "runs").exists()
 
 
 def test_make_run_refuses_an_unknown_vehicle_at_once(tmp_path: Path) -> None:
     mission = REPO_ROOT / "missions" / "delivery.yaml"
-    proc = _run("-m", "tools.run_delivery", "--mission", str(mission), "--vehicle", "no_such_vehicle", cwd=tmp_path)
+    proc = _run("-m", "tools.run", "--mission", str(mission), "--vehicle", "no_such_vehicle", cwd=tmp_path)
     assert proc.returncode == 2
     message = _one_line(proc.stderr)
-    assert message.startswith("run_delivery: error: --vehicle: unknown vehicle 'no_such_vehicle'")
+    assert message.startswith("run: error: --vehicle: unknown vehicle 'no_such_vehicle'")
     assert not (tmp_path / "runs").exists()

@@ -20,7 +20,7 @@ inclusion fence about the centre. Every pad is at least 10 m from every other pa
 that is not is drawn again from the same stream, so the world stays a function of the seed).
 
 ``python -m tools.encounters --seed K [--kind KIND] [--vehicles N] [--manned|--no-manned] --out W.yaml`` writes
-one; ``python -m tools.run_fleet --world W.yaml --stagger-s S`` flies it (S printed by the first command).
+one; ``python -m tools.run --world W.yaml --stagger-s S`` flies it (S printed by the first command).
 """
 
 from __future__ import annotations
@@ -258,7 +258,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"encounters: error: {exc}", file=sys.stderr)
         return 2
     print(f"{args.out}: {enc.kind}, {enc.vehicles} vehicles, manned {enc.manned}; fly it with: python -m "
-          f"tools.run_fleet --world {args.out} --stagger-s {enc.stagger_s:g}")  # fmt: skip
+          f"tools.run --world {args.out} --stagger-s {enc.stagger_s:g}")  # fmt: skip
     return 0
 
 

@@ -1,7 +1,7 @@
 """Screenshot a flight recording in Rerun's web viewer, headless (no GPU, no display): ``make screenshot``.
 
 Usage: ``python -m tools.screenshot [--recording FLIGHT.rrd ...] [--out docs/recording_web_viewer.png]``.
-Without ``--recording`` it first flies ``missions/city_block_delivery.yaml`` (``tools.run_delivery`` at
+Without ``--recording`` it first flies ``missions/city_block_delivery.yaml`` (``tools.run`` at
 ``--speed max``, about a minute) and uses that flight's recording. Several files are served together, as
 ``rerun`` opens them: a fleet's recording is ``--recording runs/fleet-<timestamp>/*.rrd``.
 
@@ -157,10 +157,10 @@ def _wait_for_port(port: int, timeout_s: float, proc: subprocess.Popen[bytes]) -
 
 def fly(out_dir: Path) -> Path:
     """Fly the city-block delivery (obstacles, fence) and return its recording."""
-    cmd = [sys.executable, "-m", "tools.run_delivery", "--mission", str(DEFAULT_MISSION), "--out-dir", str(out_dir)]
+    cmd = [sys.executable, "-m", "tools.run", "--mission", str(DEFAULT_MISSION), "--out-dir", str(out_dir)]
     proc = subprocess.run(cmd, cwd=REPO_ROOT, check=False)
     if proc.returncode != 0:
-        raise ScreenshotError(f"the flight failed (tools.run_delivery exited {proc.returncode}); see {out_dir}")
+        raise ScreenshotError(f"the flight failed (tools.run exited {proc.returncode}); see {out_dir}")
     return out_dir / "flight.rrd"
 
 

@@ -1,7 +1,8 @@
 """The bundled ground station flies a fleet (issue 23 item 6) over one GCS port, and third-party clients fly
 vehicles of a fleet on their own links: ``tools.gcs fly`` with a fleet world flies every vehicle by system id
-(one killed mid-flight fails alone, the others land), ``make run-fleet``'s tool flies a world end to end, and
-MAVSDK-Python on vehicle 2's API port flies a mission while the bundled client flies vehicle 1's."""
+(one killed mid-flight fails alone, the others land), ``make run-fleet`` (``tools.run`` on a fleet world) flies a
+world end to end, and MAVSDK-Python on vehicle 2's API port flies a mission while the bundled client flies
+vehicle 1's."""
 
 from __future__ import annotations
 
@@ -23,7 +24,7 @@ from autopilot.mission.files import load_fleet_missions
 from mavlink_bridge.contract.frames import LocalNedFrame
 from mavlink_bridge.contract.vehicle_api import MissionItem
 from mavlink_bridge.gcs_client.fleet_link import FleetLink
-from tools import gcs as gcs_script
+from tools.gcs.fly import FlyOptions, fly
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 
@@ -126,7 +127,7 @@ def test_one_gcs_port_flies_every_vehicle_and_one_killed_mid_flight_fails_alone(
 def test_run_fleet_flies_a_world_end_to_end(tmp_path: Path) -> None:
     world = _world(tmp_path, "pair", [("alpha", 0, 12, 10), ("bravo", 12, 0, 10)])  # their routes cross
     out = tmp_path / "run"
-    cmd = [sys.executable, "-m", "tools.run_fleet", "--world", str(world), "--out-dir", str(out)]
+    cmd = [sys.executable, "-m", "tools.run", "--world", str(world), "--out-dir", str(out)]
     cmd += ["--stagger-s", "3", "--timeout-s", "300"]
     done = subprocess.run(cmd, cwd=REPO_ROOT, capture_output=True, text=True, timeout=600, check=False)
     assert done.returncode == 0, done.stdout + done.stderr + (out / "up.log").read_text(errors="replace")
@@ -138,10 +139,13 @@ def test_run_fleet_flies_a_world_end_to_end(tmp_path: Path) -> None:
     assert "fleet min separation" in done.stdout and "alpha      OK" in done.stdout
 
 
-def test_run_fleet_refuses_a_single_vehicle_world_in_one_line(tmp_path: Path) -> None:
-    cmd = [sys.executable, "-m", "tools.run_fleet", "--world", "missions/square.yaml", "--out-dir", str(tmp_path / "r")]
+def test_run_refuses_a_broken_vehicle_entry_in_one_line(tmp_path: Path) -> None:
+    world = _world(tmp_path, "broken", [("alpha", 0, 10, 8)])
+    world.write_text(world.read_text().replace("takeoff: {alt_m: 8}", "takeoff: {alt_m: high}"))
+    cmd = [sys.executable, "-m", "tools.run", "--world", str(world), "--out-dir", str(tmp_path / "r")]
     done = subprocess.run(cmd, cwd=REPO_ROOT, capture_output=True, text=True, timeout=120, check=False)
-    assert done.returncode == 2 and "not a fleet world" in done.stderr and not (tmp_path / "r").exists()
+    assert done.returncode == 2 and not (tmp_path / "r").exists(), done.stderr
+    assert done.stderr.count("\n") == 1 and done.stderr.startswith(f"run: error: {world}:"), done.stderr
 
 
 def test_mavsdk_on_vehicle_2s_api_port_while_the_bundled_client_flies_vehicle_1(tmp_path: Path) -> None:
@@ -169,7 +173,7 @@ def test_mavsdk_on_vehicle_2s_api_port_while_the_bundled_client_flies_vehicle_1(
             ]  # fmt: skip
             with open(tmp_path / "mavsdk.log", "wb") as log:
                 driver = subprocess.Popen(driver_cmd, cwd=tmp_path, stdout=log, stderr=subprocess.STDOUT)
-            flown = gcs_script.fly(alpha, alpha_plan, 240.0, progress=False)
+            flown = fly(link, [alpha], [alpha_plan], FlyOptions(timeout_s=240.0, progress=False)).vehicles[0].summary
             driver.wait(timeout=150)
             held = bravo.download_mission()  # the bundled client sees bravo's MAVSDK mission on its own system id
     finally:

@@ -35,7 +35,7 @@ from autopilot.telemetry.recording_reader import read_recording
 from mavlink_bridge.contract.mav_enums import MavCmd
 from mavlink_bridge.contract.vehicle_api import FlightMode, MissionItem, MissionResult
 from mavlink_bridge.gcs_client.client import GcsClient, MissionUploadError, VehicleStatus
-from tools import gcs as gcs_script
+from tools.gcs import cli as gcs_script
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 

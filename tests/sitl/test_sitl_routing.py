@@ -32,7 +32,7 @@ from autopilot.mission.files import load_mission_file
 from autopilot.mission.plan import MissionPlan
 from mavlink_bridge.contract.vehicle_api import MissionResult, MissionType
 from mavlink_bridge.gcs_client.client import GcsClient, MissionUploadError
-from tools import gcs
+from tools.gcs import cli as gcs
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 

@@ -88,7 +88,7 @@ def test_bad_requests_are_one_line_errors(tmp_path: Path) -> None:
     out = tmp_path / "e.yaml"
     cmd = [sys.executable, "-m", "tools.encounters", "--seed", "4", "--vehicles", "3", "--out", str(out)]
     done = subprocess.run(cmd, cwd=REPO_ROOT, capture_output=True, text=True, timeout=60, check=False)
-    assert done.returncode == 0 and "tools.run_fleet --world" in done.stdout and out.is_file()
+    assert done.returncode == 0 and "tools.run --world" in done.stdout and out.is_file()
     cmd[cmd.index("--vehicles") + 1] = "1"
     done = subprocess.run(cmd, cwd=REPO_ROOT, capture_output=True, text=True, timeout=60, check=False)
     assert done.returncode == 2 and done.stderr.startswith("encounters: error: an encounter has 2 to 8")

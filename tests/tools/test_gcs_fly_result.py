@@ -10,7 +10,7 @@ import time
 from test_gcs_script import vehicle_link  # noqa: F401  (the fixture)
 
 from mavlink_bridge.contract.vehicle_api import Severity
-from tools import gcs
+from tools.gcs import cli as gcs
 
 
 def _say_when_armed(harness, texts: list[tuple[Severity, str]]) -> threading.Thread:  # type: ignore[no-untyped-def]

@@ -1,4 +1,4 @@
-"""The ground-station progress text both ``tools.gcs fly`` and the fleet script show (tools/gcs_progress.py)."""
+"""The ground-station progress text ``tools.gcs fly`` shows (tools/gcs/progress.py)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import dataclasses
 import pytest
 
 from mavlink_bridge.gcs_client.telemetry import TelemetryState
-from tools.gcs_progress import MissionBars, flight_state_text, sim_time_text
+from tools.gcs.progress import MissionBars, flight_state_text, sim_time_text
 
 
 def test_state_and_sim_time_text_keep_fixed_columns() -> None:

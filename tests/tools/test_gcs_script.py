@@ -13,7 +13,7 @@ from gcs_fakes import FakeVehicle, ServerHarness
 from autopilot.mission.files import load_mission_file
 from mavlink_bridge.contract.vehicle_api import MissionType
 from mavlink_bridge.gcs_server.server import GcsServer
-from tools import gcs
+from tools.gcs import cli as gcs
 
 MISSION_YAML = textwrap.dedent(
     """
@@ -142,3 +142,20 @@ def test_no_vehicle_is_a_one_line_error(capsys) -> None:
     assert len(errors) == 1 and "no vehicle heard" in errors[0]
     assert gcs.connect_url(None, 3) == "udpin:127.0.0.1:14553"  # the default port follows --instance
     assert gcs.connect_url("udpin:127.0.0.1:24550", 3) == "udpin:127.0.0.1:24550"  # a typed URL is used as typed
+
+
+def test_a_udpout_link_talks_first_and_flies(tmp_path, capsys) -> None:
+    """``--connect udpout:`` (the vehicle's own port): the ground station speaks first and is answered there."""
+    server_port, unused_port = free_udp_port(), free_udp_port()
+    vehicle = FakeVehicle()
+    server = GcsServer(f"udpin:127.0.0.1:{server_port}", vehicle, default_target_url=f"udpout:127.0.0.1:{unused_port}")
+    harness = ServerHarness(server, vehicle)
+    mission = tmp_path / "mission.yaml"
+    mission.write_text(MISSION_YAML)
+    connect = ["--connect", f"udpout:127.0.0.1:{server_port}", "--wait-s", "5"]
+    try:
+        assert gcs.main([*connect, "status"]) == 0, capsys.readouterr().err
+        assert gcs.main([*connect, "fly", str(mission), "--no-progress", "--timeout-s", "30"]) == 0
+    finally:
+        harness.stop()
+    assert "mission complete: 6/6 items" in capsys.readouterr().out

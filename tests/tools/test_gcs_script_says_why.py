@@ -16,7 +16,7 @@ from gcs_fakes import FakeVehicle, ServerHarness
 
 from mavlink_bridge.contract.vehicle_api import CommandRequest, CommandResult, Severity
 from mavlink_bridge.gcs_server.server import GcsServer
-from tools import gcs
+from tools.gcs import cli as gcs
 
 MISSION_YAML = textwrap.dedent(
     """

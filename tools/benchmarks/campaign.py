@@ -4,7 +4,7 @@ The campaign is the shipped delivery sweep (``missions/campaigns/delivery_wind_p
 flights, simulator + autopilot processes, 150 s of sim time each), cut to its first N cases (a case depends only
 on its id, so these are the 1000-case campaign's first N). The same N cases are flown on a LocalCluster of 1
 worker, then of 2; throughput is cases per wall minute of the whole ``run_campaign`` call (cluster start, the
-cases, merge and report). Beside it, a plain ``make run`` flight (``tools.run_delivery``, the delivery mission,
+cases, merge and report). Beside it, a plain ``make run`` flight (``tools.run``, the delivery mission,
 sim + autopilot + ground station, no Dask) gives the engine's overhead per flight:
 ``campaign_flight_wall_s_1w`` / ``campaign_plain_flight_wall_s``. Target: 2 workers >= 1.7x 1 worker.
 """
@@ -39,9 +39,9 @@ def _campaign_wall_s(cases: int, workers: int, out_dir: Path) -> tuple[float, li
 
 
 def _plain_flight_wall_s(out_dir: Path) -> float:
-    """One ``make run`` flight (``python -m tools.run_delivery --rerun off``), whole command wall time."""
+    """One ``make run`` flight (``python -m tools.run --rerun off``), whole command wall time."""
     t0 = time.perf_counter()
-    cmd = [sys.executable, "-m", "tools.run_delivery", "--out-dir", str(out_dir), "--rerun", "off"]
+    cmd = [sys.executable, "-m", "tools.run", "--out-dir", str(out_dir), "--rerun", "off"]
     done = subprocess.run(cmd, cwd=REPO_ROOT, capture_output=True, timeout=900, check=False)
     if done.returncode != 0:
         raise RuntimeError(f"plain flight failed ({done.returncode}): {done.stderr.decode()[-2000:]}")
@@ -73,9 +73,7 @@ def run(quick: bool) -> list[BenchResult]:
             note="2 cores shared with other work: each flight is 3 processes, 2 of them spinning in lockstep",
         ),
         BenchResult("campaign_flight_wall_s_1w", flight_1w, note="wall per flight in the engine, 1 worker"),
-        BenchResult(
-            "campaign_plain_flight_wall_s", plain_s, note="one make run flight (tools.run_delivery), best of 2"
-        ),
+        BenchResult("campaign_plain_flight_wall_s", plain_s, note="one make run flight (tools.run), best of 2"),
         BenchResult(
             "campaign_flight_overhead_ratio",
             flight_1w / plain_s,

@@ -1,5 +1,5 @@
 """A fleet case of an encounter campaign (``encounter:``, docs/traffic.md): fly the case's generated fleet world
-with ``tools.run_fleet`` (one simulator, one autopilot per vehicle, the fleet ground station) in its own process
+with ``tools.run`` (one simulator, one autopilot per vehicle, the fleet ground station) in its own process
 group, and fold its summaries into the flight record a results row is built from.
 
 The row's usual columns become fleet-wide: ``items_*`` summed over the vehicles, ``landed``/``disarmed`` true
@@ -58,7 +58,7 @@ def fly(case_dir: Path, deadline_s: float, stagger_s: float, kill_group: Any) ->
     repo = Path(__file__).resolve().parent.parent.parent
     out = case_dir / "fleet"
     cmd = [
-        sys.executable, "-m", "tools.run_fleet", "--world", str(case_dir / "world.yaml"), "--out-dir", str(out),
+        sys.executable, "-m", "tools.run", "--world", str(case_dir / "world.yaml"), "--out-dir", str(out),
         "--stagger-s", f"{stagger_s:g}", "--params", str(case_dir / "params.yaml"), "--rerun", "off",
         "--timeout-s", f"{max(deadline_s - 30.0, 10.0):g}", "--block-from", str(random.randrange(100, 4000)),
     ]  # fmt: skip
@@ -77,12 +77,12 @@ def fly(case_dir: Path, deadline_s: float, stagger_s: float, kill_group: Any) ->
         summary = json.loads((out / "summary.json").read_text())
     except (OSError, ValueError):
         tail = (case_dir / "supervisor.log").read_text(errors="replace").strip().splitlines()[-3:]
-        return {"error": f"run_fleet exited {proc.returncode}: {' | '.join(tail)}", "sim": {}, "autopilot": {}}
+        return {"error": f"tools.run exited {proc.returncode}: {' | '.join(tail)}", "sim": {}, "autopilot": {}}
     return record(summary)
 
 
 def record(summary: dict[str, Any]) -> dict[str, Any]:
-    """The flight record of a ``tools.run_fleet`` summary (see the module docstring)."""
+    """The flight record of a ``tools.run`` summary (see the module docstring)."""
     sim = summary.get("sim") or {}
     rows = summary.get("vehicles") or []
     truth = sim.get("vehicles") or []

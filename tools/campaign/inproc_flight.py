@@ -16,7 +16,7 @@ vehicle's own merged in, as ``autopilot --world-failures [--fleet-vehicle]`` doe
   like ``sim --duration-s`` (or until the vehicle ended), its record has the single-vehicle ``sim_summary``;
 - a fleet world (an encounter case, ``python -m tools.campaign.inproc_flight``): vehicle i is armed at
   ``arm_at_s + i * stagger_s`` and starts its mission 0.5 s later, and each vehicle is judged as the fleet ground
-  station judges it (``tools.gcs_fleet``): done when landed and disarmed after flying, when it crashed, or after
+  station judges it (``tools.gcs.fly``): done when landed and disarmed after flying, when it crashed, or after
   ``stall_s`` of sim time without progress; ok when its mission was completed, it landed and disarmed, and no
   failsafe fired. The run ends when every vehicle is done or at ``sim_time_s``; the record has the shape
   ``fleet_flight.record`` reads (``sim``: the fleet ``sim_summary``; ``vehicles``: one row per vehicle).

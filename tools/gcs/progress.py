@@ -1,7 +1,7 @@
-"""The ground-station script's progress bars (``tools.gcs fly``, one bar; ``tools.gcs_fleet``, one per vehicle).
+"""The ground-station script's progress bars (``tools.gcs fly``: one per vehicle).
 
 Each bar counts mission items reached and shows a state column; :func:`flight_state_text` and
-:func:`sim_time_text` are the vehicle's mode, arming and sim time as both scripts print them.
+:func:`sim_time_text` are the vehicle's mode, arming and sim time as the bars print them.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""``make run`` (``python -m tools.run_delivery``): the default delivery flight end to end, and no hang when the
-SITL processes die."""
+"""``make run`` (``python -m tools.run``): the default delivery flight end to end, and no hang when the SITL
+processes die. (``make run-fleet``, the same command on a fleet world: tests/sitl/test_sitl_fleet_gcs.py.)"""
 
 from __future__ import annotations
 
@@ -17,14 +17,14 @@ from autopilot.telemetry.recording_reader import read_recording
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 
 
-def _run_delivery(*args: str, timeout_s: float) -> subprocess.CompletedProcess[str]:
-    cmd = [sys.executable, "-m", "tools.run_delivery", *args]
+def _run(*args: str, timeout_s: float) -> subprocess.CompletedProcess[str]:
+    cmd = [sys.executable, "-m", "tools.run", *args]
     return subprocess.run(cmd, cwd=REPO_ROOT, capture_output=True, text=True, timeout=timeout_s)
 
 
 def test_run_delivery_flies_the_default_mission_and_writes_everything(tmp_path: Path) -> None:
     out_dir = tmp_path / "run"
-    proc = _run_delivery("--out-dir", str(out_dir), timeout_s=280.0)
+    proc = _run("--out-dir", str(out_dir), timeout_s=280.0)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     summary = json.loads((out_dir / "summary.json").read_text())
     assert summary["ok"] is True and summary["errors"] == []
@@ -50,14 +50,14 @@ def test_run_delivery_stops_and_says_why_when_the_sitl_dies(tmp_path: Path) -> N
     """``quadsitl up`` exits at once (the autopilot refuses its --rerun): the ground station is stopped, exit 3,
     one clear error. (A bad input file never gets this far: tests/test_input_errors.py.)"""
     out_dir = tmp_path / "run"
-    proc = _run_delivery("--out-dir", str(out_dir), "--rerun", "no_such_sink", timeout_s=300.0)
+    proc = _run("--out-dir", str(out_dir), "--rerun", "no_such_sink", timeout_s=300.0)
     assert proc.returncode == 3, proc.stdout + proc.stderr
-    assert "run_delivery: error: quadsitl up exited with status 2 before the mission was done" in proc.stderr
+    assert "run: error: quadsitl up exited with status 2 before the mission was done" in proc.stderr
     assert "no_such_sink" in proc.stderr  # the tail of up.log says what went wrong
     assert "?/?" not in proc.stdout and "collisions" not in proc.stderr  # no table of unknowns, no spurious lines
     summary = json.loads((out_dir / "summary.json").read_text())
     assert summary["ok"] is False and summary["exit_codes"]["up"] == 2
-    assert summary["exit_codes"]["gcs"] is None  # stopped by run_delivery, not left waiting for a heartbeat
+    assert summary["exit_codes"]["gcs"] is None  # stopped by the run, not left waiting for a heartbeat
     assert "result                       FAILED" in proc.stdout
 
 
@@ -80,10 +80,10 @@ def test_run_delivery_ends_when_the_sim_ends_the_run_mid_flight(tmp_path: Path) 
     mission = tmp_path / "crash.yaml"
     mission.write_text(CRASH_ON_CLIMB)
     out_dir = tmp_path / "run"
-    proc = _run_delivery("--mission", str(mission), "--out-dir", str(out_dir), "--rerun", "off", timeout_s=300.0)
+    proc = _run("--mission", str(mission), "--out-dir", str(out_dir), "--rerun", "off", timeout_s=300.0)
     assert proc.returncode == 3, proc.stdout + proc.stderr
     assert "quadsitl up exited with status 4 before the mission was done (sim end reason: COLLISION)" in proc.stderr
-    assert "run_delivery: error: simulator: collisions = 1" in proc.stderr
+    assert "run: error: simulator: collisions = 1" in proc.stderr
     summary = json.loads((out_dir / "summary.json").read_text())
     assert summary["ok"] is False and summary["sim"]["end_reason"] == "COLLISION"
     assert summary["autopilot"]["armed"] is True  # it was flying, not refused on the ground
@@ -91,10 +91,10 @@ def test_run_delivery_ends_when_the_sim_ends_the_run_mid_flight(tmp_path: Path) 
 
 
 def test_run_delivery_refuses_a_missing_mission(tmp_path: Path) -> None:
-    proc = _run_delivery("--mission", str(tmp_path / "none.yaml"), "--out-dir", str(tmp_path), timeout_s=60.0)
+    proc = _run("--mission", str(tmp_path / "none.yaml"), "--out-dir", str(tmp_path), timeout_s=60.0)
     assert proc.returncode == 2
     missing = tmp_path / "none.yaml"
     assert (
         proc.stderr.strip()
-        == f"run_delivery: error: {missing}: no such file; fix: check the path (missions/ holds the examples)"
+        == f"run: error: {missing}: no such file; fix: check the path (missions/ holds the examples)"
     )

@@ -1,0 +1,106 @@
+"""What ``fly`` found: one :class:`FlySummary` per vehicle (``fly --summary`` of a single-vehicle mission writes it
+as is; of a fleet world, one per vehicle in :meth:`FleetFlight.to_json` with the closest approach seen), and the
+rules that judge a vehicle's flight from its telemetry and status texts.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
+
+from mavlink_bridge.contract.status_texts import first_failsafe, is_bypassed
+from mavlink_bridge.contract.vehicle_api import LandedState, StatusText
+from mavlink_bridge.gcs_client.client import VehicleStatus
+
+MISSION_STATE_COMPLETE = 5
+
+
+@dataclass(frozen=True, slots=True)
+class FlySummary:
+    """One vehicle's flight, as ``fly --summary`` writes it (SPEC §12)."""
+
+    ok: bool
+    items_total: int
+    items_reached: int
+    sim_time_s: float | None
+    wall_time_s: float
+    landed: bool
+    disarmed: bool
+    reason: str
+    items_bypassed: int = 0  # waypoints the vehicle flew around instead of reaching ("Bypassed item N: ...")
+
+    def to_json(self) -> str:
+        return json.dumps(asdict(self), indent=2) + "\n"
+
+
+@dataclass(frozen=True, slots=True)
+class VehicleFlight:
+    """A vehicle's summary with its name, system id and the sim time its flight began at (None: never heard)."""
+
+    name: str
+    sys_id: int
+    summary: FlySummary
+    start_sim_s: float | None
+
+
+@dataclass(frozen=True, slots=True)
+class FleetFlight:
+    """Every vehicle's flight and the closest approach of two vehicles' centres the ground station saw."""
+
+    vehicles: tuple[VehicleFlight, ...]
+    stagger_s: float
+    min_separation_seen_m: float | None
+    wall_time_s: float
+
+    @property
+    def ok(self) -> bool:
+        return all(v.summary.ok for v in self.vehicles)
+
+    def to_json(self) -> str:
+        """The fleet summary: one entry per vehicle (name, sys_id and its FlySummary's fields) and the fleet's."""
+        rows = [{"name": v.name, "sys_id": v.sys_id, **asdict(v.summary)} for v in self.vehicles]
+        sep = self.min_separation_seen_m
+        summary = {
+            "ok": self.ok,
+            "vehicles": rows,
+            "stagger_s": self.stagger_s,
+            "min_separation_seen_m": None if sep is None else round(sep, 2),
+            "wall_time_s": self.wall_time_s,
+        }
+        return json.dumps(summary, indent=2) + "\n"
+
+
+def mission_done(status: VehicleStatus, total: int) -> bool:
+    """The vehicle reports its mission complete, or reached its last item."""
+    return status.mission_state == MISSION_STATE_COMPLETE or (total > 0 and total - 1 in status.items_reached)
+
+
+def failsafe_reason(texts: Sequence[StatusText]) -> str:
+    """A mission during which a failsafe fired (a geofence breach too, even when GF_ACTION only warns) failed:
+    the first such STATUSTEXT is the reason; empty when none fired."""
+    text = first_failsafe(t.text for t in texts)
+    return f"failsafe during the mission: {text}" if text else ""
+
+
+def fly_summary(
+    status: VehicleStatus, texts: Sequence[StatusText], total: int, reason: str, wall_time_s: float
+) -> FlySummary:
+    """The summary of a flight that ended in ``status`` with the status texts ``texts`` sent since it began;
+    ``reason`` is why the ground station gave it up (empty: it did not); the vehicle's last error is appended to it."""
+    errors = [t.text for t in texts if t.severity <= 3]
+    if reason and errors:
+        reason += f" (last error: {errors[-1]})"
+    reason = reason or failsafe_reason(texts)
+    landed = status.landed_state is LandedState.ON_GROUND
+    return FlySummary(
+        ok=not reason and landed and not status.armed and mission_done(status, total),
+        items_total=total,
+        items_reached=len(status.items_reached),
+        sim_time_s=status.sim_time_s,
+        wall_time_s=round(wall_time_s, 3),
+        landed=landed,
+        disarmed=not status.armed,
+        reason=reason,
+        items_bypassed=sum(is_bypassed(t.text) for t in texts),
+    )
