@@ -106,7 +106,9 @@ ALLOWED_IMPORTS: dict[str, frozenset[str]] = {
             "mavlink_bridge.contract", "mavlink_bridge.gcs_client", "mavlink_bridge.lockstep", "mavlink_bridge.wire",
             "sim",
         ),
-        "tools.gcs": ("autopilot.mission", "mavlink_bridge.contract", "mavlink_bridge.gcs_client", "mavlink_bridge.wire"),
+        "tools.gcs": (
+            "autopilot.mission", "mavlink_bridge.contract", "mavlink_bridge.gcs_client", "mavlink_bridge.wire",
+        ),
         "tools.run": ("autopilot", "autopilot.estimation", "autopilot.mission", "sim"),
         "tools.campaign": (
             "autopilot", "autopilot.commander", "autopilot.control", "autopilot.estimation", "autopilot.mission",
