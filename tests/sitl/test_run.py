@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 from conftest import REPO_ROOT
+from sitl_procs import free_instance_block
 
 from autopilot.telemetry import entities as ent
 from autopilot.telemetry.recording_reader import read_recording
@@ -18,7 +19,8 @@ pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 
 
 def _run(*args: str, timeout_s: float) -> subprocess.CompletedProcess[str]:
-    cmd = [sys.executable, "-m", "tools.run", *args]
+    # a block of its own: another pytest worker may be flying a run from block 0 at the same time
+    cmd = [sys.executable, "-m", "tools.run", "--block-from", str(free_instance_block(1)), *args]
     return subprocess.run(cmd, cwd=REPO_ROOT, capture_output=True, text=True, timeout=timeout_s)
 
 

@@ -128,7 +128,7 @@ def test_run_fleet_flies_a_world_end_to_end(tmp_path: Path) -> None:
     world = _world(tmp_path, "pair", [("alpha", 0, 12, 10), ("bravo", 12, 0, 10)])  # their routes cross
     out = tmp_path / "run"
     cmd = [sys.executable, "-m", "tools.run", "--world", str(world), "--out-dir", str(out)]
-    cmd += ["--stagger-s", "3", "--timeout-s", "300"]
+    cmd += ["--stagger-s", "3", "--timeout-s", "300", "--block-from", str(free_instance_block(2))]
     done = subprocess.run(cmd, cwd=REPO_ROOT, capture_output=True, text=True, timeout=600, check=False)
     assert done.returncode == 0, done.stdout + done.stderr + (out / "up.log").read_text(errors="replace")
     summary = json.loads((out / "summary.json").read_text())
