@@ -41,6 +41,7 @@ from autopilot.runner import Autopilot, AutopilotConfig
 from autopilot.vehicle_adapter import VehicleAdapter
 from mavlink_bridge.contract.status_texts import is_bypassed
 from mavlink_bridge.contract.vehicle_api import LandedState, MissionResult, MissionType
+from mavlink_bridge.lockstep import FrameAssembler
 from mavlink_bridge.lockstep.answer_kernel import ANSWER_OK, AnswerWriter, read_answer
 from sim.end_reason import EndReason
 from sim.fleet_run import FleetRun, LinkCounts, fleet_airframes
@@ -49,7 +50,7 @@ from sim.server import DEFAULT_VEHICLE, mission_vehicle
 from sim.world import load_world
 from tools.campaign.cases import MISSION_START_DELAY_S
 from tools.campaign.fleet_flight import record
-from tools.campaign.inproc_flight import CONTROL_HZ, FrameAssembler, as_on_the_wire
+from tools.campaign.inproc_flight import CONTROL_HZ, as_on_the_wire
 from tools.gcs import failsafe_reason
 
 DEFAULT_ARM_AT_S = 3.0

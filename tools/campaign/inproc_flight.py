@@ -29,10 +29,9 @@ from autopilot.commander.script import CommandScript, failure_steps, load_script
 from autopilot.mission.files import load_mission_file
 from autopilot.runner import Autopilot, AutopilotConfig
 from autopilot.vehicle_adapter import VehicleAdapter
-from mavlink_bridge.contract.traffic import TrafficReport
 from mavlink_bridge.contract.vehicle_api import MissionItem, MissionResult, MissionType
-from mavlink_bridge.contract.wire import GpsSample, GroundTruth, ObstacleDetection, SensorSample
-from mavlink_bridge.lockstep import LockstepFrame
+from mavlink_bridge.contract.wire import ObstacleDetection
+from mavlink_bridge.lockstep import FrameAssembler
 from mavlink_bridge.lockstep.answer_kernel import (
     A_ARMED,
     A_GRIPPER_RELEASE,
@@ -41,7 +40,6 @@ from mavlink_bridge.lockstep.answer_kernel import (
     AnswerWriter,
     read_answer,
 )
-from mavlink_bridge.wire.codec import Decoder
 from mavlink_bridge.wire.frame_writer import FrameWriter
 from mavlink_bridge.wire.mission_items import xy_from_int, xy_to_int
 from sim.end_reason import EndReason
@@ -54,38 +52,6 @@ from sim.vehicle_config import load_vehicle
 from sim.world import load_world
 
 CONTROL_HZ = 250
-
-
-class FrameAssembler:
-    """The autopilot's side of one datagram: its messages assembled into a frame (as ``LockstepClient`` does on a
-    good link: traffic reports of the datagram ride with its frame, an ADS-B report without a time is stamped
-    with the frame's)."""
-
-    def __init__(self) -> None:
-        self.decoder = Decoder()
-        self.gps: GpsSample | None = None
-        self.truth: GroundTruth | None = None
-
-    def frame(self, datagram: bytes) -> LockstepFrame:
-        detections: list[ObstacleDetection] = []
-        traffic: list[TrafficReport] = []
-        for msg in self.decoder.decode(datagram):
-            kind = type(msg)
-            if kind is GroundTruth:
-                self.truth = msg
-            elif kind is GpsSample:
-                self.gps = msg
-            elif kind is ObstacleDetection:
-                detections.append(msg)
-            elif kind is TrafficReport:
-                traffic.append(msg)
-            elif kind is SensorSample:
-                gps, self.gps = self.gps, None
-                assert self.truth is not None
-                t = msg.time_us
-                stamped = tuple(r if r.t_us else replace(r, t_us=t) for r in traffic)
-                return LockstepFrame(msg, gps, self.truth, tuple(detections), stamped)
-        raise RuntimeError("a lockstep datagram without HIL_SENSOR")
 
 
 def _f32(value: float) -> float:
