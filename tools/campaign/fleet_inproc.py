@@ -13,7 +13,7 @@ case is a function of its world, parameters and seed: re-flying it gives the sam
 Each vehicle is judged as the fleet ground station judges it (``tools.gcs_fleet``): done when landed and
 disarmed after flying, when it crashed, or after ``stall_s`` of sim time without progress; ok when its mission
 was completed, it landed and disarmed, and no failsafe fired. The run ends when every vehicle is done or at
-``sim_time_s``. The record has the shape ``fleet_flight.record`` reads (``sim``: the fleet ``sim_summary``;
+``sim_time_s``. The record has the shape ``fleet_record.record`` reads (``sim``: the fleet ``sim_summary``;
 ``vehicles``: one ground-station-like row per vehicle).
 
 ``python -m tools.campaign.fleet_inproc WORLD.yaml [--stagger-s S] [--params P] [--seed N]`` flies one world
@@ -49,7 +49,7 @@ from sim.fleet_world import load_fleet
 from sim.server import DEFAULT_VEHICLE, mission_vehicle
 from sim.world import load_world
 from tools.campaign.cases import MISSION_START_DELAY_S
-from tools.campaign.fleet_flight import record
+from tools.campaign.fleet_record import record
 from tools.campaign.inproc_flight import CONTROL_HZ, as_on_the_wire
 from tools.gcs import failsafe_reason
 
