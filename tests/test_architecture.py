@@ -130,12 +130,6 @@ ALLOWED_IMPORTS: dict[str, frozenset[str]] = {
 }  # fmt: skip
 #: Bridge internals still imported outside the I/O edges (a ratchet, like LONG_MODULES).
 KNOWN_BRIDGE_IMPORTS: set[tuple[str, str]] = set()
-#: Import cycles known and being removed in other branches of the same refactor (a ratchet, like LONG_MODULES: a
-#: listed cycle that is gone must leave the list). Each is a strongly connected component of the import graph.
-KNOWN_CYCLES: set[frozenset[str]] = {
-    frozenset({"tools.campaign.cases", "tools.campaign.spec"}),  # spec checks a case's overrides with cases'
-}
-#: tools/ read since it came under this test: its one long module is being split by job in another branch.
 
 
 def _modules() -> dict[str, Path]:
@@ -302,9 +296,7 @@ def test_no_import_cycles() -> None:
     # a package's __init__ re-exporting its modules is not a cycle of behaviour
     real = {frozenset(c) for c in cycles if not all((m in MODULES and MODULES[m].name == "__init__.py") or any(
         other.startswith(m + ".") for other in c) for m in c)}  # fmt: skip
-    assert real <= KNOWN_CYCLES, f"import cycles: {sorted(sorted(c) for c in real - KNOWN_CYCLES)}"
-    gone = KNOWN_CYCLES - real
-    assert not gone, f"KNOWN_CYCLES lists cycles that are gone: remove them: {sorted(sorted(c) for c in gone)}"
+    assert not real, f"import cycles: {sorted(sorted(c) for c in real)}"
 
 
 def test_the_product_never_imports_research_benchmarks_or_tests() -> None:

@@ -11,7 +11,9 @@ without the answer ``AutopilotLost`` is raised instead of waiting forever.
 
 Autopilot side (``LockstepClient``, sends to the sim): announces itself with HEARTBEATs
 while it has no frames, returns each new frame once, and answers a re-sent frame it has
-already answered from its cache without bothering the caller.
+already answered from its cache without bothering the caller. Its datagrams become frames in
+``FrameAssembler``, which has no socket: the in-process campaign flights read the simulator's
+datagrams with it too.
 
 Each end hears only its peer (the sim: the autopilot whose HEARTBEAT started the lockstep; the
 autopilot: the sim it sends to). Datagrams from anyone else, garbage, frames out of time order or
@@ -42,6 +44,7 @@ from mavlink_bridge.lockstep.edge import (
     encode_frame,
     frame_values_ok,
 )
+from mavlink_bridge.lockstep.frame_assembler import FrameAssembler
 from mavlink_bridge.lockstep.server import LockstepServer
 
 __all__ = [
@@ -54,6 +57,7 @@ __all__ = [
     "MAX_FRAME_TIME_US",
     "MIN_RESEND_TIMEOUT_S",
     "AutopilotLost",
+    "FrameAssembler",
     "LockstepClient",
     "LockstepClientStats",
     "LockstepFrame",

@@ -7,24 +7,13 @@ answers a re-sent frame it has already answered from its cache without bothering
 from __future__ import annotations
 
 import time
-from dataclasses import replace
 
-from mavlink_bridge.contract.traffic import TrafficReport
-from mavlink_bridge.contract.wire import ActuatorCommand, GpsSample, GroundTruth, ObstacleDetection, SensorSample
+from mavlink_bridge.contract.wire import ActuatorCommand
 from mavlink_bridge.lockstep.answer_kernel import AnswerWriter
-from mavlink_bridge.lockstep.edge import (
-    DEFAULT_SIM_URL,
-    DEFAULT_SPIN_S,
-    MAX_FRAME_STEP_US,
-    MAX_FRAME_TIME_US,
-    LockstepClientStats,
-    LockstepFrame,
-    detection_ok,
-    frame_values_ok,
-)
-from mavlink_bridge.wire.codec import AUTOPILOT_COMPONENT_ID, AUTOPILOT_SYSTEM_ID, Decoder, Encoder, Heartbeat
+from mavlink_bridge.lockstep.edge import DEFAULT_SIM_URL, DEFAULT_SPIN_S, LockstepClientStats, LockstepFrame
+from mavlink_bridge.lockstep.frame_assembler import FrameAssembler
+from mavlink_bridge.wire.codec import AUTOPILOT_COMPONENT_ID, AUTOPILOT_SYSTEM_ID, Encoder, Heartbeat
 from mavlink_bridge.wire.link import LinkMode, LinkUrl, LinkUrlError, UdpLink
-from mavlink_bridge.wire.traffic_codec import MAV_TYPE_ADSB
 
 
 def _client_url(sim_url: str) -> LinkUrl:
@@ -41,9 +30,9 @@ class LockstepClient:
     """Autopilot end of the lockstep: ``next_frame`` then ``answer`` for each control step.
 
     Only the simulator it sends to is heard: datagrams from any other address are counted (``foreign``) and
-    dropped unread. A frame is returned only when its time moves on from the last one by at most
-    ``MAX_FRAME_STEP_US`` (any time up to ``MAX_FRAME_TIME_US`` for the first frame, or after the sim was lost)
-    and its values pass ``frame_values_ok``; anything else is counted and dropped (the sim re-sends).
+    dropped unread. Its datagrams go through a ``FrameAssembler`` (restarted when the sim was lost): a frame out
+    of time order, incomplete or with absurd values is counted and dropped (the sim re-sends), a re-sent frame
+    already answered gets the cached answer again.
     """
 
     def __init__(
@@ -61,32 +50,17 @@ class LockstepClient:
         self.sim_lost_timeout_s = sim_lost_timeout_s
         self._link = UdpLink(_client_url(sim_url), spin_s=spin_s)
         self._encoder = Encoder(system_id, AUTOPILOT_COMPONENT_ID)
-        self._decoder = Decoder()
+        self._assembler = FrameAssembler(self._resend_answer)
         self._heartbeat_bytes = self._encoder.heartbeat(heartbeat or Heartbeat())
         self._last_heard_s: float | None = None
         self._last_frame_s = -1.0e9
         self._next_heartbeat_s = 0.0
-        self._truth: GroundTruth | None = None
-        self._gps: GpsSample | None = None
-        self._detections: list[ObstacleDetection] = []
-        self._traffic: list[TrafficReport] = []
-        #: Sim time (µs) of the frame with the traffic receiver's last HEARTBEAT (MAV_TYPE_ADSB); -1: never heard.
-        self.traffic_receiver_t_us = -1
-        self._pending_time_us = -1
-        self._answered_time_us = -1
         self._answers = AnswerWriter(system_id, AUTOPILOT_COMPONENT_ID)  # in place, own sequence
         self._answers.write(0, (0.0, 0.0, 0.0, 0.0), False, False, True)  # load the compiled writer now
         self._answers.seq = 0
         self._answer_len = 0
-        self._frames = 0
-        self._reanswered = 0
-        self._duplicates = 0
-        self._stale = 0
-        self._incomplete = 0
         self._heartbeats = 0
         self._foreign = 0
-        self._future = 0
-        self._invalid = 0
 
     @property
     def connected(self) -> bool:
@@ -106,20 +80,26 @@ class LockstepClient:
     @property
     def stats(self) -> LockstepClientStats:
         """A snapshot of the counters."""
-        d = self._decoder.stats
+        f = self._assembler
+        d = f.decoder.stats
         return LockstepClientStats(
-            self._frames,
-            self._reanswered,
-            self._duplicates,
-            self._stale,
-            self._incomplete,
+            f.frames,
+            f.reanswered,
+            f.duplicates,
+            f.stale,
+            f.incomplete,
             self._heartbeats,
             d.malformed,
             d.ignored,
             self._foreign,
-            self._future,
-            self._invalid,
+            f.future,
+            f.invalid,
         )
+
+    @property
+    def traffic_receiver_t_us(self) -> int:
+        """Sim time (µs) of the frame with the traffic receiver's last HEARTBEAT (MAV_TYPE_ADSB); -1: never heard."""
+        return self._assembler.traffic_receiver_t_us
 
     def set_heartbeat(self, heartbeat: Heartbeat) -> None:
         """What the announcing HEARTBEATs carry from now on (e.g. the current mode)."""
@@ -157,66 +137,24 @@ class LockstepClient:
                 return None
 
     def _absorb(self, data: bytes, now: float) -> LockstepFrame | None:
-        """Collect the messages of one datagram from the sim; a HIL_SENSOR completes a frame."""
-        frame: LockstepFrame | None = None
-        receiver_heard = False
+        """One datagram from the sim into the assembler; a sim silent past ``sim_lost_timeout_s`` restarted."""
         last = self._last_heard_s
         if last is not None and now - last > self.sim_lost_timeout_s:  # a restarted sim counts from zero again
-            self._answered_time_us = self._pending_time_us = -1
-        for msg in self._decoder.decode(data):
+            self._assembler.restart()
+        frame = self._assembler.absorb(data)
+        if self._assembler.heard:
             self._last_heard_s = now
-            kind = type(msg)
-            if kind is GroundTruth:
-                self._truth = msg
-            elif kind is GpsSample:
-                self._gps = msg
-            elif kind is ObstacleDetection:
-                self._detections.append(msg)
-            elif kind is TrafficReport:
-                self._traffic.append(msg)
-            elif kind is Heartbeat and msg.mav_type == MAV_TYPE_ADSB:
-                receiver_heard = True
-            elif kind is SensorSample:
-                t = msg.time_us
-                gps, truth = self._gps, self._truth
-                self._gps = None
-                if t == self._answered_time_us:
-                    self._link.send(self._answers.view[: self._answer_len])
-                    self._reanswered += 1
-                elif t == self._pending_time_us:
-                    self._duplicates += 1
-                elif t < self._answered_time_us or t < self._pending_time_us:
-                    self._stale += 1
-                elif t > MAX_FRAME_TIME_US or (
-                    t > max(self._answered_time_us, self._pending_time_us) + MAX_FRAME_STEP_US
-                    and (self._answered_time_us >= 0 or self._pending_time_us >= 0)
-                ):
-                    self._future += 1
-                elif truth is None or truth.time_us != t:
-                    self._incomplete += 1
-                elif not frame_values_ok(msg, truth, gps) or (
-                    self._detections and not all(map(detection_ok, self._detections))
-                ):
-                    self._invalid += 1
-                else:
-                    traffic = tuple(r if r.t_us else replace(r, t_us=t) for r in self._traffic)  # ADS-B: now
-                    frame = LockstepFrame(msg, gps, truth, tuple(self._detections), traffic)
-                    self._pending_time_us = t
-                    self._frames += 1
-                    if receiver_heard:
-                        self.traffic_receiver_t_us = t
-                self._detections.clear()
-                self._traffic.clear()
         return frame
+
+    def _resend_answer(self) -> None:
+        self._link.send(self._answers.view[: self._answer_len])
 
     def answer(self, cmd: ActuatorCommand) -> None:
         """Send the HIL_ACTUATOR_CONTROLS for the frame with ``cmd.time_us``, written in place by one compiled
         call (kept for re-sends of that frame)."""
         answers = self._answers
         self._answer_len = n = answers.write(cmd.time_us, cmd.motor_cmd, cmd.armed, cmd.gripper_release, cmd.lockstep)
-        self._answered_time_us = cmd.time_us
-        if self._pending_time_us == cmd.time_us:
-            self._pending_time_us = -1
+        self._assembler.answered(cmd.time_us)
         self._link.send(answers.view[:n])
 
     def close(self) -> None:

@@ -1,5 +1,6 @@
 """Campaigns on a real Dask cluster (``dask scheduler`` + ``dask worker`` processes on 127.0.0.1) and through
-faults: the same rows as on a LocalCluster, a worker killed mid-campaign, Ctrl-C then ``--resume``."""
+faults: Ctrl-C then ``--resume`` on a LocalCluster (the reference rows), the same rows from a real cluster, a worker
+killed mid-campaign."""
 
 from __future__ import annotations
 
@@ -52,49 +53,17 @@ def _wait_for(path: Path, proc: subprocess.Popen[bytes], timeout_s: float = 180.
         time.sleep(0.1)
 
 
+#: Cases of the inproc campaign: two per worker of the two-worker runs (every worker flies one, a resume has some).
+CASES = 4
+
+
 @pytest.fixture(scope="module")
-def local_rows(tmp_path_factory: pytest.TempPathFactory) -> list[dict]:
-    """The reference: 5 inproc cases on the embedded LocalCluster."""
-    folder = tmp_path_factory.mktemp("local")
+def resumed(tmp_path_factory: pytest.TempPathFactory) -> tuple[list[dict], list[dict]]:
+    """The reference rows: an inproc campaign on the embedded LocalCluster, stopped by Ctrl-C after its third case
+    started, then resumed; (the rows written before the Ctrl-C, every row after the resume)."""
+    folder = tmp_path_factory.mktemp("resumed")
+    path = write_campaign(folder, cases=CASES)
     out = folder / "out"
-    assert main([str(write_campaign(folder, cases=5)), "--out", str(out), "--workers", "2", "--no-progress"]) == 1
-    return _rows(out)
-
-
-def test_dask_scheduler_and_workers_give_the_local_cluster_rows(tmp_path: Path, local_rows: list[dict]) -> None:
-    with dask_cluster(tmp_path / "cluster", n_workers=2) as cluster:
-        out = tmp_path / "out"
-        rc = main(
-            [str(write_campaign(tmp_path, cases=5)), "--out", str(out), "--scheduler", cluster.address, "--no-progress"]
-        )
-    assert rc == 1
-    rows = _rows(out)
-    _same(rows, local_rows)
-    assert len({r["worker"] for r in rows}) == 2  # both dask workers flew cases
-
-
-@pytest.mark.sitl
-def test_a_worker_killed_mid_campaign_costs_only_its_running_case(tmp_path: Path, local_rows: list[dict]) -> None:
-    path = write_campaign(tmp_path, cases=4, mode="sitl")
-    out = tmp_path / "out"
-    with dask_cluster(tmp_path / "cluster", n_workers=2) as cluster:
-        proc = _cli(str(path), "--out", str(out), "--scheduler", cluster.address)
-        _wait_for(out / "cases" / "case-000001" / "autopilot.log", proc)  # two flights are in the air
-        time.sleep(1.0)
-        cluster.kill_worker(0)
-        output, _ = proc.communicate(timeout=300)
-    assert proc.returncode == 1, output.decode()
-    rows = _rows(out)
-    assert [r["case_id"] for r in rows] == [0, 1, 2, 3]  # every case exactly once
-    assert all(r["status"] in ("ok", "fail") for r in rows), [r["reason"] for r in rows]
-    for r, ref in zip(rows, local_rows[:4], strict=True):  # the re-flown case is the same flight (sitl = inproc)
-        assert (r["truth_hash"], r["status"]) == (ref["truth_hash"], ref["status"])
-    assert len({r["worker"] for r in rows}) >= 1
-
-
-def test_ctrl_c_then_resume_flies_every_case_exactly_once(tmp_path: Path, local_rows: list[dict]) -> None:
-    path = write_campaign(tmp_path, cases=5)
-    out = tmp_path / "out"
     proc = _cli(str(path), "--out", str(out), "--workers", "1")
     _wait_for(out / "cases" / "case-000002", proc)  # a third case started on the one worker
     proc.send_signal(signal.SIGINT)
@@ -102,13 +71,53 @@ def test_ctrl_c_then_resume_flies_every_case_exactly_once(tmp_path: Path, local_
     assert proc.returncode == 130, output.decode()
     assert "--resume" in output.decode()
     first = _rows(out)  # what was done is written: the table, the report
-    assert 1 <= len(first) < 5 and (out / "report.md").is_file()
+    assert 1 <= len(first) < CASES and (out / "report.md").is_file()
     assert main([str(path), "--out", str(out), "--workers", "2", "--no-progress"]) == 2  # refused: use --resume
     assert main([str(path), "--out", str(out), "--resume", "--workers", "2", "--no-progress"]) == 1
-    rows = _rows(out)
-    assert [r["case_id"] for r in rows] == [0, 1, 2, 3, 4]
+    return first, _rows(out)
+
+
+def test_ctrl_c_then_resume_flies_every_case_exactly_once(resumed: tuple[list[dict], list[dict]]) -> None:
+    first, rows = resumed
+    assert [r["case_id"] for r in rows] == list(range(CASES))
     done_before = {r["case_id"]: r for r in first}
     for r in rows:
         if r["case_id"] in done_before:  # not re-flown: the very same row
             assert json.dumps(r, sort_keys=True) == json.dumps(done_before[r["case_id"]], sort_keys=True)  # NaN too
-    _same(rows, local_rows)
+
+
+def test_dask_scheduler_and_workers_give_the_local_cluster_rows(
+    tmp_path: Path, resumed: tuple[list[dict], list[dict]]
+) -> None:
+    """An uninterrupted run on a real cluster: the same rows as the interrupted and resumed LocalCluster run."""
+    with dask_cluster(tmp_path / "cluster", n_workers=2) as cluster:
+        out = tmp_path / "out"
+        rc = main(
+            [str(write_campaign(tmp_path, cases=CASES)), "--out", str(out), "--scheduler", cluster.address,
+             "--no-progress"]
+        )  # fmt: skip
+    assert rc == 1
+    rows = _rows(out)
+    _same(rows, resumed[1])
+    assert len({r["worker"] for r in rows}) == 2  # both dask workers flew cases
+
+
+@pytest.mark.sitl
+def test_a_worker_killed_mid_campaign_costs_only_its_running_case(
+    tmp_path: Path, resumed: tuple[list[dict], list[dict]]
+) -> None:
+    path = write_campaign(tmp_path, cases=2, mode="sitl")
+    out = tmp_path / "out"
+    with dask_cluster(tmp_path / "cluster", n_workers=2) as cluster:
+        proc = _cli(str(path), "--out", str(out), "--scheduler", cluster.address)
+        _wait_for(out / "cases" / "case-000001" / "autopilot.log", proc)  # both flights are in the air
+        time.sleep(1.0)
+        cluster.kill_worker(0)
+        output, _ = proc.communicate(timeout=300)
+    assert proc.returncode == 1, output.decode()
+    rows = _rows(out)
+    assert [r["case_id"] for r in rows] == [0, 1]  # every case exactly once
+    assert all(r["status"] in ("ok", "fail") for r in rows), [r["reason"] for r in rows]
+    for r, ref in zip(rows, resumed[1][:2], strict=True):  # the re-flown case is the same flight (sitl = inproc)
+        assert (r["truth_hash"], r["status"]) == (ref["truth_hash"], ref["status"])
+    assert len({r["worker"] for r in rows}) >= 1

@@ -1,5 +1,6 @@
-"""Encounter campaigns (``encounter:``, tools.campaign.fleet_flight): the key's FILE:LINE errors, cases drawn from
-the case's seed with the generator's world, the flight record of a fleet run, and one real fleet case end to end."""
+"""Encounter campaigns (``encounter:``, fleet cases): the key's FILE:LINE errors, cases drawn from the case's seed
+with the generator's world, the flight record of a fleet run (tools.campaign.fleet_record), and one real fleet case
+end to end."""
 
 from __future__ import annotations
 
@@ -9,11 +10,11 @@ from pathlib import Path
 import pytest
 
 from tools.campaign.cases import draw, materialise
-from tools.campaign.fleet_flight import ENCOUNTER_BASE, record
+from tools.campaign.fleet_record import record
 from tools.campaign.replay import replay_case
 from tools.campaign.results import read_rows
 from tools.campaign.runner import run_campaign
-from tools.campaign.spec import CampaignFileError, load_campaign
+from tools.campaign.spec import ENCOUNTER_BASE, CampaignFileError, load_campaign
 from tools.encounters import encounter_world
 
 GOOD = "name: enc\nencounter: {}\ncases: 4\nseed: 2\n"

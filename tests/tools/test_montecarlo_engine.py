@@ -21,21 +21,21 @@ def _outcome(flight: routing.MissionFlight) -> dict:
 
 def test_routing_monte_carlo_gives_the_same_flights_on_one_and_two_workers() -> None:
     params = PlannerParams()
-    one = routing.monte_carlo(3, params, workers=1)
-    two = routing.monte_carlo(3, params, workers=2)
-    assert len(one) == 3
+    one = routing.monte_carlo(2, params, workers=1)  # two worlds: one per worker of the two-worker run
+    two = routing.monte_carlo(2, params, workers=2)
+    assert len(one) == 2
     assert [_outcome(f) for f in one] == [_outcome(f) for f in two]
     # and the same as flying them in this process, in order (world i with sensor seed i)
-    here = [routing.fly_mission(rw, params, seed=i) for i, rw in enumerate(routing.benchmark_worlds(3, params))]
+    here = [routing.fly_mission(rw, params, seed=i) for i, rw in enumerate(routing.benchmark_worlds(2, params))]
     assert [_outcome(f) for f in here] == [_outcome(f) for f in one]
 
 
 def test_estimator_monte_carlo_gives_the_same_numbers_on_one_and_two_workers() -> None:
-    one = estimator_mc.monte_carlo(3, workers=1, timeout_s=12.0)
-    two = estimator_mc.monte_carlo(3, workers=2, timeout_s=12.0)
+    one = estimator_mc.monte_carlo(2, workers=1, timeout_s=12.0)  # one flight per worker of the two-worker run
+    two = estimator_mc.monte_carlo(2, workers=2, timeout_s=12.0)
     assert [(r.key, r.value) for r in one] == [(r.key, r.value) for r in two]
     values = {r.key: r.value for r in one}
-    assert values["ekf_mc_flights"] == 3.0
+    assert values["ekf_mc_flights"] == 2.0
     assert np.isfinite(values["ekf_mc_pos_horiz_rms_m"])  # the flights were airborne and compared with the truth
 
 

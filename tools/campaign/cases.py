@@ -10,7 +10,6 @@ from its files or from its results row alone.
 
 from __future__ import annotations
 
-import functools
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,14 +18,12 @@ from typing import Any
 import numpy as np
 import yaml
 
-from tools.campaign.spec import CampaignSpec, Distribution, resolve_path
+from tools.campaign.inputs import base_doc, resolve_path, resolved_params, set_path
+from tools.campaign.spec import ENCOUNTER_BASE, CampaignSpec, Distribution
+from tools.encounters import encounter_world
 
 SEED_LIMIT = 2**31 - 1
 MISSION_START_DELAY_S = 0.5
-
-
-class CaseInputError(ValueError):
-    """A value a case would fly with that the world, the vehicle or the autopilot refuses."""
 
 
 @dataclass(frozen=True)
@@ -45,6 +42,11 @@ class Case:
     def failures(self) -> list[dict[str, Any]]:
         return json.loads(self.failures_json)
 
+    @property
+    def stagger_s(self) -> float:
+        """Seconds between a fleet's vehicles' starts (an encounter's draw; 0: all at once)."""
+        return float(dict(self.overrides).get("encounter.stagger_s", 0.0))
+
 
 @dataclass(frozen=True)
 class CaseFiles:
@@ -53,6 +55,12 @@ class CaseFiles:
     world_yaml: str
     params_yaml: str
     script_yaml: str
+
+    @property
+    def fleet(self) -> bool:
+        """True when the world lists ``vehicles:`` (one simulator, one autopilot per vehicle; else one vehicle)."""
+        doc = yaml.safe_load(self.world_yaml)
+        return isinstance(doc, dict) and bool(doc.get("vehicles"))
 
 
 def draw(spec: CampaignSpec, case_id: int) -> Case:
@@ -71,9 +79,6 @@ def draw(spec: CampaignSpec, case_id: int) -> Case:
 
 def _encounter_case(spec: CampaignSpec, case_id: int, sim_seed: int, rng: np.random.Generator) -> Case:
     """Case ``case_id`` of an encounter campaign: what it drew (kind, vehicles, manned, stagger) as its overrides."""
-    from tools.campaign.fleet_flight import ENCOUNTER_BASE
-    from tools.encounters import encounter_world
-
     enc = encounter_world(sim_seed, **dict(spec.encounter or ()))
     drawn = {key: _sample(rng, dist) for key, dist in spec.vary}
     drawn_enc = (("encounter.kind", enc.kind), ("encounter.vehicles", enc.vehicles))
@@ -93,102 +98,6 @@ def _base_vehicle(base: str) -> str:
     doc = yaml.safe_load(Path(base).read_text())
     vehicle = doc.get("vehicle") if isinstance(doc, dict) else None
     return vehicle if isinstance(vehicle, str) else "x500"
-
-
-@functools.lru_cache(maxsize=16)
-def _base_json(base: Path) -> str:
-    return json.dumps(yaml.safe_load(base.read_text()))
-
-
-def base_doc(base: Path) -> Any:
-    """A fresh copy of the parsed mission file (parsed once per file)."""
-    return json.loads(_base_json(base))
-
-
-def with_override(base: Path, dotted: str, value: Any) -> dict:
-    """A copy of the mission document ``base`` with ``dotted`` set to ``value`` (see :func:`set_path`)."""
-    doc = base_doc(base)
-    set_path(doc, dotted, value, base)
-    return doc
-
-
-def set_path(doc: Any, dotted: str, value: Any, base: Path) -> None:
-    """Set ``dotted`` in the mission document ``doc`` (read from ``base``): integer segments index lists
-    (``mission.1.waypoint.alt_m``); a missing last key is added, a missing parent refused."""
-    parts = dotted.split(".")
-    node: Any = doc
-    for depth, part in enumerate(parts[:-1]):
-        nxt = _child(node, part)
-        if nxt is None:
-            if not isinstance(node, dict):
-                raise CaseInputError(f"{'.'.join(parts[: depth + 1])}: no such entry in {base}")
-            nxt = node[part] = {}
-        node = nxt
-    last = parts[-1]
-    if isinstance(node, list):
-        if not last.isdigit() or int(last) >= len(node):
-            raise CaseInputError(f"{dotted}: no list entry {last} in {base}")
-        node[int(last)] = value
-    elif isinstance(node, dict):
-        node[last] = value
-    else:
-        raise CaseInputError(f"{dotted}: {'.'.join(parts[:-1])} is not a mapping in {base}")
-
-
-def _child(node: Any, part: str) -> Any:
-    if isinstance(node, dict):
-        return node.get(part)
-    if isinstance(node, list) and part.isdigit() and int(part) < len(node):
-        return node[int(part)]
-    return None
-
-
-def check_vehicle(name: Any) -> None:
-    from sim.vehicle_config import VehicleConfigError, load_vehicle
-
-    try:
-        load_vehicle(str(name))
-    except VehicleConfigError as exc:
-        raise CaseInputError(str(exc)) from None
-
-
-def check_params(value: Any, campaign_path: Path) -> None:
-    if value == "default":
-        return
-    found = resolve_path(str(value), campaign_path)
-    if found is None:
-        raise CaseInputError(f"params: no such file {value!r} (or 'default')")
-    resolved_params(str(found), "x500")
-
-
-def check_failures(value: Any) -> None:
-    """A failures list as the world file's ``failures:`` takes it (``[{at_s: S, inject: gps_off, motor: N}]``)."""
-    from mavlink_bridge.contract.failure_schedule import FailureScheduleError, parse_failures
-
-    try:
-        parse_failures(value, ("failures",))
-    except FailureScheduleError as exc:
-        raise CaseInputError(str(exc)) from None
-
-
-def resolved_params(params_file: str | None, vehicle: str) -> dict[str, float]:
-    """Every parameter the file sets away from its default, as the autopilot would load it."""
-    return dict(_resolved_params(params_file, vehicle))
-
-
-@functools.lru_cache(maxsize=64)
-def _resolved_params(params_file: str | None, vehicle: str) -> tuple[tuple[str, float], ...]:
-    from autopilot.control import load_airframe
-    from autopilot.param_schema import make_param_store
-    from autopilot.parameters.store import ParamError
-
-    payload = load_airframe(vehicle).payload_nominal_kg
-    try:
-        store = make_param_store(params_file, payload_nominal_kg=payload)
-    except (ParamError, OSError, ValueError) as exc:
-        raise CaseInputError(f"params: {exc}") from None
-    default = make_param_store(None, payload_nominal_kg=payload).values()
-    return tuple((name, value) for name, value in store.values().items() if value != default.get(name))
 
 
 def materialise(spec: CampaignSpec, case: Case) -> CaseFiles:
@@ -219,8 +128,6 @@ def materialise(spec: CampaignSpec, case: Case) -> CaseFiles:
 
 def _encounter_files(spec: CampaignSpec, case: Case) -> CaseFiles:
     """An encounter case's generated fleet world and its parameters (no script: the ground station arms)."""
-    from tools.encounters import encounter_world
-
     world = encounter_world(case.sim_seed, **dict(spec.encounter or ())).yaml_text()
     params_file = None if case.params == "default" else str(resolve_path(case.params, Path(spec.path)) or case.params)
     params = resolved_params(params_file, case.vehicle)

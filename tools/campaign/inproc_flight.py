@@ -19,7 +19,7 @@ vehicle's own merged in, as ``autopilot --world-failures [--fleet-vehicle]`` doe
   station judges it (``tools.gcs.fly``): done when landed and disarmed after flying, when it crashed, or after
   ``stall_s`` of sim time without progress; ok when its mission was completed, it landed and disarmed, and no
   failsafe fired. The run ends when every vehicle is done or at ``sim_time_s``; the record has the shape
-  ``fleet_flight.record`` reads (``sim``: the fleet ``sim_summary``; ``vehicles``: one row per vehicle).
+  ``fleet_record.record`` reads (``sim``: the fleet ``sim_summary``; ``vehicles``: one row per vehicle).
 
 A case is a function of its world, parameters and seed: re-flying it gives the same truth hashes
 (``quadsitl campaign replay``). The wall-clock deadline is checked every simulated second.
@@ -48,12 +48,13 @@ from autopilot.mission.plan import MissionPlan
 from autopilot.runner import Autopilot, AutopilotConfig
 from autopilot.vehicle_adapter import VehicleAdapter
 from mavlink_bridge.contract.status_texts import is_bypassed
-from mavlink_bridge.contract.traffic import TrafficReport
 from mavlink_bridge.contract.vehicle_api import LandedState, MissionItem, MissionResult, MissionType
-from mavlink_bridge.contract.wire import GpsSample, GroundTruth, ObstacleDetection, SensorSample
-from mavlink_bridge.lockstep import LockstepFrame
-from mavlink_bridge.lockstep.answer_kernel import ANSWER_OK, AnswerWriter, read_answer
-from mavlink_bridge.wire.codec import Decoder
+from mavlink_bridge.lockstep import FrameAssembler
+from mavlink_bridge.lockstep.answer_kernel import (
+    ANSWER_OK,
+    AnswerWriter,
+    read_answer,
+)
 from mavlink_bridge.wire.mission_items import xy_from_int, xy_to_int
 from sim.end_reason import EndReason
 from sim.fleet_run import FleetRun, fleet_airframes
@@ -62,7 +63,7 @@ from sim.server import DEFAULT_VEHICLE, mission_vehicle
 from sim.summary_file import LinkCounts, solo_summary
 from sim.world import load_world
 from tools.campaign.cases import MISSION_START_DELAY_S
-from tools.campaign.fleet_flight import record
+from tools.campaign.fleet_record import record
 from tools.gcs import failsafe_reason
 
 CONTROL_HZ = 250
@@ -71,38 +72,6 @@ DEFAULT_STALL_S = 120.0  # as the fleet ground station's --stall-s
 DEFAULT_SIM_TIME_S = 900.0
 _RUNNING = int(EndReason.RUNNING)
 _MISSION_COMPLETE = "COMPLETE"
-
-
-class FrameAssembler:
-    """The autopilot's side of one datagram: its messages assembled into a frame (as ``LockstepClient`` does on a
-    good link: traffic reports of the datagram ride with its frame, an ADS-B report without a time is stamped
-    with the frame's)."""
-
-    def __init__(self) -> None:
-        self.decoder = Decoder()
-        self.gps: GpsSample | None = None
-        self.truth: GroundTruth | None = None
-
-    def frame(self, datagram: bytes) -> LockstepFrame:
-        detections: list[ObstacleDetection] = []
-        traffic: list[TrafficReport] = []
-        for msg in self.decoder.decode(datagram):
-            kind = type(msg)
-            if kind is GroundTruth:
-                self.truth = msg
-            elif kind is GpsSample:
-                self.gps = msg
-            elif kind is ObstacleDetection:
-                detections.append(msg)
-            elif kind is TrafficReport:
-                traffic.append(msg)
-            elif kind is SensorSample:
-                gps, self.gps = self.gps, None
-                assert self.truth is not None
-                t = msg.time_us
-                stamped = tuple(r if r.t_us else replace(r, t_us=t) for r in traffic)
-                return LockstepFrame(msg, gps, self.truth, tuple(detections), stamped)
-        raise RuntimeError("a lockstep datagram without HIL_SENSOR")
 
 
 def _f32(value: float) -> float:

@@ -1,14 +1,21 @@
-"""One campaign case as a real lockstep flight: ``python -m tools.campaign.sitl_flight CASE_DIR [--rerun PATH]``.
+"""One campaign case as real processes: ``python -m tools.campaign.sitl_flight CASE_DIR [--rerun PATH]``.
 
 The campaign task starts this supervisor in a new session (its own process group) and kills the group at the
-case's deadline. It starts the autopilot (``python -m autopilot``, script + resolved params of the case, a
-GCS link on free loopback ports), uploads the fence and the mission through the bundled ground-station client
+case's deadline; a watchdog kills the whole group if the parent (the Dask worker) disappears. A case is a world
+of one vehicle or many (``case.json``'s ``fleet``: the world lists ``vehicles:``); ``CASE_DIR/flight.json`` gets
+the flight record either way (the simulator's and the autopilot's summaries, the texts, any error).
+
+One vehicle: the supervisor starts the autopilot (``python -m autopilot``, script + resolved params of the case,
+a GCS link on free loopback ports), uploads the fence and the mission through the bundled ground-station client
 (``mavlink_bridge.gcs_client.client.GcsClient``) *before* the simulator exists, then starts the simulator
 (``python -m sim --speed max --duration-s SIM_TIME``): the lockstep begins with the mission on board, arm and
 mission start come from the script at fixed sim times, and the simulator ends the flight at exactly
-``sim_time_s``, so the whole flight (and its truth hash) is a function of the case's files alone. The ground
-station stays on the link to collect STATUSTEXTs (failsafes). ``CASE_DIR/flight.json`` gets both summaries,
-the texts and any error. A watchdog kills the whole group if the parent (the Dask worker) disappears.
+``sim_time_s``, so the whole flight (and its truth hash) is a function of the case's files alone (the same
+flight as ``inproc``). The ground station stays on the link to collect STATUSTEXTs (failsafes).
+
+A fleet: the fleet run command (``FLEET_RUN``: one simulator, one autopilot per vehicle, the fleet ground station
+arming and starting them ``stagger_s`` apart on the wall clock), its summary folded into the record by
+``tools.campaign.fleet_record.record`` (the same world and inputs on a re-flight, not the same bits).
 """
 
 from __future__ import annotations
@@ -16,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import random
 import signal
 import subprocess
 import sys
@@ -25,6 +33,10 @@ from pathlib import Path
 from typing import Any
 
 REPO_ROOT = Path(__file__).resolve().parent.parent.parent
+#: The processes a case runs, by module (``python -m``): one vehicle's simulator and autopilot, or a fleet's run.
+SIM, AUTOPILOT, FLEET_RUN = "sim", "autopilot", "tools.run"
+#: Wall seconds a fleet run keeps for stopping its processes and writing its summary before the case's deadline.
+FLEET_STOP_S = 30.0
 #: Wall seconds the autopilot may take to answer its GCS link (imports and the cached numba kernels).
 STARTUP_S = 120.0
 FLIGHT_FILE = "flight.json"
@@ -100,15 +112,43 @@ def _wait_for_autopilot(gcs: Any, ap: subprocess.Popen[bytes], case_dir: Path) -
 
 def fly(case_dir: Path, rerun: str | None = None) -> dict[str, Any]:
     """Fly the case in ``case_dir`` (``case.json`` + the files of :func:`tools.campaign.cases.write_case_files`)."""
+    case = json.loads((case_dir / "case.json").read_text())
+    return _fly_fleet(case_dir, case) if case.get("fleet") else _fly_one(case_dir, case, rerun)
+
+
+def _fly_fleet(case_dir: Path, case: dict[str, Any]) -> dict[str, Any]:
+    """The fleet run command on the case's world and params; its summary folded into the flight record."""
+    from tools.campaign.fleet_record import record
+
+    out = case_dir / "fleet"
+    (out / "summary.json").unlink(missing_ok=True)
+    args = [
+        FLEET_RUN, "--world", str(case_dir / "world.yaml"), "--out-dir", str(out),
+        "--stagger-s", f"{case['stagger_s']:g}", "--params", str(case_dir / "params.yaml"), "--rerun", "off",
+        "--timeout-s", f"{max(case['deadline_s'] - FLEET_STOP_S, 10.0):g}",
+        "--block-from", str(random.randrange(100, 4000)),
+    ]  # fmt: skip
+    proc = _start(args, case_dir / "fleet.log")
+    try:
+        rc = proc.wait()
+    finally:
+        _stop(proc)
+    summary = _read(out / "summary.json")
+    if not summary:
+        return {"error": f"{FLEET_RUN} exited {rc}: {_tail(case_dir / 'fleet.log', 3)}", "sim": {}, "autopilot": {}}
+    return record(summary)
+
+
+def _fly_one(case_dir: Path, case: dict[str, Any], rerun: str | None) -> dict[str, Any]:
+    """One vehicle: autopilot, mission upload, then the simulator (see the module docstring)."""
     from autopilot.mission.files import load_mission_file
     from mavlink_bridge.contract.vehicle_api import MissionType
     from mavlink_bridge.gcs_client.client import GcsClient
 
-    case = json.loads((case_dir / "case.json").read_text())
     world = case_dir / "world.yaml"
     sim_port, gcs_port, gcs_target = _free_port(), _free_port(), _free_port()
     ap_args = [
-        "autopilot", "--sim", f"udpout:127.0.0.1:{sim_port}", "--api", "off",
+        AUTOPILOT, "--sim", f"udpout:127.0.0.1:{sim_port}", "--api", "off",
         "--gcs", f"udpin:127.0.0.1:{gcs_port}", "--gcs-target", f"udpout:127.0.0.1:{gcs_target}",
         "--vehicle", case["vehicle"], "--estimator", case["estimator"], "--params", str(case_dir / "params.yaml"),
         "--script", str(case_dir / "script.yaml"), "--world-failures", str(world), "--log-dir", str(case_dir),
@@ -118,7 +158,7 @@ def fly(case_dir: Path, rerun: str | None = None) -> dict[str, Any]:
     if rerun:
         ap_args += ["--rerun", rerun, "--rerun-world", str(world)]
     sim_args = [
-        "sim", "--listen", f"udp:127.0.0.1:{sim_port}", "--world", str(world), "--vehicle", case["vehicle"],
+        SIM, "--listen", f"udp:127.0.0.1:{sim_port}", "--world", str(world), "--vehicle", case["vehicle"],
         "--seed", str(case["sim_seed"]), "--speed", "max", "--duration-s", f"{case['sim_time_s']!r}",
         "--log-dir", str(case_dir), "--autopilot-timeout-s", "30", "--start-timeout-s", str(STARTUP_S),
     ]  # fmt: skip

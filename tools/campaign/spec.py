@@ -30,8 +30,18 @@ from pathlib import Path
 from typing import Any
 
 from mavlink_bridge.contract.source_lines import YamlSource, YamlSyntaxError, did_you_mean, read_yaml
+from tools.campaign.inputs import (
+    CaseInputError,
+    check_failures,
+    check_params,
+    check_vehicle,
+    resolve_path,
+    with_override,
+)
 
 MODES = ("sitl", "inproc")
+#: The ``base`` of an encounter campaign's cases (their fleet worlds are generated, not read from a file).
+ENCOUNTER_BASE = "encounter"
 RUN_KEYS = ("vehicle", "params", "failures")
 DISTRIBUTIONS = ("uniform", "choice", "randint")
 #: Row columns ``pass_if`` may test: booleans compare equal, numbers are an upper bound unless ``{min: x}``.
@@ -48,7 +58,7 @@ PASS_KEYS = {
     "tracking_pos_max_m": float,
     "max_tilt_deg": float,
     "energy_used_frac": float,
-    "traffic_contacts": float,  # encounter campaigns (tools.campaign.fleet_flight)
+    "traffic_contacts": float,  # fleet cases (tools.campaign.fleet_record)
     "traffic_nmac": float,
     "traffic_min_sep_m": float,
     "traffic_volume_entries": float,
@@ -128,14 +138,6 @@ class CampaignSpec:
     encounter: tuple[tuple[str, Any], ...] | None = None  # fleet encounters generated per case (docs/traffic.md)
 
 
-def resolve_path(raw: str, campaign_path: Path) -> Path | None:
-    """``raw`` as given (cwd-relative), else next to the campaign file; None when neither exists."""
-    for candidate in (Path(raw), campaign_path.parent / raw):
-        if candidate.is_file():
-            return candidate
-    return None
-
-
 def load_campaign(path: str | Path) -> CampaignSpec:
     """Read and validate a campaign file (:class:`CampaignFileError` naming FILE:LINE and the fix)."""
     p = Path(path)
@@ -190,7 +192,7 @@ class _Checker:
 
         if estimator not in ESTIMATORS:
             raise self.fail(("estimator",), f"unknown estimator {estimator!r}", did_you_mean(estimator, ESTIMATORS))
-        bases = self.bases(doc["base"]) if encounter is None else ("encounter",)
+        bases = self.bases(doc["base"]) if encounter is None else (ENCOUNTER_BASE,)
         vary = tuple(self.vary(doc.get("vary") or {}, bases))
         if encounter is not None and any(key != "params" for key, _ in vary):
             raise self.fail(("vary",), "an encounter campaign varies only params", "vary: {params: {choice: [...]}}")
@@ -309,8 +311,6 @@ class _Checker:
 
     def check_value(self, node: tuple[str, ...], key: str, value: Any, bases: tuple[str, ...]) -> None:
         """One value a case may draw, checked as the flight will use it."""
-        from tools.campaign.cases import CaseInputError, check_failures, check_params, check_vehicle, with_override
-
         try:
             if key == "vehicle":
                 check_vehicle(value)

@@ -2,10 +2,12 @@
 
 :func:`run_case` is what every worker runs (a top-level function of one :class:`CasePayload`). The payload
 carries the case's file texts, so a worker needs quadsitl installed but none of the campaign's input files.
-The case's deadline is enforced here, since Dask has none per task: ``sitl`` starts the supervisor
-(``tools.campaign.sitl_flight``) in a new session and kills its whole process group at the deadline (the row's
-status is then ``timeout``); ``inproc`` checks the wall clock every simulated second. Nothing here raises for a
-bad flight: a crash, a refused input or a dead process is an ``error`` row with its reason.
+A case is a world of one vehicle or a fleet (its world lists ``vehicles:``); either is flown by the same path:
+``sitl`` starts the one supervisor (``tools.campaign.sitl_flight``) in a new session and kills its whole process
+group at the deadline (the row's status is then ``timeout``: Dask has no deadline per task); ``inproc`` flies it
+in this process (``inproc_flight``, one vehicle or a fleet), checking the wall clock every simulated second. One
+:func:`row` is built from the flight record, with the traffic columns when the case is a fleet. Nothing here
+raises for a bad flight: a crash, a refused input or a dead process is an ``error`` row with its reason.
 """
 
 from __future__ import annotations
@@ -25,9 +27,8 @@ from pathlib import Path
 from typing import Any
 
 from mavlink_bridge.contract.status_texts import is_failsafe, is_geofence_breach
-from tools.campaign import fleet_flight
 from tools.campaign.cases import Case, CaseFiles, write_case_files
-from tools.campaign.fleet_flight import ENCOUNTER_BASE
+from tools.campaign.fleet_record import traffic_columns
 from tools.campaign.spec import PassRule
 
 STATUSES = ("ok", "fail", "timeout", "error")
@@ -80,28 +81,28 @@ def run_case(payload: CasePayload) -> dict[str, Any]:
     case_dir = Path(payload.case_dir)
     try:
         write_case_files(payload.files, case_dir)
+        fleet = payload.files.fleet
         case_json = {
             "case_id": payload.case.case_id,
             "vehicle": payload.case.vehicle,
             "sim_seed": payload.case.sim_seed,
             "sim_time_s": payload.sim_time_s,
             "estimator": payload.estimator,
+            "fleet": fleet,
+            "stagger_s": payload.case.stagger_s,
+            "deadline_s": payload.deadline_s,
         }
         (case_dir / "case.json").write_text(json.dumps(case_json, indent=1) + "\n")
-        if payload.case.base == ENCOUNTER_BASE:  # a fleet (tools.campaign.fleet_flight)
-            stagger_s = float(dict(payload.case.overrides).get("encounter.stagger_s", 0.0))
-            if payload.mode == "inproc":
-                from tools.campaign import inproc_flight
+        if payload.mode == "sitl":
+            flight = _fly_sitl(case_dir, payload.deadline_s, payload.rerun)
+        elif fleet:
+            from tools.campaign import inproc_flight
 
-                flight = inproc_flight.fly(case_dir, payload.deadline_s, payload.rerun, stagger_s=stagger_s)
-            else:
-                flight = fleet_flight.fly(case_dir, payload.deadline_s, stagger_s, kill_group)
-        elif payload.mode == "inproc":
+            flight = inproc_flight.fly(case_dir, payload.deadline_s, payload.rerun, stagger_s=payload.case.stagger_s)
+        else:
             from tools.campaign import inproc_flight
 
             flight = inproc_flight.fly(case_dir, payload.deadline_s, payload.rerun)
-        else:
-            flight = _fly_sitl(case_dir, payload.deadline_s, payload.rerun)
     except Exception as exc:  # a refused input or a crash in-process: an error row, the campaign goes on
         flight = {"error": f"{type(exc).__name__}: {exc}", "sim": {}, "autopilot": {}, "texts": []}
     return row(payload, flight, time.monotonic() - t0)
@@ -201,8 +202,8 @@ def row(payload: CasePayload, flight: dict[str, Any], wall_s: float) -> dict[str
         "params_yaml": payload.files.params_yaml,
         "script_yaml": payload.files.script_yaml,
     }
-    if payload.case.base == ENCOUNTER_BASE:
-        out.update(fleet_flight.traffic_columns(flight))
+    if payload.files.fleet:
+        out.update(traffic_columns(flight))
     out["status"], out["reason"] = _judge(payload, flight, out)
     out["passed"] = out["status"] == "ok"
     return out

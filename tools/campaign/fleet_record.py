@@ -1,6 +1,6 @@
-"""A fleet case of an encounter campaign (``encounter:``, docs/traffic.md): fly the case's generated fleet world
-with ``tools.run`` (one simulator, one autopilot per vehicle, the fleet ground station) in its own process
-group, and fold its summaries into the flight record a results row is built from.
+"""The flight record of a fleet case (a world with ``vehicles:``, e.g. an encounter campaign's, docs/traffic.md):
+the fleet run's summaries (the fleet run command's ``summary.json`` in ``sitl`` mode, ``inproc_flight``'s in
+``inproc``) folded into the record a results row is built from, and the row's traffic columns.
 
 The row's usual columns become fleet-wide: ``items_*`` summed over the vehicles, ``landed``/``disarmed`` true
 only when every vehicle is, ``collisions`` the simulator's, ``end_reason`` ``COMPLETED`` unless a vehicle ended
@@ -18,27 +18,20 @@ otherwise than stopped (a crash), the truth hash the SHA-256 of the vehicles' ha
 - ``traffic_completion``: the fraction of vehicles whose mission the ground station saw done, landed, disarmed;
 - ``traffic_vehicles``: how many flew.
 
-Unlike the single-vehicle modes the ground station arms and starts the vehicles on wall-clock timing, so a fleet
-case re-flies the same world and inputs, not the same bits (docs/traffic.md says so).
+In ``sitl`` mode the fleet ground station arms and starts the vehicles on wall-clock timing, so a fleet case
+re-flies the same world and inputs, not the same bits; ``inproc`` scripts the starts on sim time and replays bit
+for bit (docs/traffic.md says so).
 """
 
 from __future__ import annotations
 
 import hashlib
-import json
 import math
-import os
-import random
-import subprocess
-import sys
-from pathlib import Path
 from typing import Any
 
 from mavlink_bridge.contract.status_texts import failsafe_in
 from sim.fleet import UAV_VOLUME_HOR_M
 
-#: The ``base`` a case of an encounter campaign records (its world is generated, not read from a file).
-ENCOUNTER_BASE = "encounter"
 TRAFFIC_COLUMNS = (
     "traffic_contacts",
     "traffic_min_sep_m",
@@ -52,37 +45,8 @@ TRAFFIC_COLUMNS = (
 _RUN_ENDS = ("STOPPED", "COMPLETED")
 
 
-def fly(case_dir: Path, deadline_s: float, stagger_s: float, kill_group: Any) -> dict[str, Any]:
-    """Fly ``case_dir/world.yaml`` with its ``params.yaml``; the flight record (``error``/``timed_out`` when the
-    flight could not be judged)."""
-    repo = Path(__file__).resolve().parent.parent.parent
-    out = case_dir / "fleet"
-    cmd = [
-        sys.executable, "-m", "tools.run", "--world", str(case_dir / "world.yaml"), "--out-dir", str(out),
-        "--stagger-s", f"{stagger_s:g}", "--params", str(case_dir / "params.yaml"), "--rerun", "off",
-        "--timeout-s", f"{max(deadline_s - 30.0, 10.0):g}", "--block-from", str(random.randrange(100, 4000)),
-    ]  # fmt: skip
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(repo), os.environ.get("PYTHONPATH")])))
-    with open(case_dir / "supervisor.log", "wb") as log:
-        proc = subprocess.Popen(cmd, cwd=repo, env=env, stdout=log, stderr=log, start_new_session=True)
-    try:
-        proc.wait(timeout=deadline_s)
-    except subprocess.TimeoutExpired:
-        kill_group(proc)
-        return {"error": "", "timed_out": True, "sim": {}, "autopilot": {}, "texts": [], "pgid": proc.pid}
-    finally:
-        if proc.poll() is None:
-            kill_group(proc)
-    try:
-        summary = json.loads((out / "summary.json").read_text())
-    except (OSError, ValueError):
-        tail = (case_dir / "supervisor.log").read_text(errors="replace").strip().splitlines()[-3:]
-        return {"error": f"tools.run exited {proc.returncode}: {' | '.join(tail)}", "sim": {}, "autopilot": {}}
-    return record(summary)
-
-
 def record(summary: dict[str, Any]) -> dict[str, Any]:
-    """The flight record of a ``tools.run`` summary (see the module docstring)."""
+    """The flight record of a fleet run's summary (see the module docstring)."""
     sim = summary.get("sim") or {}
     rows = summary.get("vehicles") or []
     truth = sim.get("vehicles") or []
@@ -127,7 +91,7 @@ def record(summary: dict[str, Any]) -> dict[str, Any]:
 
 
 def traffic_columns(flight: dict[str, Any]) -> dict[str, Any]:
-    """The traffic columns of a fleet row, as floats (NaN when the flight could not be judged: every row of an
-    encounter campaign has them, in one type)."""
+    """The traffic columns of a fleet case's row, as floats (NaN when the flight could not be judged: every row of
+    a fleet case has them, in one type)."""
     got = flight.get("traffic") or {}
     return {column: float(got.get(column, math.nan)) for column in TRAFFIC_COLUMNS}
