@@ -36,7 +36,7 @@ run-fleet: venv
 # keeps about one core busy, so two test files fly side by side (docs/testing.md has the timings). Each file runs
 # whole on one worker (--dist loadfile: a module's shared fixture is built once).
 test: venv
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=10
 
 bench: venv
 	$(BIN)/python -m tools.benchmarks
