@@ -128,11 +128,17 @@ class FleetSim:
         self.sensors = [SensorModel(airframes[i], world.home, self.seeds[i], noise=sensor_noise) for i in range(n)]
         self.values = [SensorValues(self.batches[b], self.sensors[i], row) for i, (b, row) in enumerate(self.rows)]
         self.obstacle_sensors = [ObstacleSensor(world, self.seeds[i]) for i in range(n)]
-        self.pos_ned = np.zeros((n, 3))
-        self.vel_ned = np.zeros((n, 3))
-        self.end_reason = np.zeros(n, dtype=np.int8)
-        self.on_ground = np.ones(n, dtype=bool)
-        self.gather()
+        self._views = len(self.batches) == 1  # one airframe: rows are instances, the arrays are the batch's own
+        if self._views:
+            batch = self.batches[0]
+            self.pos_ned, self.vel_ned = batch.state[:, 0:3], batch.state[:, 3:6]
+            self.end_reason, self.on_ground = batch.end_reason, batch.on_ground
+        else:
+            self.pos_ned = np.zeros((n, 3))
+            self.vel_ned = np.zeros((n, 3))
+            self.end_reason = np.zeros(n, dtype=np.int8)
+            self.on_ground = np.ones(n, dtype=bool)
+            self.gather()
         self.contacts: list[tuple[int, int, float]] = []  # (i, j, t_s) of each first contact of a pair
         self._touching = np.zeros((n, n), dtype=bool)
         self.min_separation_m = np.full(n, np.inf)  # closest approach to any other vehicle (surface to surface)
@@ -171,7 +177,9 @@ class FleetSim:
 
     def gather(self) -> None:
         """Refresh ``pos_ned``, ``vel_ned`` and ``end_reason`` (instance order) from the batches (after a step, or
-        after writing a batch state directly)."""
+        after writing a batch state directly); nothing to do when they are views of the one batch's."""
+        if self._views:
+            return
         for batch, members in zip(self.batches, self._index, strict=True):
             self.pos_ned[members] = batch.state[:, 0:3]
             self.vel_ned[members] = batch.state[:, 3:6]

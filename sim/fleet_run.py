@@ -105,7 +105,9 @@ class FleetRun:
         if self.receiving:
             heartbeat_due = self.receiver.heartbeat_due(sim.steps)
             reports = self.receiver.reports(sim.steps, t_us, sim.pos_ned, sim.vel_ned, alive)
-        for i in np.flatnonzero(alive).tolist():
+        for i, live in enumerate(alive.tolist()):  # one conversion, no index array per step
+            if not live:
+                continue
             detect = t_us >= self._next_detection_us[i]
             if detect:
                 self._next_detection_us[i] += self._detection_period_us
