@@ -12,6 +12,7 @@ of an autopilot stopped with the run; 0 when all ended cleanly. Killed by signal
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -51,6 +52,18 @@ def stop_process(proc: subprocess.Popen[bytes], timeout_s: float = STOP_TIMEOUT_
             proc.kill()
             proc.wait()
     return int(proc.returncode)
+
+
+def stop_group(proc: subprocess.Popen[bytes], grace_s: float) -> None:
+    """Stop a process started in its own session and everything in its group: SIGTERM (summaries get written),
+    ``grace_s`` to exit, then SIGKILL of whatever is left."""
+    with contextlib.suppress(ProcessLookupError):
+        os.killpg(proc.pid, signal.SIGTERM)
+    with contextlib.suppress(subprocess.TimeoutExpired):
+        proc.wait(timeout=grace_s)
+    with contextlib.suppress(ProcessLookupError):
+        os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
 
 
 def supervise(sim_cmd: list[str], autopilot_cmds: Sequence[list[str]], names: Sequence[str]) -> RunOutcome:

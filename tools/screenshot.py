@@ -19,9 +19,7 @@ from __future__ import annotations
 
 import argparse
 import http.server
-import os
 import shutil
-import signal
 import socket
 import subprocess
 import sys
@@ -31,6 +29,8 @@ import time
 import urllib.parse
 from collections.abc import Sequence
 from pathlib import Path
+
+from autopilot.launch_processes import stop_group
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_OUT = REPO_ROOT / "docs" / "recording_web_viewer.png"
@@ -98,17 +98,6 @@ def _wrapper_server(frame_url: str, wait_s: float) -> http.server.ThreadingHTTPS
     return server
 
 
-def _stop(proc: subprocess.Popen[bytes]) -> None:
-    """Stop a process this script started in its own session, and its children (the rerun binary)."""
-    if proc.poll() is None:
-        os.killpg(proc.pid, signal.SIGTERM)
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
-
-
 def screenshot(
     recordings: Sequence[Path], out: Path, *, size: tuple[int, int] = (1600, 1000), wait_s: float = 90.0
 ) -> Path:
@@ -137,7 +126,8 @@ def screenshot(
     finally:
         wrapper.shutdown()
         wrapper.server_close()
-        _stop(viewer)
+        if viewer.poll() is None:  # the viewer and its children (the rerun binary)
+            stop_group(viewer, 10.0)
     if not out.is_file() or out.stat().st_size == 0:
         raise ScreenshotError(f"Chromium wrote no screenshot at {out}")
     return out

@@ -12,12 +12,10 @@ raises for a bad flight: a crash, a refused input or a dead process is an ``erro
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import json
 import math
 import os
-import signal
 import socket
 import subprocess
 import sys
@@ -26,6 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from autopilot.launch_processes import stop_group
 from mavlink_bridge.contract.status_texts import is_failsafe, is_geofence_breach
 from tools.campaign.cases import Case, CaseFiles, write_case_files
 from tools.campaign.fleet_record import traffic_columns
@@ -141,14 +140,8 @@ def _fly_sitl(case_dir: Path, deadline_s: float, rerun: str | None) -> dict[str,
 
 
 def kill_group(proc: subprocess.Popen[bytes]) -> None:
-    """SIGTERM the process group (summaries get written), then SIGKILL what is left after the grace."""
-    with contextlib.suppress(ProcessLookupError):
-        os.killpg(proc.pid, signal.SIGTERM)
-    with contextlib.suppress(subprocess.TimeoutExpired):
-        proc.wait(timeout=KILL_GRACE_S)
-    with contextlib.suppress(ProcessLookupError):
-        os.killpg(proc.pid, signal.SIGKILL)
-    proc.wait()
+    """The case's process group stopped, with ``KILL_GRACE_S`` to write its summaries."""
+    stop_group(proc, KILL_GRACE_S)
 
 
 def _num(value: Any, default: float = math.nan) -> float:
