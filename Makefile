@@ -6,11 +6,11 @@ STAMP  := $(VENV)/.installed
 
 .PHONY: venv run run-fleet test bench lint paper interop screenshot clean
 
-# The first setup takes about 2.5 min (pip ~1.5 min, then the kernel compile ~1 min); it says what it does.
+# The first setup takes about 1.5 min (pip ~1 min, then the kernel compile ~25 s in two processes); it says what it does.
 # MAVProxy (interop tests) comes without its GUI dependencies: --no-deps, its console's needs listed with it.
 INTEROP_REQUIREMENTS := tests/interop_clients/requirements.txt
 $(STAMP): pyproject.toml $(INTEROP_REQUIREMENTS)
-	@echo "[setup] creating $(VENV) and installing quadsitl with its dependencies (pip, 1-2 min the first time)..."
+	@echo "[setup] creating $(VENV) and installing quadsitl with its dependencies (pip, about 1 min the first time)..."
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
@@ -19,7 +19,7 @@ $(STAMP): pyproject.toml $(INTEROP_REQUIREMENTS)
 	@echo "[setup] packages installed"
 
 # numba caches compiled kernels on disk, in a directory keyed by every kernel source (docs/performance.md);
-# compiling them here (~1 min the first time or after an edit to a kernel source, ~2 s when cached) keeps the first
+# compiling them here (~25 s the first time or after an edit to a kernel source, ~2 s when cached) keeps the first
 # compile out of the lockstep loop.
 venv: $(STAMP)
 	@$(BIN)/python -m tools.warm_jit
