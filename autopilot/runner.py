@@ -317,6 +317,13 @@ class Autopilot:
             override = nav.avoid(state, target, self.frame_detections)  # each frame's: the sensor runs at 10 Hz
             if override is not None:
                 fc.override(override)
+        traffic = nav.traffic
+        if traffic.busy and (target.kind is TargetKind.POSITION or target.kind is TargetKind.LAND):
+            ref = fc.reference  # the reactive layer bounds it (every autonomous mode; manual modes only warn)
+            bound = traffic.bound(state.time_us, self._dt_s, state.pos_ned_m, state.vel_ned_m_s, ref.pos_ned_m,
+                                  ref.vel_ned_m_s, commander.mode, target.kind is TargetKind.LAND)  # fmt: skip
+            if bound is not None:
+                fc.override(bound)
         out = self._pending_control = fc.control(state)
         return (out[0], out[1], out[2], out[3])
 

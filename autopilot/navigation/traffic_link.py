@@ -22,12 +22,17 @@ from autopilot.flight_tasks.setpoints import NavTarget, TargetKind
 from autopilot.geofence.fence import Geofence
 from autopilot.geofence.planner_zones import planner_fence_zones
 from autopilot.navigation.home_frame import HomeFrame
+from autopilot.navigation.outputs import ReferenceOverride
+from autopilot.navigation.traffic_guard import TrafficGuard
 from autopilot.parameters.store import ParamStore
 from autopilot.safety.failsafe import FailsafeEvent
 from autopilot.traffic import AvoidLimits, OwnShip, TrafficAvoidance, TrafficDecision, TrafficParams
 from mavlink_bridge.contract.frames import Vec3
 from mavlink_bridge.contract.vehicle_api import FlightMode, StatusText
 
+#: The modes the reactive layer avoids in (manual modes only warn).
+REACTIVE_MODES = frozenset((FlightMode.AUTO_TAKEOFF, FlightMode.AUTO_MISSION, FlightMode.AUTO_LOITER,
+                            FlightMode.AUTO_RTL, FlightMode.AUTO_LAND))  # fmt: skip
 #: Without a new report, traffic avoidance is re-run at most this often (µs of sim time).
 UPDATE_PERIOD_US = 200_000
 
@@ -67,6 +72,7 @@ class TrafficLink:
         self._param_version = params.version
         self._frame: HomeFrame | None = None
         self._last_update_us = -UPDATE_PERIOD_US
+        self.guard = TrafficGuard(params, system_id)
 
     def receive(self, reports: Iterable[object]) -> None:
         """Reports received since the last step (any number; checked at the next step)."""
@@ -124,11 +130,31 @@ class TrafficLink:
             cruise = target.speed_xy_m_s if math.isfinite(target.speed_xy_m_s) else cruise
         own = OwnShip(state.time_us, frame.home_from_origin(state.pos_ned_m), tuple(state.vel_ned_m_s), route, cruise,
                       self.avoidance.system_id)  # fmt: skip
-        decision = self.avoidance.update(own, reports, self.limits(geofence, obstacles), mission, not landed)
+        # the strategic detour waits while the reactive layer flies (a detour timed from before would jump)
+        can_avoid = mission and not self.guard.engaged
+        quiet = self.guard.engaged or mode in REACTIVE_MODES  # the reactive layer avoids in every autonomous mode
+        decision = self.avoidance.update(own, reports, self.limits(geofence, obstacles), can_avoid, not landed,
+                                         quiet=quiet)  # fmt: skip
         self.decision = decision
         for text in decision.texts:
             self.say(text)
         return decision.failsafe
+
+    def bound(self, t_us: int, dt_s: float, pos_ned_m: Vec3, vel_ned_m_s: Vec3, ref_pos_ned_m: Vec3,
+              ref_vel_ned_m_s: Vec3, mode: FlightMode, landing: bool) -> ReferenceOverride | None:  # fmt: skip
+        """The reactive layer's reference for this control step (about the origin), or None to fly the one given
+        (``ref_*``: this step's reference, the mission's or the detour's; ``landing``: a LAND target)."""
+        frame = self._frame
+        if frame is None:
+            return None
+        tracks = self.avoidance.table.tracks if self.avoidance.table.has_tracks else ()
+        out = self.guard.step(t_us, dt_s, frame, pos_ned_m, vel_ned_m_s, ref_pos_ned_m, ref_vel_ned_m_s, mode,
+                              landing, tracks, self.avoidance.params)  # fmt: skip
+        if self.guard.texts:
+            for text in self.guard.texts:
+                self.say(text)
+            self.guard.texts.clear()
+        return out
 
     def override(self, t_us: int, make: Callable[[Vec3, Vec3, Vec3], R]) -> R | None:
         """``make(pos about the origin, vel, acc)`` of the traffic detour at ``t_us``; None when none is flown."""

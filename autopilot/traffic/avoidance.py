@@ -122,9 +122,10 @@ class TrafficAvoidance:
 
     # ------------------------------------------------------------------ the step
     def update(self, own: OwnShip, reports: Iterable[object], limits: AvoidLimits, can_avoid: bool = True,
-               airborne: bool = True) -> TrafficDecision:  # fmt: skip
+               airborne: bool = True, quiet: bool = False) -> TrafficDecision:  # fmt: skip
         """One step at ``own.t_us``: ``can_avoid`` says the vehicle may fly a detour now (AUTO_MISSION, a position
-        target), ``airborne`` that actions apply (nothing is resolved on the ground)."""
+        target), ``airborne`` that actions apply (nothing is resolved on the ground); ``quiet``: the reactive layer
+        flies now (a detour is dropped without a text, and planned again once it has finished)."""
         p, t_us = self.params, own.t_us
         texts: list[StatusText] = []
         rejected, dropped = self.table.update(t_us, reports, p.max_age_s)
@@ -156,10 +157,10 @@ class TrafficAvoidance:
             if can_avoid and airborne:
                 self._avoid(own, tracks, conflicts, limits, texts)
             else:
-                if self.resolution is not None:
+                if self.resolution is not None and not quiet:
                     texts.append(StatusText(Severity.NOTICE, "Traffic detour ended: not in a mission"))
                 self.resolution = None
-                if new and airborne:
+                if new and airborne and not quiet:
                     texts.append(StatusText(Severity.WARNING, "Traffic: not in a mission, warning only"))
         self.decision = TrafficDecision(t_us, p.action, tracks, tuple(conflicts), self.resolution, failsafe,
                                         tuple(texts), tuple(rejected))  # fmt: skip

@@ -133,6 +133,10 @@ class TrackTable:
         return rejected, dropped
 
     @property
+    def has_tracks(self) -> bool:
+        return bool(self._tracks)
+
+    @property
     def tracks(self) -> tuple[TrafficTrack, ...]:
         """Tracks in force, in key order (deterministic)."""
         return tuple(self._tracks[k] for k in sorted(self._tracks))

@@ -1,0 +1,219 @@
+"""The reactive layer in the control loop (SPEC §13): bounds the reference of every autonomous phase so that no
+track comes inside its separation volume.
+
+Every navigator step (50 Hz) the :class:`ReactiveLayer` is asked for the velocity to fly instead of the one the
+reference would fly (its velocity plus a pull toward it); while it gives one, every control step flies a
+reference about the vehicle at a velocity that moves toward it within the acceleration limit (PX4's velocity
+control: the position error is zero, the velocity is the command). When the preferred velocity is admissible again
+(after ``MIN_ENGAGED_US``), the setpoint generator goes on from that reference. Also here, because they concern the
+column above the pad:
+
+- the departure hold: on the pad (below ``GROUND_LOCK_AGL_M``) in a take-off, no climb while a track is predicted
+  through the climb-out column before the vehicle would be up;
+- the landing clearance: in a landing, no descent while a track is predicted through the column below.
+
+Texts: one when avoidance starts (naming the track and the phase), one when the fallback starts, one when it ends.
+"""
+
+from __future__ import annotations
+
+import math
+
+from autopilot.navigation.home_frame import HomeFrame
+from autopilot.navigation.outputs import ReferenceOverride
+from autopilot.parameters.store import ParamStore
+from autopilot.traffic.param_decls import TrafficAction, TrafficParams
+from autopilot.traffic.reactive import (
+    GROUND_LOCK_AGL_M,
+    Phase,
+    ReactiveCommand,
+    ReactiveLayer,
+    ReactiveLimits,
+    is_parked,
+)
+from autopilot.traffic.tracks import TrafficTrack
+from mavlink_bridge.contract.frames import Vec3
+from mavlink_bridge.contract.traffic import TrafficSource
+from mavlink_bridge.contract.vehicle_api import FlightMode, Severity, StatusText
+
+#: Solve at most this often (µs of sim time): the navigator's rate.
+SOLVE_PERIOD_US = 20_000
+#: Once engaged, the reactive reference is flown at least this long (µs): no chattering between the two.
+MIN_ENGAGED_US = 1_000_000
+#: The preferred velocity pulls toward the reference position with this gain (1/s), at most this fast (m/s).
+PULL_GAIN_1_S = 1.0
+PULL_MAX_M_S = 3.0
+#: The column checks look this far past the time to climb or descend through the column (s).
+COLUMN_MARGIN_S = 5.0
+#: The climb-out column of a departure reaches this high above the pad (m): above a delivery drone's cruise.
+DEPARTURE_COLUMN_M = 30.0
+
+_PHASES = {
+    FlightMode.AUTO_TAKEOFF: Phase.TAKEOFF,
+    FlightMode.AUTO_MISSION: Phase.MISSION,
+    FlightMode.AUTO_LOITER: Phase.HOLD,
+    FlightMode.AUTO_RTL: Phase.RETURN,
+    FlightMode.AUTO_LAND: Phase.LAND,
+}
+
+
+def phase_of(mode: FlightMode, landing: bool, pos_home_ned_m: Vec3, pref_ned_m_s: Vec3) -> Phase:
+    """The reactive layer's phase: from the mode; a LAND target is a landing; a climb from the pad a take-off."""
+    phase = _PHASES.get(mode, Phase.MANUAL)
+    if phase is Phase.MANUAL:
+        return phase
+    if landing:
+        return Phase.LAND
+    if -pos_home_ned_m[2] < GROUND_LOCK_AGL_M and pref_ned_m_s[2] < 0.0:
+        return Phase.TAKEOFF
+    return phase
+
+
+def column_conflict(track: TrafficTrack, t_us: int, pos_home_ned_m: Vec3, top_down_m: float, window_s: float,
+                    params: TrafficParams) -> float | None:  # fmt: skip
+    """Seconds until ``track`` (flying straight) enters the column above (or below) the vehicle, from the ground up
+    to ``top_down_m`` (NED about home) grown by its class's volume, within ``window_s``; None if it does not."""
+    volume = (params.manned if track.source is TrafficSource.MANNED else params.uav).grown(params.margin)
+    p = track.position_at(t_us)
+    rn, re = p[0] - pos_home_ned_m[0], p[1] - pos_home_ned_m[1]
+    vn, ve, vd = track.vel_ned_m_s
+    a = vn * vn + ve * ve
+    c = rn * rn + re * re - volume.hor_m * volume.hor_m
+    if a < 1e-9:
+        lo, hi = (0.0, window_s) if c < 0.0 else (math.inf, -math.inf)
+    else:
+        b = 2.0 * (rn * vn + re * ve)
+        disc = b * b - 4.0 * a * c
+        if disc <= 0.0:
+            return None
+        s = math.sqrt(disc)
+        lo, hi = max((-b - s) / (2.0 * a), 0.0), min((-b + s) / (2.0 * a), window_s)
+    if lo >= hi:
+        return None
+    bottom, top = volume.ver_m, top_down_m - volume.ver_m  # from below the ground to above the column's top
+    for t in (lo, 0.5 * (lo + hi), hi):
+        d = p[2] + vd * t
+        if top <= d <= bottom:
+            return lo
+    return None
+
+
+class TrafficGuard:
+    """The reactive layer's reference while it is engaged; pure (the caller gives time and state)."""
+
+    def __init__(self, params: ParamStore, system_id: int) -> None:
+        self.params = params
+        self.layer = ReactiveLayer(system_id)
+        self.command: ReactiveCommand | None = None
+        self.texts: list[StatusText] = []
+        self._engaged_us = -1
+        self._solved_us = -SOLVE_PERIOD_US
+        self._vel: list[float] = [0.0, 0.0, 0.0]
+        self._limits_version = -1
+        self._limits: ReactiveLimits | None = None
+        self._said: tuple[str, bool] | None = None
+
+    @property
+    def engaged(self) -> bool:
+        return self._engaged_us >= 0
+
+    def limits(self) -> ReactiveLimits:
+        """What the vehicle may fly: MPC_* speeds and acceleration, CA_MIN_AGL_M, CA_CEILING_M / GF_MAX_VER_DIST."""
+        if self._limits is None or self._limits_version != self.params.version:
+            g = self.params.get
+            ceiling = g("CA_CEILING_M")
+            if g("GF_MAX_VER_DIST") > 0.0:
+                ceiling = min(ceiling, g("GF_MAX_VER_DIST"))
+            self._limits = ReactiveLimits(g("MPC_XY_VEL_MAX"), g("MPC_Z_VEL_MAX_UP"), g("MPC_Z_VEL_MAX_DN"),
+                                          g("MPC_ACC_HOR"), -g("CA_MIN_AGL_M"), -ceiling)  # fmt: skip
+            self._limits_version = self.params.version
+        return self._limits
+
+    def release(self) -> None:
+        if self.engaged:
+            self.texts.append(StatusText(Severity.INFO, "Traffic: clear, reactive avoidance ended"))
+        self._engaged_us, self.command, self._said = -1, None, None
+
+    def step(self, t_us: int, dt_s: float, frame: HomeFrame, pos_ned_m: Vec3, vel_ned_m_s: Vec3,
+             ref_pos_ned_m: Vec3, ref_vel_ned_m_s: Vec3, mode: FlightMode, landing: bool,
+             tracks: tuple[TrafficTrack, ...], params: TrafficParams) -> ReferenceOverride | None:  # fmt: skip
+        """This control step's reference (about the origin), or None to fly the one given."""
+        if params.action is not TrafficAction.AVOID or not tracks:
+            self.release()
+            return None
+        if t_us - self._solved_us >= SOLVE_PERIOD_US:
+            self._solved_us = t_us
+            self._solve(t_us, frame, pos_ned_m, vel_ned_m_s, ref_pos_ned_m, ref_vel_ned_m_s, mode, landing, tracks,
+                        params)  # fmt: skip
+        command = self.command
+        if command is None:
+            return None
+        a = self.limits().acc_m_s2 * dt_s
+        acc = [0.0, 0.0, 0.0]
+        for k in range(3):
+            dv = min(max(command.vel_ned_m_s[k] - self._vel[k], -a), a)
+            self._vel[k] += dv
+            acc[k] = dv / dt_s if dt_s > 0.0 else 0.0
+        return ReferenceOverride(pos_ned_m, (self._vel[0], self._vel[1], self._vel[2]), (acc[0], acc[1], acc[2]))
+
+    def _solve(self, t_us: int, frame: HomeFrame, pos_ned_m: Vec3, vel_ned_m_s: Vec3, ref_pos_ned_m: Vec3,
+               ref_vel_ned_m_s: Vec3, mode: FlightMode, landing: bool, tracks: tuple[TrafficTrack, ...],
+               params: TrafficParams) -> None:  # fmt: skip
+        pref = [0.0, 0.0, 0.0]
+        for k in range(3):
+            pull = min(max(PULL_GAIN_1_S * (ref_pos_ned_m[k] - pos_ned_m[k]), -PULL_MAX_M_S), PULL_MAX_M_S)
+            pref[k] = ref_vel_ned_m_s[k] + pull
+        pos = frame.home_from_origin(pos_ned_m)
+        phase = phase_of(mode, landing, pos, (pref[0], pref[1], pref[2]))
+        if phase is Phase.MANUAL:
+            self.release()
+            return
+        limits = self.limits()
+        held = self._column_threat(t_us, pos, pref, phase, tracks, params, limits)
+        if held is not None:
+            pref[2] = 0.0  # hold the height: no climb out of the pad, no descent into the column
+        command = self.layer.solve(t_us, pos, vel_ned_m_s, (pref[0], pref[1], pref[2]), tracks, params, limits,
+                                   phase)  # fmt: skip
+        if command is None and held is not None:
+            verb = "take-off" if phase is Phase.TAKEOFF else "landing"
+            command = ReactiveCommand((pref[0], pref[1], 0.0), held, False, f"{verb} held")
+        if command is None:
+            if self.engaged and t_us - self._engaged_us >= MIN_ENGAGED_US:
+                self.release()
+            elif self.engaged and self.command is not None:
+                self.command = ReactiveCommand((pref[0], pref[1], pref[2]), self.command.threat, False)
+            return
+        if not self.engaged:
+            self._engaged_us = t_us
+            self._vel = [float(ref_vel_ned_m_s[0]), float(ref_vel_ned_m_s[1]), float(ref_vel_ned_m_s[2])]
+        self.command = command
+        said = (command.threat, command.fallback)
+        if said != self._said:
+            self._said = said
+            if command.fallback:
+                text = f"Traffic: no safe velocity from {command.threat} ({phase.value}): braking to a hover, "
+                self.texts.append(StatusText(Severity.WARNING, text + command.escape))
+            elif command.escape:
+                text = f"Traffic: {command.escape}: {command.threat} predicted through the column"
+                self.texts.append(StatusText(Severity.NOTICE, text))
+            else:
+                text = f"Traffic: avoiding {command.threat} ({phase.value}), reactive"
+                self.texts.append(StatusText(Severity.NOTICE, text))
+
+    def _column_threat(self, t_us: int, pos: Vec3, pref: list[float], phase: Phase,
+                       tracks: tuple[TrafficTrack, ...], params: TrafficParams,
+                       limits: ReactiveLimits) -> str | None:  # fmt: skip
+        """The departure hold and the landing clearance: the track predicted through the column the vehicle is
+        about to climb out of (from the pad) or descend into, before it would be through; None when clear."""
+        if phase is Phase.TAKEOFF and pref[2] < 0.0 and -pos[2] < GROUND_LOCK_AGL_M:
+            top, speed = -DEPARTURE_COLUMN_M, max(-pref[2], 0.3)
+            window = DEPARTURE_COLUMN_M / speed + COLUMN_MARGIN_S
+        elif phase is Phase.LAND and pref[2] > 0.0 and -pos[2] >= GROUND_LOCK_AGL_M:
+            top, speed = pos[2], max(pref[2], 0.3)
+            window = -pos[2] / speed + COLUMN_MARGIN_S
+        else:
+            return None
+        for track in tracks:
+            if not is_parked(track, t_us) and column_conflict(track, t_us, pos, top, window, params) is not None:
+                return track.name
+        return None

@@ -1,0 +1,248 @@
+"""The reactive layer: every navigator step, the velocity that keeps separation from every track at once (SPEC §13).
+
+Over all tracks together (not one conflict at a time), 3D optimal reciprocal collision avoidance (ORCA, van den
+Berg et al. 2011; RVO2-3D): each track adds one half-space of admissible velocities (:func:`orca_planes`), the
+vehicle's own limits add theirs (horizontal speed, climb and descent rates, the altitude floor and ceiling, no
+sideways motion on the ground), and the admissible velocity closest to the one the vehicle would fly is taken
+(:func:`closest_admissible`). When the preferred velocity is admissible nothing changes (no override).
+
+- Responsibility: half of every change between two quadsitl vehicles that are both flying on (the other takes
+  the other half: reciprocity); all of it toward manned traffic and toward a UAV that is taking off, landing or
+  holding (horizontal speed below ``COLUMN_SPEED_M_S``), which may not react.
+- Volumes: the class's separation cylinder (NAV_TRAFF_U_*/M_*, grown by NAV_TRAFF_MARGIN) is covered by a sphere
+  in a space stretched vertically by ``hor / (2 ver)`` (radius ``sqrt(5)/2 hor``: a 10 m / 5 m volume needs 11.2 m
+  level or 11.2 m stacked), grown by the report's age times the closing speed and by the vehicle's braking
+  distance ``v^2 / (2 a)``.
+- Horizons: ``UAV_TAU_S`` between vehicles, ``MANNED_TAU_S`` for manned aircraft (they are fast: leaving their
+  path takes time).
+- Fallback, when no admissible velocity exists: brake to a hover and escape vertically away from the most urgent
+  track (above: down; below: up; level: the lower system id up, the higher down, manned traffic: away from it
+  where the floor allows), never below the floor; both vehicles apply the same rule.
+
+Pure: no clock, no I/O; the compiled kernels do the arithmetic in preallocated arrays.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+
+from autopilot.traffic.orca_kernel import (
+    N_TRACK_COLS,
+    T_AGE_GROW,
+    T_PD,
+    T_PE,
+    T_PN,
+    T_RADIUS,
+    T_RESP,
+    T_SCALE,
+    T_TAU,
+    T_TS,
+    T_VD,
+    T_VE,
+    T_VN,
+    closest_admissible,
+    orca_planes,
+)
+from autopilot.traffic.param_decls import SeparationVolume, TrafficParams
+from autopilot.traffic.rules import COLUMN_SPEED_M_S
+from autopilot.traffic.tracks import TrafficTrack
+from mavlink_bridge.contract.frames import Vec3
+from mavlink_bridge.contract.traffic import TrafficSource
+
+#: ORCA time horizons (s): between UAVs, and toward manned aircraft.
+UAV_TAU_S = 8.0
+MANNED_TAU_S = 40.0
+#: Sides of the polygon bounding the horizontal speed (circumscribed about the speed circle).
+SPEED_SIDES = 16
+#: The floor and ceiling are approached at most at this rate: the distance left over this time (s).
+FLOOR_TIME_S = 2.0
+#: Below this height above home the vehicle moves only vertically (m): no sideways motion near the ground.
+GROUND_LOCK_AGL_M = 2.0
+#: A velocity this close (m/s) to the preferred one is the preferred one (no override).
+SAME_M_S = 0.02
+#: Braking distance is counted up to this (m).
+MAX_BRAKE_GROW_M = 8.0
+#: A parked track (still, near home level) is not avoided (m above home, m/s).
+PARKED_AGL_M = 1.5
+PARKED_SPEED_M_S = 0.5
+#: Tracks held at most (the arrays are sized once).
+MAX_TRACKS = 64
+_ROWS = MAX_TRACKS + SPEED_SIDES + 8
+
+
+class Phase(Enum):
+    """What the vehicle is doing, for the reactive layer: the autonomous phases avoid; manual ones only warn."""
+
+    TAKEOFF = "take-off"
+    MISSION = "mission"
+    HOLD = "hold"
+    RETURN = "return"
+    LAND = "landing"
+    MANUAL = "manual"
+
+
+@dataclass(frozen=True, slots=True)
+class ReactiveLimits:
+    """What the vehicle can fly (m/s, m/s^2) and where (NED down about home, m: floor > ceiling numerically)."""
+
+    speed_xy_m_s: float
+    up_m_s: float
+    down_m_s: float
+    acc_m_s2: float
+    floor_down_m: float
+    ceiling_down_m: float
+
+
+@dataclass(frozen=True, slots=True)
+class ReactiveCommand:
+    """The velocity to fly instead of the preferred one (NED, m/s), why, and whether it is the fallback."""
+
+    vel_ned_m_s: Vec3
+    threat: str  # the track whose plane binds (or the most urgent one, in the fallback)
+    fallback: bool
+    escape: str = ""  # the fallback's vertical sense: "climbing", "descending" or "holding"
+
+
+def is_parked(track: TrafficTrack, t_us: int) -> bool:
+    """Still on the ground at home level (a vehicle on its pad): surface traffic, not avoided in the air."""
+    n, e, d = track.vel_ned_m_s
+    return -track.position_at(t_us)[2] < PARKED_AGL_M and math.hypot(n, e) < PARKED_SPEED_M_S and abs(d) < 0.5
+
+
+def reciprocates(track: TrafficTrack) -> bool:
+    """A quadsitl vehicle flying on (it takes half of every change); manned traffic and a UAV taking off, landing or
+    holding do not, so the vehicle takes all of it."""
+    return track.source is TrafficSource.UAV and math.hypot(*track.vel_ned_m_s[:2]) >= COLUMN_SPEED_M_S
+
+
+def covering_sphere(volume: SeparationVolume) -> tuple[float, float]:
+    """(radius, vertical stretch) of the sphere that covers the cylinder ``volume`` in the stretched space."""
+    scale = volume.hor_m / (2.0 * volume.ver_m)
+    return math.hypot(volume.hor_m, volume.ver_m * scale), scale
+
+
+class ReactiveLayer:
+    """ORCA over every track, one compiled solve per call; arrays allocated once."""
+
+    def __init__(self, system_id: int) -> None:
+        self.system_id = system_id
+        self._tracks = np.zeros((MAX_TRACKS, N_TRACK_COLS))
+        self._normals = np.zeros((_ROWS, 3))
+        self._offsets = np.zeros(_ROWS)
+        self._index = np.zeros(_ROWS, dtype=np.int64)
+        self._pos = np.zeros(3)
+        self._vel = np.zeros(3)
+        self._pref = np.zeros(3)
+        self._out = np.zeros(3)
+        self._limits_out = np.zeros(3)
+        self._speed_normals = np.array(
+            [(-math.cos(a), -math.sin(a), 0.0) for a in np.arange(SPEED_SIDES) * 2.0 * math.pi / SPEED_SIDES]
+        )
+
+    def solve(self, t_us: int, pos_home_ned_m: Vec3, vel_ned_m_s: Vec3, pref_ned_m_s: Vec3,
+              tracks: Sequence[TrafficTrack], params: TrafficParams, limits: ReactiveLimits,
+              phase: Phase) -> ReactiveCommand | None:  # fmt: skip
+        """The velocity to fly now instead of ``pref_ned_m_s``, or None when the preferred one keeps separation."""
+        rows: list[TrafficTrack] = []
+        table = self._tracks
+        for track in tracks:
+            if len(rows) == MAX_TRACKS or is_parked(track, t_us):
+                continue
+            row = table[len(rows)]
+            volume = (params.manned if track.source is TrafficSource.MANNED else params.uav).grown(params.margin)
+            radius, scale = covering_sphere(volume)
+            row[T_PN], row[T_PE], row[T_PD] = track.pos_home_ned_m
+            row[T_VN], row[T_VE], row[T_VD] = track.vel_ned_m_s
+            row[T_TS] = track.t_us * 1e-6
+            row[T_RADIUS], row[T_SCALE] = radius, scale
+            row[T_RESP] = 0.5 if reciprocates(track) else 1.0
+            row[T_TAU] = MANNED_TAU_S if track.source is TrafficSource.MANNED else UAV_TAU_S
+            row[T_AGE_GROW] = max(t_us - track.t_us, 0) * 1e-6
+            rows.append(track)
+        if not rows:
+            return None
+        pos, vel, pref = self._pos, self._vel, self._pref
+        pos[:], vel[:], pref[:] = pos_home_ned_m, vel_ned_m_s, pref_ned_m_s
+        m = self._own_limits(pos, vel, pref, limits, phase)
+        closest_admissible(self._normals, self._offsets, m, pref, self._limits_out)
+        speed2 = vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2]
+        brake_m = min(speed2 / (2.0 * limits.acc_m_s2), MAX_BRAKE_GROW_M)
+        total = orca_planes(t_us * 1e-6, pos, vel, table, len(rows), brake_m, self._normals, self._offsets, m,
+                            self._index)  # fmt: skip
+        if total == m:
+            return None
+        failed = closest_admissible(self._normals, self._offsets, total, pref, self._out)
+        if failed >= 0:
+            return self._fallback(t_us, pos, rows, limits, phase)
+        out, lim = self._out, self._limits_out
+        if abs(out[0] - lim[0]) + abs(out[1] - lim[1]) + abs(out[2] - lim[2]) < SAME_M_S:
+            return None
+        return ReactiveCommand((float(out[0]), float(out[1]), float(out[2])), self._binding(rows, m, total), False)
+
+    def _own_limits(self, pos: np.ndarray, vel: np.ndarray, pref: np.ndarray, limits: ReactiveLimits,
+                    phase: Phase) -> int:  # fmt: skip
+        """The vehicle's own half-spaces (always feasible together: zero velocity satisfies them); their count."""
+        normals, offsets = self._normals, self._offsets
+        speed = max(limits.speed_xy_m_s, math.hypot(pref[0], pref[1]), math.hypot(vel[0], vel[1]))
+        m = SPEED_SIDES
+        normals[:m] = self._speed_normals
+        offsets[:m] = -speed
+        up = max(limits.up_m_s, -pref[2])
+        down = max(limits.down_m_s, pref[2])
+        m = _put(normals, offsets, m, 0.0, 0.0, -1.0, -down)  # vd <= down
+        m = _put(normals, offsets, m, 0.0, 0.0, 1.0, -up)  # vd >= -up
+        if phase is not Phase.LAND:  # approach the floor at most at the rate that stops on it (no descent below)
+            m = _put(normals, offsets, m, 0.0, 0.0, -1.0, -max((limits.floor_down_m - pos[2]) / FLOOR_TIME_S, 0.0))
+        m = _put(normals, offsets, m, 0.0, 0.0, 1.0, min((limits.ceiling_down_m - pos[2]) / FLOOR_TIME_S, 0.0))
+        if -pos[2] < GROUND_LOCK_AGL_M and phase in (Phase.TAKEOFF, Phase.LAND):
+            for n0, n1 in ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)):
+                m = _put(normals, offsets, m, n0, n1, 0.0, min(n0 * pref[0] + n1 * pref[1], 0.0))
+        return m
+
+    def _binding(self, rows: list[TrafficTrack], m: int, total: int) -> str:
+        """The track whose plane the solution lies on (the most binding), for the texts."""
+        out, best, name = self._out, math.inf, rows[int(self._index[m])].name
+        for k in range(m, total):
+            slack = float(self._normals[k] @ out - self._offsets[k])
+            if slack < best:
+                best, name = slack, rows[int(self._index[k])].name
+        return name
+
+    def _fallback(self, t_us: int, pos: np.ndarray, rows: list[TrafficTrack], limits: ReactiveLimits,
+                  phase: Phase) -> ReactiveCommand:  # fmt: skip
+        """Brake to a hover and escape vertically away from the most urgent track, never below the floor."""
+        worst, ratio = rows[0], math.inf
+        for track in rows:
+            p = track.position_at(t_us)
+            volume = TrafficParams().manned if track.source is TrafficSource.MANNED else TrafficParams().uav
+            r = max(math.hypot(p[0] - pos[0], p[1] - pos[1]) / volume.hor_m, abs(p[2] - pos[2]) / volume.ver_m)
+            if r < ratio:
+                worst, ratio = track, r
+        below = worst.position_at(t_us)[2] - pos[2]  # > 0: the other is below (NED down)
+        if abs(below) >= 1.0:
+            up = below > 0.0
+        elif worst.source is TrafficSource.MANNED:
+            up = -pos[2] - (-limits.floor_down_m) < 5.0  # near the floor: up; else down
+        else:
+            up = self.system_id < worst.target_id
+        floor_room = limits.floor_down_m - pos[2]  # > 0: room above the floor to descend
+        if phase is Phase.LAND or (phase is Phase.TAKEOFF and -pos[2] < GROUND_LOCK_AGL_M):
+            vd, escape = 0.0, "holding"  # at the pad: hold the height (the column above is the other's)
+        elif up and limits.ceiling_down_m - pos[2] < 0.0:
+            vd, escape = -limits.up_m_s, "climbing"
+        elif not up and floor_room > 0.5:
+            vd, escape = min(limits.down_m_s, floor_room / FLOOR_TIME_S), "descending"
+        else:
+            vd, escape = 0.0, "holding"
+        return ReactiveCommand((0.0, 0.0, vd), worst.name, True, escape)
+
+
+def _put(normals: np.ndarray, offsets: np.ndarray, m: int, n0: float, n1: float, n2: float, b: float) -> int:
+    normals[m, 0], normals[m, 1], normals[m, 2] = n0, n1, n2
+    offsets[m] = b
+    return m + 1

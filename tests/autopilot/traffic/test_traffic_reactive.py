@@ -1,0 +1,200 @@
+"""The reactive layer (autopilot.traffic.reactive, orca_kernel): the solver against scipy, the ORCA planes' duties
+(reciprocal, full), the fallback's rules, the vehicle's own limits, the column checks, and a kinematic ring swap
+of 8 vehicles that never enters the volume."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import minimize
+
+from autopilot.navigation.traffic_guard import column_conflict, phase_of
+from autopilot.traffic.orca_kernel import closest_admissible
+from autopilot.traffic.param_decls import TrafficParams
+from autopilot.traffic.reactive import Phase, ReactiveLayer, ReactiveLimits, covering_sphere
+from autopilot.traffic.tracks import TrafficTrack
+from mavlink_bridge.contract.traffic import TrafficSource
+from mavlink_bridge.contract.vehicle_api import FlightMode
+
+LIMITS = ReactiveLimits(12.0, 3.0, 1.5, 3.0, -2.0, -120.0)
+PARAMS = TrafficParams()
+
+
+def uav(target_id: int, pos: tuple[float, float, float], vel: tuple[float, float, float], t_us: int = 0) -> TrafficTrack:
+    return TrafficTrack(TrafficSource.UAV, target_id, "", pos, vel, t_us)
+
+
+def test_solver_is_the_closest_admissible_velocity() -> None:
+    rng = np.random.default_rng(7)
+    infeasible = 0
+    for _ in range(60):
+        m = int(rng.integers(1, 16))
+        normals = rng.normal(size=(m, 3))
+        normals /= np.linalg.norm(normals, axis=1)[:, None]
+        offsets = rng.normal(size=m) * 2.0 - 1.0
+        pref, out = rng.normal(size=3) * 3.0, np.zeros(3)
+        failed = closest_admissible(normals, offsets, m, pref, out)
+        cons = [{"type": "ineq", "fun": lambda v, i=i: normals[i] @ v - offsets[i]} for i in range(m)]
+        ref = minimize(lambda v: ((v - pref) ** 2).sum(), np.zeros(3), constraints=cons, method="SLSQP",
+                       options={"ftol": 1e-12, "maxiter": 500})  # fmt: skip
+        scipy_ok = ref.success and min(normals @ ref.x - offsets) > -1e-6
+        if failed >= 0:
+            infeasible += 1
+            assert not scipy_ok
+        else:
+            assert min(normals @ out - offsets) > -1e-6
+            if scipy_ok:
+                assert ((out - pref) ** 2).sum() <= ref.fun + 1e-5
+    assert 0 < infeasible < 60  # both kinds of problem were tried
+
+
+def test_covering_sphere_contains_the_cylinder() -> None:
+    for hor, ver in ((10.0, 5.0), (150.0, 30.0)):
+        radius, scale = covering_sphere(TrafficParams().uav.__class__(hor, ver))
+        assert math.hypot(hor, ver * scale) == pytest.approx(radius)  # the rim's corner is on the sphere
+
+
+def test_head_on_both_turn_opposite_ways_and_share_the_change() -> None:
+    a, b = ReactiveLayer(1), ReactiveLayer(2)
+    pa, pb, va, vb = (0.0, 0.0, -15.0), (60.0, 0.0, -15.0), (5.0, 0.0, 0.0), (-5.0, 0.0, 0.0)
+    ca = a.solve(0, pa, va, va, [uav(2, pb, vb)], PARAMS, LIMITS, Phase.MISSION)
+    cb = b.solve(0, pb, vb, vb, [uav(1, pa, va)], PARAMS, LIMITS, Phase.MISSION)
+    assert ca is not None and cb is not None and not ca.fallback
+    da, db = np.subtract(ca.vel_ned_m_s, va), np.subtract(cb.vel_ned_m_s, vb)
+    assert np.allclose(da, -db, atol=1e-6)  # reciprocal: equal and opposite halves
+    assert np.linalg.norm(da) > 0.1
+
+
+def test_manned_traffic_gets_full_responsibility() -> None:
+    layer = ReactiveLayer(1)
+    own, vel = (0.0, 0.0, -15.0), (0.0, 5.0, 0.0)
+    heli = TrafficTrack(TrafficSource.MANNED, 0xA1B2C3, "HELI1", (-1200.0, 0.0, -25.0), (40.0, 0.0, 0.0), 0)
+    full = layer.solve(0, own, vel, vel, [heli], PARAMS, LIMITS, Phase.MISSION)
+    as_uav = layer.solve(0, own, vel, vel, [uav(9, heli.pos_home_ned_m, heli.vel_ned_m_s)], PARAMS, LIMITS,
+                         Phase.MISSION)  # fmt: skip
+    assert full is not None
+    assert as_uav is None or np.linalg.norm(np.subtract(full.vel_ned_m_s, vel)) > np.linalg.norm(
+        np.subtract(as_uav.vel_ned_m_s, vel)
+    )
+
+
+def test_fallback_brakes_and_escapes_away_never_below_the_floor() -> None:
+    layer = ReactiveLayer(3)
+    # boxed in at one level by four vehicles closing from every side: no admissible velocity at all
+    own = (0.0, 0.0, -15.0)
+    around = [uav(k + 10, (12.0 * math.cos(a), 12.0 * math.sin(a), -15.0), (-6.0 * math.cos(a), -6.0 * math.sin(a),
+              0.0)) for k, a in enumerate(np.arange(6) * math.pi / 3)]  # fmt: skip
+    above = [uav(20, (0.0, 0.0, -21.0), (0.0, 0.0, 3.0)), uav(21, (0.0, 0.0, -9.0), (0.0, 0.0, -3.0))]
+    c = layer.solve(0, own, (0.0, 0.0, 0.0), (5.0, 0.0, 0.0), around + above, PARAMS, LIMITS, Phase.MISSION)
+    assert c is not None and c.fallback
+    assert c.vel_ned_m_s[:2] == (0.0, 0.0)
+    # at the floor with the other above: hold, never descend below it
+    low = (0.0, 0.0, -2.0)
+    c = layer.solve(0, low, (0.0, 0.0, 0.0), (5.0, 0.0, 0.0), [uav(9, (0.0, 0.0, -3.0), (0.0, 0.0, 2.0))] + around,
+                    PARAMS, LIMITS, Phase.MISSION)  # fmt: skip
+    assert c is not None and c.fallback and c.vel_ned_m_s[2] <= 0.0
+
+
+def test_fallback_sense_on_one_level_by_system_id() -> None:
+    def sense(system_id: int, other_id: int) -> float:
+        layer = ReactiveLayer(system_id)
+        own = (0.0, 0.0, -15.0)
+        boxed = [uav(other_id, (3.0, 0.0, -15.0), (-8.0, 0.0, 0.0))] + [
+            uav(30 + k, (3.0 * math.cos(a), 3.0 * math.sin(a), -15.0), (0.0, 0.0, 0.0))
+            for k, a in enumerate((1.5, 3.0, 4.5))
+        ]
+        c = layer.solve(0, own, (0.0, 0.0, 0.0), (3.0, 0.0, 0.0), boxed, PARAMS, LIMITS, Phase.MISSION)
+        assert c is not None and c.fallback
+        return c.vel_ned_m_s[2]
+
+    assert sense(1, 2) < 0.0 < sense(2, 1)  # the lower id climbs, the higher descends: apart
+
+
+def test_no_sideways_motion_on_the_pad() -> None:
+    layer = ReactiveLayer(1)
+    crossing = uav(2, (-20.0, 0.0, -3.0), (6.0, 0.0, 0.0))
+    c = layer.solve(0, (0.0, 0.0, -0.5), (0.0, 0.0, -1.0), (0.0, 0.0, -1.5), [crossing], PARAMS, LIMITS,
+                    Phase.TAKEOFF)  # fmt: skip
+    assert c is not None
+    assert c.vel_ned_m_s[0] == pytest.approx(0.0, abs=1e-9) and c.vel_ned_m_s[1] == pytest.approx(0.0, abs=1e-9)
+    assert c.vel_ned_m_s[2] > -1.5  # the climb is slowed (or stopped), not flown into the other
+
+
+def test_parked_vehicles_are_not_avoided() -> None:
+    layer = ReactiveLayer(1)
+    parked = uav(2, (5.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    assert layer.solve(0, (0.0, 0.0, -0.2), (0.0, 0.0, 0.0), (0.0, 0.0, -1.5), [parked], PARAMS, LIMITS,
+                       Phase.TAKEOFF) is None  # fmt: skip
+
+
+def test_column_conflict_departure_and_clear() -> None:
+    pad = (0.0, 0.0, 0.0)
+    through = uav(2, (-100.0, 0.0, -15.0), (8.0, 0.0, 0.0))
+    wide = uav(3, (-100.0, 60.0, -15.0), (8.0, 0.0, 0.0))
+    high = TrafficTrack(TrafficSource.MANNED, 1, "C172", (-2000.0, 0.0, -120.0), (50.0, 0.0, 0.0), 0)
+    low = TrafficTrack(TrafficSource.MANNED, 2, "HELI", (-1000.0, 100.0, -25.0), (40.0, 0.0, 0.0), 0)
+    assert column_conflict(through, 0, pad, -30.0, 25.0, PARAMS) == pytest.approx((100.0 - 13.0) / 8.0, abs=0.5)
+    assert column_conflict(through, 0, pad, -30.0, 5.0, PARAMS) is None  # not before the vehicle is up
+    assert column_conflict(wide, 0, pad, -30.0, 60.0, PARAMS) is None
+    assert column_conflict(high, 0, pad, -30.0, 60.0, PARAMS) is None  # 120 m: above the column and its volume
+    assert column_conflict(low, 0, pad, -30.0, 60.0, PARAMS) is not None  # 25 m, 100 m aside: inside the NMAC
+
+
+def test_phase_of_modes() -> None:
+    assert phase_of(FlightMode.POSCTL, False, (0.0, 0.0, -10.0), (0.0, 0.0, 0.0)) is Phase.MANUAL
+    assert phase_of(FlightMode.AUTO_MISSION, True, (0.0, 0.0, -10.0), (0.0, 0.0, 1.0)) is Phase.LAND
+    assert phase_of(FlightMode.AUTO_MISSION, False, (0.0, 0.0, -0.3), (0.0, 0.0, -1.0)) is Phase.TAKEOFF
+    assert phase_of(FlightMode.AUTO_RTL, False, (0.0, 0.0, -20.0), (3.0, 0.0, 0.0)) is Phase.RETURN
+
+
+def _ring_swap(n: int, radius_m: float, latency_s: float) -> tuple[float, int]:
+    """``n`` point-mass vehicles at one altitude fly to the antipodal point (3 m/s^2, 8 m/s, reports at 1 Hz with
+    ``latency_s``); the smallest separation ratio of any pair and how many arrived."""
+    dt, params = 0.05, TrafficParams()
+    angles = np.arange(n) * 2.0 * math.pi / n
+    pos = np.stack([radius_m * np.cos(angles), radius_m * np.sin(angles), np.full(n, -15.0)], axis=1)
+    goal = pos * np.array([-1.0, -1.0, 1.0])
+    vel = np.zeros((n, 3))
+    layers = [ReactiveLayer(i + 1) for i in range(n)]
+    reports: list[list[TrafficTrack]] = [[] for _ in range(n)]
+    held: list[dict[int, TrafficTrack]] = [{} for _ in range(n)]
+    worst = math.inf
+    steps = round(90.0 / dt)
+    for k in range(steps):
+        t = k * dt
+        t_us = round(t * 1e6)
+        for i in range(n):  # one report of every other vehicle each second, staggered, arriving latency_s later
+            if k % round(1.0 / dt) == i % round(1.0 / dt):
+                reports[i] += [uav(j + 1, tuple(pos[j]), tuple(vel[j]), t_us) for j in range(n) if j != i]
+            for r in [r for r in reports[i] if t - r.t_us * 1e-6 >= latency_s]:
+                held[i][r.target_id] = r
+            reports[i] = [r for r in reports[i] if t - r.t_us * 1e-6 < latency_s]
+        cmds = []
+        for i in range(n):
+            to_goal = goal[i] - pos[i]
+            dist = float(np.linalg.norm(to_goal))
+            speed = min(8.0, math.sqrt(2.0 * 3.0 * dist))
+            pref = to_goal / dist * speed if dist > 1e-6 else np.zeros(3)
+            c = layers[i].solve(t_us, tuple(pos[i]), tuple(vel[i]), tuple(pref), list(held[i].values()), params,
+                                LIMITS, Phase.MISSION)  # fmt: skip
+            cmds.append(np.array(c.vel_ned_m_s) if c is not None else pref)
+        for i in range(n):
+            dv = cmds[i] - vel[i]
+            norm = float(np.linalg.norm(dv))
+            vel[i] += dv if norm <= 3.0 * dt else dv / norm * 3.0 * dt
+            pos[i] += vel[i] * dt
+        for i in range(n):
+            for j in range(i + 1, n):
+                d = pos[j] - pos[i]
+                worst = min(worst, max(math.hypot(d[0], d[1]) / params.uav.hor_m, abs(d[2]) / params.uav.ver_m))
+    arrived = int(sum(np.linalg.norm(goal[i] - pos[i]) < 2.0 for i in range(n)))
+    return worst, arrived
+
+
+@pytest.mark.parametrize("n", [4, 8])
+def test_ring_swap_keeps_the_volume(n: int) -> None:
+    worst, arrived = _ring_swap(n, 60.0, latency_s=0.5)
+    assert worst >= 1.0, f"a pair came inside the 10 m / 5 m volume (ratio {worst:.2f})"
+    assert arrived == n
