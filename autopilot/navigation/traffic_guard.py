@@ -31,7 +31,7 @@ from autopilot.traffic.reactive import (
     ReactiveLimits,
     is_parked,
 )
-from autopilot.traffic.tracks import TrafficTrack
+from autopilot.traffic.tracks import TrackTable, TrafficTrack
 from mavlink_bridge.contract.frames import Vec3
 from mavlink_bridge.contract.traffic import TrafficSource
 from mavlink_bridge.contract.vehicle_api import FlightMode, Severity, StatusText
@@ -40,6 +40,8 @@ from mavlink_bridge.contract.vehicle_api import FlightMode, Severity, StatusText
 SOLVE_PERIOD_US = 20_000
 #: Once engaged, the reactive reference is flown at least this long (µs): no chattering between the two.
 MIN_ENGAGED_US = 1_000_000
+#: An avoidance shorter than this (µs) ends without a text, and the next one says its start only if it changed.
+QUIET_US = 5_000_000
 #: The preferred velocity pulls toward the reference position with this gain (1/s), at most this fast (m/s).
 PULL_GAIN_1_S = 1.0
 PULL_MAX_M_S = 3.0
@@ -129,22 +131,25 @@ class TrafficGuard:
             self._limits_version = self.params.version
         return self._limits
 
-    def release(self) -> None:
-        if self.engaged:
+    def release(self, t_us: int | None = None) -> None:
+        """Back to the reference given (texts: the end once, and only after ``QUIET_US`` of avoidance)."""
+        if self.engaged and (t_us is None or t_us - self._engaged_us >= QUIET_US):
             self.texts.append(StatusText(Severity.INFO, "Traffic: clear, reactive avoidance ended"))
-        self._engaged_us, self.command, self._said = -1, None, None
+            self._said = None
+        self._engaged_us, self.command = -1, None
 
     def step(self, t_us: int, dt_s: float, frame: HomeFrame, pos_ned_m: Vec3, vel_ned_m_s: Vec3,
-             ref_pos_ned_m: Vec3, ref_vel_ned_m_s: Vec3, mode: FlightMode, landing: bool,
-             tracks: tuple[TrafficTrack, ...], params: TrafficParams) -> ReferenceOverride | None:  # fmt: skip
-        """This control step's reference (about the origin), or None to fly the one given."""
-        if params.action is not TrafficAction.AVOID or not tracks:
+             ref_pos_ned_m: Vec3, ref_vel_ned_m_s: Vec3, mode: FlightMode, landing: bool, table: TrackTable,
+             params: TrafficParams) -> ReferenceOverride | None:  # fmt: skip
+        """This control step's reference (about the origin), or None to fly the one given; ``table``'s tracks are
+        read at the navigator's rate."""
+        if params.action is not TrafficAction.AVOID or not table.has_tracks:
             self.release()
             return None
         if t_us - self._solved_us >= SOLVE_PERIOD_US:
             self._solved_us = t_us
-            self._solve(t_us, frame, pos_ned_m, vel_ned_m_s, ref_pos_ned_m, ref_vel_ned_m_s, mode, landing, tracks,
-                        params)  # fmt: skip
+            self._solve(t_us, frame, pos_ned_m, vel_ned_m_s, ref_pos_ned_m, ref_vel_ned_m_s, mode, landing,
+                        table.tracks, params)  # fmt: skip
         command = self.command
         if command is None:
             return None
@@ -179,7 +184,7 @@ class TrafficGuard:
             command = ReactiveCommand((pref[0], pref[1], 0.0), held, False, f"{verb} held")
         if command is None:
             if self.engaged and t_us - self._engaged_us >= MIN_ENGAGED_US:
-                self.release()
+                self.release(t_us)
             elif self.engaged and self.command is not None:
                 self.command = ReactiveCommand((pref[0], pref[1], pref[2]), self.command.threat, False)
             return
@@ -187,14 +192,17 @@ class TrafficGuard:
             self._engaged_us = t_us
             self._vel = [float(ref_vel_ned_m_s[0]), float(ref_vel_ned_m_s[1]), float(ref_vel_ned_m_s[2])]
         self.command = command
-        said = (command.threat, command.fallback)
+        on_pad = -pos[2] < GROUND_LOCK_AGL_M and command.vel_ned_m_s[2] >= 0.0 and phase is not Phase.LAND
+        said = (command.threat, command.fallback and not on_pad, on_pad)
         if said != self._said:
             self._said = said
-            if command.fallback:
+            if on_pad:
+                self.texts.append(StatusText(Severity.NOTICE, f"Traffic: take-off held for {command.threat}"))
+            elif command.fallback:
                 text = f"Traffic: no safe velocity from {command.threat} ({phase.value}): braking to a hover, "
                 self.texts.append(StatusText(Severity.WARNING, text + command.escape))
             elif command.escape:
-                text = f"Traffic: {command.escape}: {command.threat} predicted through the column"
+                text = f"Traffic: {command.escape} for {command.threat} (predicted through the column)"
                 self.texts.append(StatusText(Severity.NOTICE, text))
             else:
                 text = f"Traffic: avoiding {command.threat} ({phase.value}), reactive"

@@ -147,9 +147,8 @@ class TrafficLink:
         frame = self._frame
         if frame is None:
             return None
-        tracks = self.avoidance.table.tracks if self.avoidance.table.has_tracks else ()
         out = self.guard.step(t_us, dt_s, frame, pos_ned_m, vel_ned_m_s, ref_pos_ned_m, ref_vel_ned_m_s, mode,
-                              landing, tracks, self.avoidance.params)  # fmt: skip
+                              landing, self.avoidance.table, self.avoidance.params)  # fmt: skip
         if self.guard.texts:
             for text in self.guard.texts:
                 self.say(text)

@@ -10,9 +10,9 @@ sideways motion on the ground), and the admissible velocity closest to the one t
   the other half: reciprocity); all of it toward manned traffic and toward a UAV that is taking off, landing or
   holding (horizontal speed below ``COLUMN_SPEED_M_S``), which may not react.
 - Volumes: the class's separation cylinder (NAV_TRAFF_U_*/M_*, grown by NAV_TRAFF_MARGIN) is covered by a sphere
-  in a space stretched vertically by ``hor / (2 ver)`` (radius ``sqrt(5)/2 hor``: a 10 m / 5 m volume needs 11.2 m
-  level or 11.2 m stacked), grown by the report's age times the closing speed and by the vehicle's braking
-  distance ``v^2 / (2 a)``.
+  in a space stretched vertically (:func:`covering_sphere`: a 10 m / 5 m volume needs 11.2 m level or 11.2 m
+  stacked; the 150 m / 30 m NMAC volume 201 m level or 45 m stacked), grown by the report's age times the
+  closing speed and by the vehicle's braking distance ``v^2 / (2 a)``.
 - Horizons: ``UAV_TAU_S`` between vehicles, ``MANNED_TAU_S`` for manned aircraft (they are fast: leaving their
   path takes time).
 - Fallback, when no admissible velocity exists: brake to a hover and escape vertically away from the most urgent
@@ -57,6 +57,11 @@ from mavlink_bridge.contract.traffic import TrafficSource
 #: ORCA time horizons (s): between UAVs, and toward manned aircraft.
 UAV_TAU_S = 8.0
 MANNED_TAU_S = 40.0
+#: How far, in half-heights, the sphere covering a volume reaches vertically: between UAVs the horizontal distance
+#: matters most (sqrt(5): 1.118 x the radius level, 2.24 x the half-height stacked); toward manned aircraft the
+#: vertical one (1.5 x the half-height, 1.34 x the radius level): a multirotor cannot outrun them.
+UAV_REACH = math.sqrt(5.0)
+MANNED_REACH = 1.5
 #: Sides of the polygon bounding the horizontal speed (circumscribed about the speed circle).
 SPEED_SIDES = 16
 #: The floor and ceiling are approached at most at this rate: the distance left over this time (s).
@@ -120,9 +125,11 @@ def reciprocates(track: TrafficTrack) -> bool:
     return track.source is TrafficSource.UAV and math.hypot(*track.vel_ned_m_s[:2]) >= COLUMN_SPEED_M_S
 
 
-def covering_sphere(volume: SeparationVolume) -> tuple[float, float]:
-    """(radius, vertical stretch) of the sphere that covers the cylinder ``volume`` in the stretched space."""
-    scale = volume.hor_m / (2.0 * volume.ver_m)
+def covering_sphere(volume: SeparationVolume, reach: float) -> tuple[float, float]:
+    """(radius, vertical stretch) of the sphere that covers the cylinder ``volume`` in the stretched space and
+    reaches ``reach`` times its half-height vertically (> 1; its horizontal radius is then
+    ``hor reach / sqrt(reach^2 - 1)``: a flat sphere for a flat volume, a round one for a tall one)."""
+    scale = volume.hor_m / (volume.ver_m * math.sqrt(reach * reach - 1.0))
     return math.hypot(volume.hor_m, volume.ver_m * scale), scale
 
 
@@ -155,13 +162,14 @@ class ReactiveLayer:
                 continue
             row = table[len(rows)]
             volume = (params.manned if track.source is TrafficSource.MANNED else params.uav).grown(params.margin)
-            radius, scale = covering_sphere(volume)
+            manned = track.source is TrafficSource.MANNED
+            radius, scale = covering_sphere(volume, MANNED_REACH if manned else UAV_REACH)
             row[T_PN], row[T_PE], row[T_PD] = track.pos_home_ned_m
             row[T_VN], row[T_VE], row[T_VD] = track.vel_ned_m_s
             row[T_TS] = track.t_us * 1e-6
             row[T_RADIUS], row[T_SCALE] = radius, scale
             row[T_RESP] = 0.5 if reciprocates(track) else 1.0
-            row[T_TAU] = MANNED_TAU_S if track.source is TrafficSource.MANNED else UAV_TAU_S
+            row[T_TAU] = MANNED_TAU_S if manned else UAV_TAU_S
             row[T_AGE_GROW] = max(t_us - track.t_us, 0) * 1e-6
             rows.append(track)
         if not rows:
@@ -199,7 +207,7 @@ class ReactiveLayer:
         if phase is not Phase.LAND:  # approach the floor at most at the rate that stops on it (no descent below)
             m = _put(normals, offsets, m, 0.0, 0.0, -1.0, -max((limits.floor_down_m - pos[2]) / FLOOR_TIME_S, 0.0))
         m = _put(normals, offsets, m, 0.0, 0.0, 1.0, min((limits.ceiling_down_m - pos[2]) / FLOOR_TIME_S, 0.0))
-        if -pos[2] < GROUND_LOCK_AGL_M and phase in (Phase.TAKEOFF, Phase.LAND):
+        if -pos[2] < GROUND_LOCK_AGL_M:  # near the ground: up or down only (never skid across the pads)
             for n0, n1 in ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)):
                 m = _put(normals, offsets, m, n0, n1, 0.0, min(n0 * pref[0] + n1 * pref[1], 0.0))
         return m

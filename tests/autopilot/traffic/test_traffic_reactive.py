@@ -12,7 +12,7 @@ from scipy.optimize import minimize
 
 from autopilot.navigation.traffic_guard import column_conflict, phase_of
 from autopilot.traffic.orca_kernel import closest_admissible
-from autopilot.traffic.param_decls import TrafficParams
+from autopilot.traffic.param_decls import SeparationVolume, TrafficParams
 from autopilot.traffic.reactive import Phase, ReactiveLayer, ReactiveLimits, covering_sphere
 from autopilot.traffic.tracks import TrafficTrack
 from mavlink_bridge.contract.traffic import TrafficSource
@@ -22,7 +22,10 @@ LIMITS = ReactiveLimits(12.0, 3.0, 1.5, 3.0, -2.0, -120.0)
 PARAMS = TrafficParams()
 
 
-def uav(target_id: int, pos: tuple[float, float, float], vel: tuple[float, float, float], t_us: int = 0) -> TrafficTrack:
+Vec = tuple[float, float, float]
+
+
+def uav(target_id: int, pos: Vec, vel: Vec, t_us: int = 0) -> TrafficTrack:
     return TrafficTrack(TrafficSource.UAV, target_id, "", pos, vel, t_us)
 
 
@@ -36,8 +39,8 @@ def test_solver_is_the_closest_admissible_velocity() -> None:
         offsets = rng.normal(size=m) * 2.0 - 1.0
         pref, out = rng.normal(size=3) * 3.0, np.zeros(3)
         failed = closest_admissible(normals, offsets, m, pref, out)
-        cons = [{"type": "ineq", "fun": lambda v, i=i: normals[i] @ v - offsets[i]} for i in range(m)]
-        ref = minimize(lambda v: ((v - pref) ** 2).sum(), np.zeros(3), constraints=cons, method="SLSQP",
+        cons = [{"type": "ineq", "fun": lambda v, n=normals[i], b=offsets[i]: n @ v - b} for i in range(m)]
+        ref = minimize(lambda v, p=pref: ((v - p) ** 2).sum(), np.zeros(3), constraints=cons, method="SLSQP",
                        options={"ftol": 1e-12, "maxiter": 500})  # fmt: skip
         scipy_ok = ref.success and min(normals @ ref.x - offsets) > -1e-6
         if failed >= 0:
@@ -51,9 +54,10 @@ def test_solver_is_the_closest_admissible_velocity() -> None:
 
 
 def test_covering_sphere_contains_the_cylinder() -> None:
-    for hor, ver in ((10.0, 5.0), (150.0, 30.0)):
-        radius, scale = covering_sphere(TrafficParams().uav.__class__(hor, ver))
+    for hor, ver, reach in ((10.0, 5.0, math.sqrt(5.0)), (150.0, 30.0, 1.5)):
+        radius, scale = covering_sphere(SeparationVolume(hor, ver), reach)
         assert math.hypot(hor, ver * scale) == pytest.approx(radius)  # the rim's corner is on the sphere
+        assert radius / scale == pytest.approx(reach * ver)  # its vertical reach
 
 
 def test_head_on_both_turn_opposite_ways_and_share_the_change() -> None:
@@ -92,7 +96,7 @@ def test_fallback_brakes_and_escapes_away_never_below_the_floor() -> None:
     assert c.vel_ned_m_s[:2] == (0.0, 0.0)
     # at the floor with the other above: hold, never descend below it
     low = (0.0, 0.0, -2.0)
-    c = layer.solve(0, low, (0.0, 0.0, 0.0), (5.0, 0.0, 0.0), [uav(9, (0.0, 0.0, -3.0), (0.0, 0.0, 2.0))] + around,
+    c = layer.solve(0, low, (0.0, 0.0, 0.0), (5.0, 0.0, 0.0), [uav(9, (0.0, 0.0, -3.0), (0.0, 0.0, 2.0)), *around],
                     PARAMS, LIMITS, Phase.MISSION)  # fmt: skip
     assert c is not None and c.fallback and c.vel_ned_m_s[2] <= 0.0
 
