@@ -149,7 +149,7 @@ class TrafficGuard:
         if t_us - self._solved_us >= SOLVE_PERIOD_US:
             self._solved_us = t_us
             self._solve(t_us, frame, pos_ned_m, vel_ned_m_s, ref_pos_ned_m, ref_vel_ned_m_s, mode, landing,
-                        table.tracks, params)  # fmt: skip
+                        table.tracks, params, table.version)  # fmt: skip
         command = self.command
         if command is None:
             return None
@@ -163,7 +163,7 @@ class TrafficGuard:
 
     def _solve(self, t_us: int, frame: HomeFrame, pos_ned_m: Vec3, vel_ned_m_s: Vec3, ref_pos_ned_m: Vec3,
                ref_vel_ned_m_s: Vec3, mode: FlightMode, landing: bool, tracks: tuple[TrafficTrack, ...],
-               params: TrafficParams) -> None:  # fmt: skip
+               params: TrafficParams, version: int) -> None:  # fmt: skip
         pref = [0.0, 0.0, 0.0]
         for k in range(3):
             pull = min(max(PULL_GAIN_1_S * (ref_pos_ned_m[k] - pos_ned_m[k]), -PULL_MAX_M_S), PULL_MAX_M_S)
@@ -178,7 +178,7 @@ class TrafficGuard:
         if held is not None:
             pref[2] = 0.0  # hold the height: no climb out of the pad, no descent into the column
         command = self.layer.solve(t_us, pos, vel_ned_m_s, (pref[0], pref[1], pref[2]), tracks, params, limits,
-                                   phase)  # fmt: skip
+                                   phase, version)  # fmt: skip
         if command is None and held is not None:
             verb = "take-off" if phase is Phase.TAKEOFF else "landing"
             command = ReactiveCommand((pref[0], pref[1], 0.0), held, False, f"{verb} held")

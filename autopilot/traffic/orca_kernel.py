@@ -100,8 +100,8 @@ def _odd_perpendicular(v0: float, v1: float, v2: float) -> tuple[float, float, f
 
 
 #: Columns of the track rows ``orca_planes`` reads (one row per track, about home, NED).
-T_PN, T_PE, T_PD, T_VN, T_VE, T_VD, T_TS, T_RADIUS, T_SCALE, T_RESP, T_TAU, T_AGE_GROW = range(12)
-N_TRACK_COLS = 12
+T_PN, T_PE, T_PD, T_VN, T_VE, T_VD, T_TS, T_RADIUS, T_SCALE, T_RESP, T_TAU = range(11)
+N_TRACK_COLS = 11
 #: Already inside a volume: the ORCA plane asks to leave it within this time (s) (RVO2 uses one time step).
 RECOVER_S = 1.0
 
@@ -139,7 +139,7 @@ def orca_planes(
         v1 = own_vel[1] - tracks[r, T_VE]
         v2 = (own_vel[2] - tracks[r, T_VD]) * c
         speed = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
-        radius = tracks[r, T_RADIUS] + grow_m + tracks[r, T_AGE_GROW] * speed
+        radius = tracks[r, T_RADIUS] + grow_m + max(dt, 0.0) * speed  # grown by the report's age x closing speed
         tau = tracks[r, T_TAU]
         dist2 = p0 * p0 + p1 * p1 + p2 * p2
         reach = radius + (speed + 2.0 * math.sqrt(own_vel[0] ** 2 + own_vel[1] ** 2 + own_vel[2] ** 2) + 1.0) * tau

@@ -31,23 +31,7 @@ from enum import Enum
 
 import numpy as np
 
-from autopilot.traffic.orca_kernel import (
-    N_TRACK_COLS,
-    T_AGE_GROW,
-    T_PD,
-    T_PE,
-    T_PN,
-    T_RADIUS,
-    T_RESP,
-    T_SCALE,
-    T_TAU,
-    T_TS,
-    T_VD,
-    T_VE,
-    T_VN,
-    closest_admissible,
-    orca_planes,
-)
+from autopilot.traffic.orca_kernel import N_TRACK_COLS, closest_admissible, orca_planes
 from autopilot.traffic.param_decls import SeparationVolume, TrafficParams
 from autopilot.traffic.rules import COLUMN_SPEED_M_S
 from autopilot.traffic.tracks import TrafficTrack
@@ -77,7 +61,11 @@ PARKED_AGL_M = 1.5
 PARKED_SPEED_M_S = 0.5
 #: Tracks held at most (the arrays are sized once).
 MAX_TRACKS = 64
-_ROWS = MAX_TRACKS + SPEED_SIDES + 8
+#: The vehicle's own half-spaces: the speed polygon, descent and climb rates, floor, ceiling, the ground lock's 4.
+OWN_ROWS = SPEED_SIDES + 8
+_ROWS = MAX_TRACKS + OWN_ROWS
+#: The offset of a half-space not in force (every velocity is on its side).
+OFF = -1e9
 
 
 class Phase(Enum):
@@ -147,40 +135,34 @@ class ReactiveLayer:
         self._pref = np.zeros(3)
         self._out = np.zeros(3)
         self._limits_out = np.zeros(3)
-        self._speed_normals = np.array(
-            [(-math.cos(a), -math.sin(a), 0.0) for a in np.arange(SPEED_SIDES) * 2.0 * math.pi / SPEED_SIDES]
-        )
+        self._params: TrafficParams | None = None
+        self._spheres = ((0.0, 1.0), (0.0, 1.0))
+        self._rows: list[TrafficTrack] = []
+        self._version: int | None = None
+        angles = np.arange(SPEED_SIDES) * 2.0 * math.pi / SPEED_SIDES
+        self._normals[:SPEED_SIDES] = np.stack((-np.cos(angles), -np.sin(angles), np.zeros(SPEED_SIDES)), axis=1)
+        self._normals[SPEED_SIDES : OWN_ROWS] = ((0, 0, -1), (0, 0, 1), (0, 0, -1), (0, 0, 1), (1, 0, 0), (-1, 0, 0),
+                                                 (0, 1, 0), (0, -1, 0))  # fmt: skip
 
     def solve(self, t_us: int, pos_home_ned_m: Vec3, vel_ned_m_s: Vec3, pref_ned_m_s: Vec3,
-              tracks: Sequence[TrafficTrack], params: TrafficParams, limits: ReactiveLimits,
-              phase: Phase) -> ReactiveCommand | None:  # fmt: skip
-        """The velocity to fly now instead of ``pref_ned_m_s``, or None when the preferred one keeps separation."""
-        rows: list[TrafficTrack] = []
-        table = self._tracks
-        for track in tracks:
-            if len(rows) == MAX_TRACKS or is_parked(track, t_us):
-                continue
-            row = table[len(rows)]
-            volume = (params.manned if track.source is TrafficSource.MANNED else params.uav).grown(params.margin)
-            manned = track.source is TrafficSource.MANNED
-            radius, scale = covering_sphere(volume, MANNED_REACH if manned else UAV_REACH)
-            row[T_PN], row[T_PE], row[T_PD] = track.pos_home_ned_m
-            row[T_VN], row[T_VE], row[T_VD] = track.vel_ned_m_s
-            row[T_TS] = track.t_us * 1e-6
-            row[T_RADIUS], row[T_SCALE] = radius, scale
-            row[T_RESP] = 0.5 if reciprocates(track) else 1.0
-            row[T_TAU] = MANNED_TAU_S if manned else UAV_TAU_S
-            row[T_AGE_GROW] = max(t_us - track.t_us, 0) * 1e-6
-            rows.append(track)
+              tracks: Sequence[TrafficTrack], params: TrafficParams, limits: ReactiveLimits, phase: Phase,
+              version: int | None = None) -> ReactiveCommand | None:  # fmt: skip
+        """The velocity to fly now instead of ``pref_ned_m_s``, or None when the preferred one keeps separation.
+        ``version``: the track table's (:attr:`TrackTable.version`); the same as last time reuses the rows."""
+        if version is None or version != self._version or params is not self._params:
+            self._load(t_us, tracks, params)
+            self._version = version
+        rows = self._rows
         if not rows:
             return None
         pos, vel, pref = self._pos, self._vel, self._pref
         pos[:], vel[:], pref[:] = pos_home_ned_m, vel_ned_m_s, pref_ned_m_s
-        m = self._own_limits(pos, vel, pref, limits, phase)
+        self._own_limits(pos, vel, pref, limits, phase)
+        m = OWN_ROWS
         closest_admissible(self._normals, self._offsets, m, pref, self._limits_out)
         speed2 = vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2]
         brake_m = min(speed2 / (2.0 * limits.acc_m_s2), MAX_BRAKE_GROW_M)
-        total = orca_planes(t_us * 1e-6, pos, vel, table, len(rows), brake_m, self._normals, self._offsets, m,
+        total = orca_planes(t_us * 1e-6, pos, vel, self._tracks, len(rows), brake_m, self._normals, self._offsets, m,
                             self._index)  # fmt: skip
         if total == m:
             return None
@@ -192,25 +174,43 @@ class ReactiveLayer:
             return None
         return ReactiveCommand((float(out[0]), float(out[1]), float(out[2])), self._binding(rows, m, total), False)
 
+    def _load(self, t_us: int, tracks: Sequence[TrafficTrack], params: TrafficParams) -> None:
+        """The rows of the tracks to avoid (parked ones left out), columns ``T_*`` of :mod:`orca_kernel`."""
+        if params is not self._params:
+            self._params = params
+            self._spheres = (covering_sphere(params.uav.grown(params.margin), UAV_REACH),
+                             covering_sphere(params.manned.grown(params.margin), MANNED_REACH))  # fmt: skip
+        uav_sphere, manned_sphere = self._spheres
+        rows: list[TrafficTrack] = []
+        table = self._tracks
+        for track in tracks:
+            if len(rows) == MAX_TRACKS or is_parked(track, t_us):
+                continue
+            manned = track.source is TrafficSource.MANNED
+            table[len(rows)] = (*track.pos_home_ned_m, *track.vel_ned_m_s, track.t_us * 1e-6,
+                                *(manned_sphere if manned else uav_sphere), 0.5 if reciprocates(track) else 1.0,
+                                MANNED_TAU_S if manned else UAV_TAU_S)  # fmt: skip
+            rows.append(track)
+        self._rows = rows
+
     def _own_limits(self, pos: np.ndarray, vel: np.ndarray, pref: np.ndarray, limits: ReactiveLimits,
-                    phase: Phase) -> int:  # fmt: skip
-        """The vehicle's own half-spaces (always feasible together: zero velocity satisfies them); their count."""
-        normals, offsets = self._normals, self._offsets
-        speed = max(limits.speed_xy_m_s, math.hypot(pref[0], pref[1]), math.hypot(vel[0], vel[1]))
-        m = SPEED_SIDES
-        normals[:m] = self._speed_normals
-        offsets[:m] = -speed
-        up = max(limits.up_m_s, -pref[2])
-        down = max(limits.down_m_s, pref[2])
-        m = _put(normals, offsets, m, 0.0, 0.0, -1.0, -down)  # vd <= down
-        m = _put(normals, offsets, m, 0.0, 0.0, 1.0, -up)  # vd >= -up
-        if phase is not Phase.LAND:  # approach the floor at most at the rate that stops on it (no descent below)
-            m = _put(normals, offsets, m, 0.0, 0.0, -1.0, -max((limits.floor_down_m - pos[2]) / FLOOR_TIME_S, 0.0))
-        m = _put(normals, offsets, m, 0.0, 0.0, 1.0, min((limits.ceiling_down_m - pos[2]) / FLOOR_TIME_S, 0.0))
-        if -pos[2] < GROUND_LOCK_AGL_M:  # near the ground: up or down only (never skid across the pads)
-            for n0, n1 in ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)):
-                m = _put(normals, offsets, m, n0, n1, 0.0, min(n0 * pref[0] + n1 * pref[1], 0.0))
-        return m
+                    phase: Phase) -> None:  # fmt: skip
+        """The offsets of the vehicle's own half-spaces (rows 0..OWN_ROWS-1, normals set once; always feasible
+        together: zero velocity satisfies them); a row not in force has an offset no velocity misses."""
+        offsets = self._offsets
+        offsets[:SPEED_SIDES] = -max(limits.speed_xy_m_s, math.hypot(pref[0], pref[1]), math.hypot(vel[0], vel[1]))
+        k = SPEED_SIDES
+        offsets[k] = -max(limits.down_m_s, pref[2])  # vd <= down
+        offsets[k + 1] = -max(limits.up_m_s, -pref[2])  # vd >= -up
+        # approach the floor at most at the rate that stops on it (none below it but in a landing), and the ceiling
+        floor = -max((limits.floor_down_m - pos[2]) / FLOOR_TIME_S, 0.0)
+        offsets[k + 2] = floor if phase is not Phase.LAND else OFF
+        offsets[k + 3] = min((limits.ceiling_down_m - pos[2]) / FLOOR_TIME_S, 0.0)
+        near_ground = -pos[2] < GROUND_LOCK_AGL_M  # up or down only (never skid across the pads)
+        offsets[k + 4] = min(pref[0], 0.0) if near_ground else OFF  # vn >= min(pref, 0)
+        offsets[k + 5] = min(-pref[0], 0.0) if near_ground else OFF
+        offsets[k + 6] = min(pref[1], 0.0) if near_ground else OFF
+        offsets[k + 7] = min(-pref[1], 0.0) if near_ground else OFF
 
     def _binding(self, rows: list[TrafficTrack], m: int, total: int) -> str:
         """The track whose plane the solution lies on (the most binding), for the texts."""
@@ -248,9 +248,3 @@ class ReactiveLayer:
         else:
             vd, escape = 0.0, "holding"
         return ReactiveCommand((0.0, 0.0, vd), worst.name, True, escape)
-
-
-def _put(normals: np.ndarray, offsets: np.ndarray, m: int, n0: float, n1: float, n2: float, b: float) -> int:
-    normals[m, 0], normals[m, 1], normals[m, 2] = n0, n1, n2
-    offsets[m] = b
-    return m + 1

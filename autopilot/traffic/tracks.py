@@ -89,6 +89,8 @@ class TrackTable:
         self._reports: dict[TrackKey, TrafficReport] = {}
         self._tracks: dict[TrackKey, TrafficTrack] = {}
         self._frame: LocalNedFrame | None = None
+        self.version = 0  # changes whenever the tracks in force change
+        self._cached: tuple[int, tuple[TrafficTrack, ...]] = (-1, ())
 
     def set_home(self, home: GeoPoint) -> None:
         """Home moved: every track is converted again about the new home."""
@@ -96,6 +98,7 @@ class TrackTable:
             return
         self._frame = LocalNedFrame(home)
         self._tracks = {key: self._track(report) for key, report in self._reports.items()}
+        self.version += 1
 
     def _track(self, r: TrafficReport) -> TrafficTrack:
         assert self._frame is not None
@@ -125,9 +128,11 @@ class TrackTable:
             self._reports[key] = report
             if self._frame is not None:
                 self._tracks[key] = self._track(report)
+                self.version += 1
         dropped = [t for k, t in self._tracks.items() if now_us - self._reports[k].t_us > max_age_us]
         for track in dropped:
             del self._tracks[track.key], self._reports[track.key]
+            self.version += 1
         for key in [k for k, r in self._reports.items() if now_us - r.t_us > max_age_us]:
             del self._reports[key]  # stale before home was known
         return rejected, dropped
@@ -139,4 +144,6 @@ class TrackTable:
     @property
     def tracks(self) -> tuple[TrafficTrack, ...]:
         """Tracks in force, in key order (deterministic)."""
-        return tuple(self._tracks[k] for k in sorted(self._tracks))
+        if self._cached[0] != self.version:
+            self._cached = (self.version, tuple(self._tracks[k] for k in sorted(self._tracks)))
+        return self._cached[1]
