@@ -51,7 +51,8 @@ def run_loop(
         frame = client.next_frame(wait_s)  # type: ignore[attr-defined]
         now = time.monotonic()
         if frame is not None:
-            client.answer(autopilot.step(frame))  # type: ignore[attr-defined]
+            cmd = autopilot.step(frame)
+            client.answer(cmd, autopilot.own_reporter.report_for(cmd.time_us))  # type: ignore[attr-defined]
             autopilot.after_answer()  # while the sim integrates the next step
             steps += 1
         elif should_stop():  # asked to stop while waiting: a stop, even if the sim went quiet meanwhile

@@ -22,6 +22,7 @@ from autopilot.estimation import Estimator, FrameLike, VehicleState, make_estima
 from autopilot.flight_control.controller import FlightControl
 from autopilot.flight_tasks.setpoints import NavTarget, TargetKind
 from autopilot.navigation import HomeFrame, Navigator
+from autopilot.navigation.own_report import OwnReporter
 from autopilot.param_binding import autopilot_bindings
 from autopilot.param_schema import make_param_store
 from autopilot.parameters.store import ParamStore
@@ -122,6 +123,7 @@ class Autopilot:
         self._pending_control: SingleStep | None = None  # this step's cascade output, booked by after_answer
         self._motor = (0.0, 0.0, 0.0, 0.0)
         self._next_failsafe_us = self._next_nav_us = 0
+        self.own_reporter = OwnReporter(self.config.system_id)  # its UTM report at 1 Hz: report_for(t_us) (SPEC §13)
         autopilot_bindings(
             self.navigator, self.control, self.battery, self._apply_controller_params, self._listener_safety_radius
         ).attach(self.params)
@@ -131,17 +133,15 @@ class Autopilot:
         if problem is not None:
             self._say(problem, Severity.WARNING)
 
-    def _listener_safety_radius(self, _name: str, value: float) -> None:
+    def _listener_safety_radius(self, _name: str, value: float) -> None:  # drawn safety spheres follow R_safe
         if hasattr(self.listener, "safety_radius_m"):
-            self.listener.safety_radius_m = value  # type: ignore[union-attr]  # drawn safety spheres follow R_safe
+            self.listener.safety_radius_m = value  # type: ignore[union-attr]
 
     # ------------------------------------------------------------------ geography
     @property
     def home_geo(self) -> GeoPoint | None:
         """Home if armed once, else the estimator's origin (where home will be), else None."""
-        if self.commander.home is not None:
-            return self.commander.home.geo
-        return self.estimator.origin
+        return self.commander.home.geo if self.commander.home is not None else self.estimator.origin
 
     @property
     def home_ned(self) -> Vec3:
@@ -164,11 +164,10 @@ class Autopilot:
         """An upload the navigator accepted: the commander's context and the listener's drawing follow."""
         self.update_context(mission_ready=self.navigator.mission_ready)
         home = self.home_geo
-        if self.listener is not None and home is not None:
-            if mission_type is MissionType.FENCE:
-                self.listener.on_fence(self.navigator.geofence.zones)
-            else:
-                self.listener.on_mission(items, home)
+        if self.listener is not None and home is not None and mission_type is MissionType.FENCE:
+            self.listener.on_fence(self.navigator.geofence.zones)
+        elif self.listener is not None and home is not None:
+            self.listener.on_mission(items, home)
 
     def handle_command(self, request: CommandRequest) -> CommandResult:
         self.wake_navigation()
@@ -213,6 +212,7 @@ class Autopilot:
             self._navigate(state)
         motor = self.failures.apply_to_motors(self._control(state, self._target))
         self._motor = motor
+        self.own_reporter.step(state, self.estimator, self._target, commander, self.home_ned, self._context)
         return ActuatorCommand(t_us, motor, commander.armed, commander.gripper_release)
 
     def _navigate(self, state: VehicleState) -> None:

@@ -23,7 +23,7 @@ from mavlink_bridge.wire.lossy import loss_fraction
 from sim.end_reason import EndReason
 from sim.fleet_world import load_fleet
 from sim.server import DEFAULT_VEHICLE, SimConfig, SimServer, SimSetupError, mission_vehicle
-from sim.traffic import DEFAULT_TRAFFIC_RANGE_M
+from sim.traffic_link import TrafficLinkConfig
 from sim.vehicle_config import load_vehicle
 from sim.world import load_world
 
@@ -91,13 +91,10 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="FRACTION",
         help="drop this share of lockstep datagrams each way, seeded by --seed (to test loss; default 0)",
     )
-    p.add_argument(
-        "--traffic-range-m",
-        type=float,
-        default=DEFAULT_TRAFFIC_RANGE_M,
-        metavar="M",
-        help=f"a fleet world's receivers report traffic this close (default {DEFAULT_TRAFFIC_RANGE_M:g} m)",
-    )
+    link = TrafficLinkConfig()
+    for flag, field, kind, what in _TRAFFIC_LINK_FLAGS:
+        help_ = f"{what} (default: the world's traffic_link: {field}, else {getattr(link, field):g}; docs/traffic.md)"
+        p.add_argument(flag, dest=field, type=kind, default=None, metavar="X", help=help_)
     p.add_argument("--log-dir", type=Path, default=None, metavar="DIR", help="where sim_summary.json is written")
     p.add_argument("--duration-s", type=float, default=None, metavar="S", help="stop after this much sim time")
     p.add_argument("--physics-hz", type=int, default=1000, metavar="HZ", help="physics rate (default 1000)")
@@ -137,6 +134,19 @@ def check_inputs(args: argparse.Namespace) -> None:
     load_vehicle(args.vehicle or mission_vehicle(args.world) or DEFAULT_VEHICLE)
 
 
+#: ``quadsitl sim`` flags of the traffic link: (flag, TrafficLinkConfig field, type, what it sets).
+_TRAFFIC_LINK_FLAGS = (
+    ("--traffic-range-m", "adsb_range_m", float, "ADS-B reception range, m (3D)"),
+    ("--utm-latency-s", "utm_latency_s", float, "UTM relay latency of a vehicle's own report, s"),
+    ("--utm-range-m", "utm_range_m", float, "UTM relay range about the reported position, m (3D)"),
+    ("--adsb-nacp", "adsb_nacp", int, "ADS-B position accuracy category of the manned traffic (8..11)"),
+    ("--adsb-nacv", "adsb_nacv", int, "ADS-B velocity accuracy category of the manned traffic (1..4)"),
+    ("--adsb-latency-s", "adsb_latency_s", float, "ADS-B uncompensated latency, s"),
+    ("--adsb-reception", "adsb_reception", float, "probability that a 1 Hz ADS-B report is received"),
+    ("--adsb-error-tau-s", "adsb_error_tau_s", float, "correlation time of the ADS-B position error, s (0: white)"),
+)
+
+
 def config_from_args(args: argparse.Namespace) -> SimConfig:
     """Validate the parsed options into a ``SimConfig``; ``--instance`` offsets the default listen port only."""
     if args.instance < 0:
@@ -162,7 +172,7 @@ def config_from_args(args: argparse.Namespace) -> SimConfig:
         recording_id=args.recording_id,
         lockstep_spin_s=args.lockstep_spin_us * 1e-6,
         loss_fraction=args.sim_loss,
-        traffic_range_m=args.traffic_range_m,
+        traffic_link=tuple((f, getattr(args, f)) for _, f, _, _ in _TRAFFIC_LINK_FLAGS if getattr(args, f) is not None),
     )
 
 
@@ -193,8 +203,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         config = config_from_args(args)
         fleet = load_fleet(args.world) if args.world is not None and args.world.is_file() else None
-        if fleet is not None and not args.traffic_range_m > 0.0:
-            raise SimSetupError(f"--traffic-range-m: expected a positive distance, got {args.traffic_range_m}")
+        problem = TrafficLinkConfig.with_overrides(config.traffic_link).problem()
+        if problem is not None:
+            raise SimSetupError(f"traffic link: {problem}")
         server = SimServer(config, fleet)
     except (ValueError, OSError) as exc:  # refused world/vehicle/options, or the port is taken
         print(f"quadsitl sim: {exc}", file=sys.stderr)

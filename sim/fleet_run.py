@@ -7,7 +7,8 @@ of the recording. Per control step its user (the UDP server ``sim.server`` or th
 ``tools.campaign.inproc_flight``) does::
 
     frames = run.frames(alive)          # per live vehicle: receiver HEARTBEAT + traffic due + sensors -> datagram
-    ...each autopilot answers...        # run.apply(i, answer) / run.stop_motors(i) for a lost one
+    ...each autopilot answers...        # run.apply(i, answer) / run.stop_motors(i) for a lost one;
+                                        # run.uplink(i, reports): its own UTM reports that came with the answer
     run.advance()                       # physics of all batches, contacts, manned proximity, recording
 
 so both transports fly the same bytes and the same physics. ``summaries`` turns the end state into the
@@ -31,7 +32,7 @@ from sim.end_reason import EndReason
 from sim.fleet import FleetSim, world_vehicles
 from sim.fleet_world import FleetSpec
 from sim.summary_file import FleetSummary, FleetVehicleSummary, LinkCounts
-from sim.traffic import DEFAULT_TRAFFIC_RANGE_M, MannedProximity, ScriptedTraffic, TrafficReceiver
+from sim.traffic import MannedProximity, ScriptedTraffic, TrafficLinkConfig, TrafficReceiver
 from sim.vehicle_config import VehicleConfig, load_vehicle
 from sim.world import World
 from sim.world_recording import WorldRecorder
@@ -55,11 +56,12 @@ class FleetRun:
         physics_hz: int = 1000,
         control_hz: int = 250,
         sensor_noise: bool = True,
-        traffic_range_m: float = DEFAULT_TRAFFIC_RANGE_M,
+        traffic_link: TrafficLinkConfig | None = None,
         recording: Path | None = None,
         recording_id: str = "",
     ) -> None:
-        """ValueError for vehicles placed in contact, a bad rate or a bad traffic range."""
+        """ValueError for vehicles placed in contact, a bad rate or bad traffic-link numbers. ``traffic_link``:
+        the receivers' link (None: the world's ``traffic_link:`` over the defaults)."""
         self.fleet = fleet
         self.airframes = airframes
         self.sim = sim = FleetSim(
@@ -71,7 +73,8 @@ class FleetRun:
             tuple(v.sys_id for v in vehicles),
             ScriptedTraffic(fleet.traffic),
             control_hz,
-            traffic_range_m,
+            traffic_link or TrafficLinkConfig.with_overrides(fleet.traffic_link),
+            seed,
         )
         self.receiving = fleet.is_fleet or bool(fleet.traffic)  # a lone vehicle in an empty sky has no receiver
         self.proximity = MannedProximity(self.receiver.traffic, sim.n)
@@ -104,7 +107,7 @@ class FleetRun:
         heartbeat_due, reports = False, self._no_reports
         if self.receiving:
             heartbeat_due = self.receiver.heartbeat_due(sim.steps)
-            reports = self.receiver.reports(sim.steps, t_us, sim.pos_ned, sim.vel_ned, alive)
+            reports = self.receiver.reports(sim.steps, t_us, sim.pos_ned, alive)
         for i, live in enumerate(alive.tolist()):  # one conversion, no index array per step
             if not live:
                 continue
@@ -130,6 +133,12 @@ class FleetRun:
             who = f"{self.vehicles[i].name}: " if self.fleet.is_fleet else ""
             log.info("%spayload released at t=%.3f s", who, self.sim.t_s)
         self.sim.set_motors(i, answer[A_MOTORS : A_MOTORS + 4] if answer[A_ARMED] == 1.0 else 0.0)
+
+    def uplink(self, i: int, reports: tuple[object, ...] | list[object]) -> None:
+        """Vehicle i's own UTM_GLOBAL_POSITION reports (decoded) that came with its answer to this step's frame:
+        relayed to the others by the receivers (``TrafficReceiver.uplink``), when the world has receivers."""
+        if self.receiving and reports:
+            self.receiver.uplink(i, self.sim.t_us, reports)
 
     def stop_motors(self, i: int) -> None:
         """Vehicle i's autopilot is gone: its motors stop (it falls)."""

@@ -27,6 +27,7 @@ from mavlink_bridge.contract.failure_schedule import (
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
 from mavlink_bridge.contract.source_lines import YamlSyntaxError, did_you_mean, read_yaml
 from mavlink_bridge.contract.traffic import AdsbEmitterType
+from sim.traffic_link import TRAFFIC_LINK_KEYS, TrafficLinkConfig
 from sim.world import DEFAULT_HOME, WorldConfigError, _fields, _home, _node_path, _num
 
 #: MAV_SYS_ID is one byte and 0 is broadcast: at most 254 vehicles (PX4 refuses more than 255 instances).
@@ -88,6 +89,7 @@ class FleetSpec:
     vehicles: tuple[FleetVehicle, ...]
     traffic: tuple[ScriptedAircraft, ...]
     world_failures: tuple[ScheduledFailure, ...] = ()  # the world's ``failures:``: every vehicle's
+    traffic_link: tuple[tuple[str, float], ...] = ()  # the world's ``traffic_link:`` (TrafficLinkConfig fields)
 
     @property
     def is_fleet(self) -> bool:
@@ -136,7 +138,18 @@ def fleet_of(doc: Any) -> FleetSpec:
     for i, icao in enumerate(icaos):
         if icao in icaos[:i]:
             raise WorldConfigError(f"traffic[{i}].icao: 0x{icao:06X} is used twice; fix: one address per aircraft")
-    return FleetSpec(home, vehicles, traffic, _failures(lambda: mission_failures(doc)))
+    link = _traffic_link(doc["traffic_link"]) if "traffic_link" in doc else ()
+    return FleetSpec(home, vehicles, traffic, _failures(lambda: mission_failures(doc)), link)
+
+
+def _traffic_link(spec: Any) -> tuple[tuple[str, float], ...]:
+    """``traffic_link:``: numbers of the UTM relay and the ADS-B link (``sim.traffic_link.TrafficLinkConfig``)."""
+    s = _fields("traffic_link", spec, set(), set(TRAFFIC_LINK_KEYS))
+    pairs = tuple((key, _num("traffic_link", key, value, 0.0, 1e6)) for key, value in sorted(s.items()))
+    problem = TrafficLinkConfig.with_overrides(pairs).problem()
+    if problem is not None:
+        raise WorldConfigError(f"traffic_link.{problem}")
+    return pairs
 
 
 def _vehicle(index: int, entry: Any, world_home: GeoPoint) -> FleetVehicle:

@@ -37,7 +37,7 @@ from sim.end_reason import EndReason
 from sim.fleet_run import FleetRun, fleet_airframes
 from sim.fleet_world import FleetSpec, load_fleet
 from sim.summary_file import FleetSummary, LinkCounts, SimSummary, solo_summary
-from sim.traffic import DEFAULT_TRAFFIC_RANGE_M
+from sim.traffic_link import TrafficLinkConfig
 from sim.world import empty_world, load_world
 
 log = logging.getLogger(__name__)
@@ -70,7 +70,9 @@ class SimConfig:
     recording_id: str = ""  # that recording's id (the autopilots' own)
     lockstep_spin_s: float = DEFAULT_SPIN_S  # busy-poll for the answer before sleeping (0 = never)
     loss_fraction: float = 0.0  # > 0: the lockstep drops this share of datagrams each way (seeded; --sim-loss)
-    traffic_range_m: float = DEFAULT_TRAFFIC_RANGE_M  # the receivers report targets this close (3D)
+    #: the traffic link's numbers given on the command line, ``(TrafficLinkConfig field, value)``: over the world's
+    #: ``traffic_link:`` and the defaults (``--traffic-range-m`` is ``adsb_range_m``)
+    traffic_link: tuple[tuple[str, float], ...] = ()
 
 
 def mission_vehicle(world_path: Path | None) -> str | None:
@@ -113,7 +115,7 @@ class SimServer:
                 physics_hz=config.physics_hz,
                 control_hz=config.control_hz,
                 sensor_noise=config.sensor_noise,
-                traffic_range_m=config.traffic_range_m,
+                traffic_link=TrafficLinkConfig.with_overrides(self.fleet.traffic_link, config.traffic_link),
                 recording=config.recording,
                 recording_id=config.recording_id,
             )
@@ -207,6 +209,8 @@ class SimServer:
             except LockstepInterrupted:
                 return False
             self.fleet_run.apply(i, server.answer)
+            if server.own_reports:
+                self.fleet_run.uplink(i, server.own_reports)
         return True
 
     def run(self) -> SimSummary | FleetSummary:

@@ -4,24 +4,42 @@
 ``start_s``, follows the polyline at constant ``speed_m_s`` and is gone after the last point (no dynamics, no
 wind: a manned aircraft as an ADS-B receiver sees it).
 
-``TrafficReceiver`` decides what each vehicle's receiver reports at a control step: every other vehicle (as a
-UAV report, from the truth, as that vehicle's own UTM broadcast would say) and every airborne scripted aircraft
-(a MANNED report), once a second per target, within ``range_m`` (3D) of the receiver, never the receiver's own
-vehicle. Targets are staggered over the second (target k is due at step ``k * control_hz // targets`` of each
-second) so the reports of a big fleet do not all land in one frame; the receiver's own HEARTBEAT is due at step
-0 of each second. Everything is a function of the step number and the states: deterministic at any speed.
+``TrafficReceiver`` decides what each vehicle's receiver reports at a control step. It never reports the truth:
+
+- **Other vehicles** (UTM_GLOBAL_POSITION): only what their autopilots sent (``uplink``: each autopilot's own
+  report, its estimate and intent), relayed as a UTM service would: ``utm_latency_s`` after it was sent, to every
+  other vehicle within ``utm_range_m`` (3D, of the reported position) of it. A vehicle whose autopilot sends
+  nothing (dead) is not reported; what it sent before is still delivered.
+- **Manned aircraft** (ADSB_VEHICLE), once a second per aircraft as a 1090ES/UAT receiver passes them on: the
+  position and velocity the aircraft broadcast ``adsb_latency_s`` ago (uncompensated latency: the report is stamped
+  when it arrives), with its navigation source's error (a first-order Gauss-Markov process per aircraft, correlation
+  time ``adsb_error_tau_s``, 95 % bounds of its NACp/NACv), each report received with probability
+  ``adsb_reception`` (per receiver), within ``adsb_range_m`` (3D) of the receiver. Aircraft are staggered over the
+  second (aircraft k at step ``k * control_hz // aircraft``); the receiver's own HEARTBEAT is at step 0 of each
+  second.
+
+Everything is a function of the step number, the states, the uplinked reports and the world's seed (every aircraft
+and receiver has its own seeded stream): deterministic at any speed. ``TrafficLinkConfig`` holds the link's
+numbers and where each default comes from (docs/traffic.md).
 """
 
 from __future__ import annotations
 
+import logging
+import math
+from collections import deque
+
 import numpy as np
 
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
-from mavlink_bridge.contract.traffic import AdsbEmitterType, TrafficReport, TrafficSource
+from mavlink_bridge.contract.traffic import TrafficReport, TrafficSource
 from sim.fleet_world import ScriptedAircraft
+from sim.traffic_link import DEFAULT_TRAFFIC_RANGE_M, TrafficLinkConfig
 
-#: Default reporting range of the simulated receiver (m, 3D): far beyond any NMAC volume and a quad's horizon.
-DEFAULT_TRAFFIC_RANGE_M = 10_000.0
+log = logging.getLogger(__name__)
+__all__ = ["DEFAULT_TRAFFIC_RANGE_M", "MannedProximity", "ScriptedTraffic", "TrafficLinkConfig", "TrafficReceiver"]
+_SEED_TAG_ERROR = 0xAD5B
+_SEED_TAG_RECEPTION = 0x1090
 
 
 class ScriptedTraffic:
@@ -106,6 +124,30 @@ class MannedProximity:
                 first[i] = t_s
 
 
+class AdsbSource:
+    """One aircraft's broadcast errors: position a Gauss-Markov process (stationary from the first report),
+    velocity white, both at the NACp/NACv sigmas; its own seeded stream."""
+
+    def __init__(self, config: TrafficLinkConfig, seed: int, index: int) -> None:
+        self._rng = random_stream(seed, _SEED_TAG_ERROR, index)
+        sh, sv, svh, svv = config.adsb_sigmas
+        self._pos_sigma = np.array((sh, sh, sv))
+        self._vel_sigma = np.array((svh, svh, svv))
+        tau = config.adsb_error_tau_s
+        self._a = math.exp(-1.0 / tau) if tau > 0.0 else 0.0  # one report a second
+        self._pos_error: np.ndarray | None = None
+
+    def next_errors(self) -> tuple[np.ndarray, np.ndarray]:
+        """(position error NED m, velocity error NED m/s) of the next 1 Hz report."""
+        draw = self._rng.standard_normal(6)
+        if self._pos_error is None:
+            self._pos_error = self._pos_sigma * draw[:3]
+        else:
+            a = self._a
+            self._pos_error = a * self._pos_error + math.sqrt(1.0 - a * a) * self._pos_sigma * draw[:3]
+        return self._pos_error, self._vel_sigma * draw[3:]
+
+
 class TrafficReceiver:
     """What each vehicle's simulated receiver reports at a control step (see the module docstring)."""
 
@@ -115,51 +157,111 @@ class TrafficReceiver:
         sys_ids: tuple[int, ...],
         traffic: ScriptedTraffic,
         control_hz: int,
-        range_m: float = DEFAULT_TRAFFIC_RANGE_M,
+        config: TrafficLinkConfig | None = None,
+        seed: int = 0,
     ) -> None:
-        if not range_m > 0.0:
-            raise ValueError(f"traffic range: expected a positive distance in metres, got {range_m}")
+        config = config or TrafficLinkConfig()
+        problem = config.problem()
+        if problem is not None:
+            raise ValueError(f"traffic link: {problem}")
+        self.config = config
         self._frame = LocalNedFrame(home)
         self.sys_ids = sys_ids
         self.traffic = traffic
         self.control_hz = control_hz
-        self.range_m = range_m
-        targets = len(sys_ids) + len(traffic)
-        #: step within each second at which target k (vehicles first, then aircraft) is reported
-        self._due_step = [k * control_hz // max(targets, 1) for k in range(targets)]
+        self.control_us = 1_000_000 // control_hz
+        n, m = len(sys_ids), len(traffic)
+        #: step within each second at which aircraft k is reported
+        self._due_step = [k * control_hz // max(m, 1) for k in range(m)]
+        self._sources = [AdsbSource(config, seed, k) for k in range(m)]
+        self._reception = [
+            [random_stream(seed, _SEED_TAG_RECEPTION, i, k) for k in range(m)] for i in range(n)
+        ]  # per receiver and aircraft
+        self._utm_latency_us = round(config.utm_latency_s * 1e6)
+        self._adsb_latency_s = config.adsb_latency_s
+        #: UTM reports in flight: (deliver at µs, sender index, report, reported position NED about the world home)
+        self._relay: deque[tuple[int, int, TrafficReport, np.ndarray]] = deque()
+        self.utm_received = np.zeros(n, dtype=np.int64)  # own reports taken from each vehicle
+        self.utm_rejected = np.zeros(n, dtype=np.int64)  # and refused (with a logged reason)
+        self.adsb_dropped = np.zeros(n, dtype=np.int64)  # ADS-B reports each receiver missed (reception)
 
     def heartbeat_due(self, step: int) -> bool:
         """True when the receivers send their 1 Hz HEARTBEAT (MAV_TYPE_ADSB) with this step's frame."""
         return step % self.control_hz == 0
 
-    def reports(
-        self, step: int, t_us: int, pos_ned: np.ndarray, vel_ned: np.ndarray, broadcasting: np.ndarray
-    ) -> list[list[TrafficReport]]:
-        """Per vehicle, the reports due at ``step`` (time ``t_us``); ``pos_ned``/``vel_ned`` (n, 3) truth of the
-        vehicles, ``broadcasting`` (n,) bool: vehicles whose autopilot is alive (a dead one sends no UTM)."""
+    def uplink(self, i: int, t_us: int, reports: tuple[object, ...] | list[object]) -> None:
+        """Vehicle ``i``'s own reports that came with its answer to the frame at ``t_us`` (UTM_GLOBAL_POSITION
+        decoded): queued for the others ``utm_latency_s`` later; one that is not its own, finite and of a past time
+        is refused (counted, the first logged in one line)."""
+        for r in reports:
+            problem = self._uplink_problem(i, t_us, r)
+            if problem is not None:
+                if not self.utm_rejected[i]:
+                    log.warning("traffic: vehicle %d's own report refused: %s", self.sys_ids[i], problem)
+                self.utm_rejected[i] += 1
+                continue
+            assert isinstance(r, TrafficReport)
+            pos = np.array(self._frame.ned_from_geodetic(r.lat_deg, r.lon_deg, r.alt_amsl_m))
+            self._relay.append((t_us + self._utm_latency_us, i, r, pos))
+            self.utm_received[i] += 1
+
+    def _uplink_problem(self, i: int, t_us: int, r: object) -> str | None:
+        if not isinstance(r, TrafficReport) or r.source is not TrafficSource.UAV:
+            return f"not a UAV report: {r!r:.80}"
+        if r.target_id != self.sys_ids[i]:
+            return f"it claims MAV_SYS_ID {r.target_id}"
+        numbers = (r.lat_deg, r.lon_deg, r.alt_amsl_m, r.vel_n_m_s, r.vel_e_m_s, r.vel_d_m_s)
+        if not all(math.isfinite(x) for x in numbers):
+            return "position or velocity is not finite"
+        if not 0 <= r.t_us <= t_us:
+            return f"time {r.t_us} us is not a past simulator time (now {t_us} us)"
+        return None
+
+    def reports(self, step: int, t_us: int, pos_ned: np.ndarray, receiving: np.ndarray) -> list[list[TrafficReport]]:
+        """Per vehicle, the reports due at ``step`` (time ``t_us``); ``pos_ned`` (n, 3) truth of the vehicles,
+        ``receiving`` (n,) bool: vehicles whose autopilot is alive (the others get no frame)."""
         n = len(self.sys_ids)
         out: list[list[TrafficReport]] = [[] for _ in range(n)]
+        relay = self._relay
+        utm_range = self.config.utm_range_m
+        while relay and relay[0][0] <= t_us:
+            _, sender, report, at = relay.popleft()
+            gap_m = np.linalg.norm(pos_ned - at, axis=1)
+            for i in range(n):
+                if i != sender and receiving[i] and gap_m[i] <= utm_range:
+                    out[i].append(report)
         phase = step % self.control_hz
         for k, due in enumerate(self._due_step):
-            if due != phase:
-                continue
-            if k < n:
-                if not broadcasting[k]:
-                    continue
-                target_pos, target_vel = pos_ned[k], vel_ned[k]
-                who = (TrafficSource.UAV, self.sys_ids[k], "", AdsbEmitterType.UAV)
-            else:
-                a = self.traffic.aircraft[k - n]
-                st = self.traffic.state(k - n, t_us * 1e-6)
-                if st is None:
-                    continue
-                target_pos, target_vel = st
-                who = (TrafficSource.MANNED, a.icao, a.callsign, a.emitter)
-            geo = self._frame.geodetic_from_ned(float(target_pos[0]), float(target_pos[1]), float(target_pos[2]))
-            vn, ve, vd = (float(v) for v in target_vel)
-            report = TrafficReport(*who, geo.lat_deg, geo.lon_deg, geo.alt_amsl_m, vn, ve, vd, t_us)
-            gap_m = np.linalg.norm(pos_ned - target_pos, axis=1)
-            for i in range(n):
-                if i != k and gap_m[i] <= self.range_m:
-                    out[i].append(report)
+            if due == phase:
+                self._adsb(k, t_us, pos_ned, receiving, out)
         return out
+
+    def _adsb(
+        self, k: int, t_us: int, pos_ned: np.ndarray, receiving: np.ndarray, out: list[list[TrafficReport]]
+    ) -> None:
+        """Aircraft ``k``'s report of this second into ``out`` (every stream draws whether it is heard or not)."""
+        st = self.traffic.state(k, t_us * 1e-6 - self._adsb_latency_s)
+        if st is None:
+            return
+        pos_error, vel_error = self._sources[k].next_errors()
+        target_pos, target_vel = st[0] + pos_error, st[1] + vel_error
+        a = self.traffic.aircraft[k]
+        geo = self._frame.geodetic_from_ned(float(target_pos[0]), float(target_pos[1]), float(target_pos[2]))
+        vn, ve, vd = (float(v) for v in target_vel)
+        report = TrafficReport(TrafficSource.MANNED, a.icao, a.callsign, a.emitter, geo.lat_deg, geo.lon_deg,
+                               geo.alt_amsl_m, vn, ve, vd, t_us)  # fmt: skip
+        gap_m = np.linalg.norm(pos_ned - st[0], axis=1)
+        reception = self.config.adsb_reception
+        for i, streams in enumerate(self._reception):
+            heard = streams[k].random() < reception
+            if not (receiving[i] and gap_m[i] <= self.config.adsb_range_m):
+                continue
+            if heard:
+                out[i].append(report)
+            else:
+                self.adsb_dropped[i] += 1
+
+
+def random_stream(seed: int, *tags: int) -> np.random.Generator:
+    """A seeded stream of its own for ``tags`` (independent of every other stream of the run)."""
+    return np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed & (2**64 - 1), *tags])))

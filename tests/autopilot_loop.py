@@ -116,5 +116,6 @@ class InProcessLockstep:
         del timeout_s
         return self.loop.frame()
 
-    def answer(self, cmd: ActuatorCommand) -> None:
+    def answer(self, cmd: ActuatorCommand, own_report: object | None = None) -> None:
+        del own_report  # no traffic receiver here
         self.loop.apply(cmd)

@@ -20,7 +20,8 @@ _REL = int(MavFrame.GLOBAL_RELATIVE_ALT_INT)
 _MISSION_FRAME = int(MavFrame.MISSION)
 _NAN = float("nan")
 #: ``vehicles``/``traffic`` (a fleet world, SPEC §13) are the simulator's and each vehicle's: not read here.
-_TOP_KEYS = ("version", "name", "home", "vehicle", "speed_m_s", "mission", "fence", "world", "vehicles", "traffic")
+_TOP_KEYS = ("version", "name", "home", "vehicle", "speed_m_s", "mission", "fence", "world", "vehicles", "traffic",
+             "traffic_link")  # fmt: skip
 _ENTRY_KINDS = (
     "takeoff", "waypoint", "pattern", "payload_release", "payload_grab", "loiter", "speed", "delay", "jump",
     "return_to_launch", "land", "mav_item",

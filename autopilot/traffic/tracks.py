@@ -4,6 +4,11 @@ One track per ``(source, target_id)``: the newest report wins, an older or dupli
 converted once per report to NED about home with the one geodetic conversion (:class:`LocalNedFrame`) and
 extrapolated with the reported velocity (constant velocity: the receiver reports at 1 Hz). A report that is not
 a finite, plausible position and velocity is rejected with a one-line reason and changes nothing.
+
+A UTM report may carry the sender's intent (its next waypoint, converted about home too): :meth:`TrafficTrack.predict`
+flies it from the reported position toward that waypoint at the reported speed and holds it there, so a climb,
+descent or turn toward the waypoint is predicted before it shows in the velocity; without intent it is
+:meth:`TrafficTrack.position_at`'s constant velocity.
 """
 
 from __future__ import annotations
@@ -13,12 +18,16 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame, Vec3
-from mavlink_bridge.contract.traffic import TrafficReport, TrafficSource
+from mavlink_bridge.contract.traffic import TrafficReport, TrafficSource, UtmFlightState
 
 #: Plausibility bounds of a report (anything outside is garbage, not traffic).
 MAX_SPEED_H_M_S = 350.0
 MAX_SPEED_V_M_S = 100.0
 ALT_RANGE_M = (-1000.0, 30000.0)
+#: Below this reported speed (m/s) intent is not flown: a vehicle standing still says nothing of how fast it will go.
+MIN_INTENT_SPEED_M_S = 0.1
+#: A next waypoint further than this from the reported position (m) is not believed (garbage, not intent).
+MAX_INTENT_DISTANCE_M = 50_000.0
 #: A report stamped this far after the autopilot's clock is rejected (the simulator owns time).
 MAX_FUTURE_US = 1_000_000
 
@@ -27,7 +36,9 @@ TrackKey = tuple[TrafficSource, int]
 
 @dataclass(frozen=True, slots=True)
 class TrafficTrack:
-    """One target: its last report, its position about home at that time, and its velocity (NED)."""
+    """One target: its last report, its position about home at that time, its velocity (NED) and, from a UTM report,
+    its intent and accuracy: ``next_pos_home_ned_m`` (its next waypoint about home, None: none announced),
+    ``flight_state``, ``h_acc_m``/``v_acc_m`` (1-sigma, NaN: unknown, as every ADS-B report)."""
 
     source: TrafficSource
     target_id: int
@@ -35,6 +46,10 @@ class TrafficTrack:
     pos_home_ned_m: Vec3  # at t_us
     vel_ned_m_s: Vec3
     t_us: int
+    next_pos_home_ned_m: Vec3 | None = None
+    flight_state: UtmFlightState = UtmFlightState.UNKNOWN
+    h_acc_m: float = math.nan
+    v_acc_m: float = math.nan
 
     @property
     def key(self) -> TrackKey:
@@ -52,6 +67,24 @@ class TrafficTrack:
         dt = (t_us - self.t_us) * 1e-6
         p, v = self.pos_home_ned_m, self.vel_ned_m_s
         return (p[0] + v[0] * dt, p[1] + v[1] * dt, p[2] + v[2] * dt)
+
+    def predict(self, t_us: int) -> tuple[Vec3, Vec3]:
+        """(position about home, velocity NED) at ``t_us`` using the intent: from the reported position straight
+        toward the next waypoint at the reported speed (3D), then holding at the waypoint (velocity 0). Without a
+        next waypoint, below ``MIN_INTENT_SPEED_M_S``, or for a time before the report: constant velocity
+        (:meth:`position_at`)."""
+        p, v, w = self.pos_home_ned_m, self.vel_ned_m_s, self.next_pos_home_ned_m
+        dt = (t_us - self.t_us) * 1e-6
+        speed = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+        if w is None or dt < 0.0 or speed < MIN_INTENT_SPEED_M_S:
+            return self.position_at(t_us), v
+        d = (w[0] - p[0], w[1] - p[1], w[2] - p[2])
+        dist = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        if dist <= speed * dt:
+            return w, (0.0, 0.0, 0.0)
+        k = speed / dist
+        u = (d[0] * k, d[1] * k, d[2] * k)
+        return (p[0] + u[0] * dt, p[1] + u[1] * dt, p[2] + u[2] * dt), u
 
 
 def report_problem(report: object, now_us: int, own_system_id: int) -> str | None:
@@ -104,7 +137,13 @@ class TrackTable:
         assert self._frame is not None
         pos = self._frame.ned_from_geodetic(r.lat_deg, r.lon_deg, r.alt_amsl_m)
         vel = (float(r.vel_n_m_s), float(r.vel_e_m_s), float(r.vel_d_m_s))
-        return TrafficTrack(r.source, r.target_id, r.callsign, pos, vel, r.t_us)
+        next_pos = None
+        if r.source is TrafficSource.UAV and r.has_next_waypoint:
+            w = self._frame.ned_from_geodetic(r.next_lat_deg, r.next_lon_deg, r.next_alt_amsl_m)
+            if math.dist(w, pos) <= MAX_INTENT_DISTANCE_M:
+                next_pos = w
+        return TrafficTrack(r.source, r.target_id, r.callsign, pos, vel, r.t_us, next_pos, r.flight_state,
+                            float(r.h_acc_m), float(r.v_acc_m))  # fmt: skip
 
     def update(self, now_us: int, reports: Iterable[object], max_age_s: float) -> tuple[list[str], list[TrafficTrack]]:
         """Take new reports and drop stale tracks; returns (rejections, dropped tracks)."""

@@ -1,13 +1,16 @@
 """The autopilot's end of the lockstep (SPEC §4): ``LockstepClient``. Import it from ``mavlink_bridge.lockstep``.
 
 It sends to the sim, announces itself with HEARTBEATs while it has no frames, returns each new frame once, and
-answers a re-sent frame it has already answered from its cache without bothering the caller.
+answers a re-sent frame it has already answered from its cache without bothering the caller. Once the simulator's
+traffic receiver was heard, the vehicle's own UTM_GLOBAL_POSITION (an ``OwnPositionReport``) rides in the datagram
+of the answer it is given with, so the simulator takes it at that step, at any speed (SPEC §13).
 """
 
 from __future__ import annotations
 
 import time
 
+from mavlink_bridge.contract.traffic import OwnPositionReport
 from mavlink_bridge.contract.wire import ActuatorCommand
 from mavlink_bridge.lockstep.answer_kernel import AnswerWriter
 from mavlink_bridge.lockstep.edge import DEFAULT_SIM_URL, DEFAULT_SPIN_S, LockstepClientStats, LockstepFrame
@@ -59,6 +62,8 @@ class LockstepClient:
         self._answers.write(0, (0.0, 0.0, 0.0, 0.0), False, False, True)  # load the compiled writer now
         self._answers.seq = 0
         self._answer_len = 0
+        self._answer_with_report: bytes | None = None  # the last answer's datagram when a report rode with it
+        self.own_reports_sent = 0
         self._heartbeats = 0
         self._foreign = 0
 
@@ -147,14 +152,22 @@ class LockstepClient:
         return frame
 
     def _resend_answer(self) -> None:
-        self._link.send(self._answers.view[: self._answer_len])
+        with_report = self._answer_with_report
+        self._link.send(with_report if with_report is not None else self._answers.view[: self._answer_len])
 
-    def answer(self, cmd: ActuatorCommand) -> None:
+    def answer(self, cmd: ActuatorCommand, own_report: OwnPositionReport | None = None) -> None:
         """Send the HIL_ACTUATOR_CONTROLS for the frame with ``cmd.time_us``, written in place by one compiled
-        call (kept for re-sends of that frame)."""
+        call (kept for re-sends of that frame); ``own_report``: the vehicle's own UTM_GLOBAL_POSITION, sent ahead
+        of the answer in its datagram when a traffic receiver was heard (else dropped: nobody listens)."""
         answers = self._answers
         self._answer_len = n = answers.write(cmd.time_us, cmd.motor_cmd, cmd.armed, cmd.gripper_release, cmd.lockstep)
         self._assembler.answered(cmd.time_us)
+        self._answer_with_report = None
+        if own_report is not None and self._assembler.traffic_receiver_t_us >= 0:
+            self._answer_with_report = self._encoder.own_position(own_report) + bytes(answers.view[:n])
+            self.own_reports_sent += 1
+            self._link.send(self._answer_with_report)
+            return
         self._link.send(answers.view[:n])
 
     def close(self) -> None:

@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import replace
 
-from mavlink_bridge.contract.traffic import TrafficReport
+from mavlink_bridge.contract.traffic import TrafficReport, TrafficSource
 from mavlink_bridge.contract.wire import GpsSample, GroundTruth, ObstacleDetection, SensorSample
 from mavlink_bridge.lockstep.edge import (
     MAX_FRAME_STEP_US,
@@ -108,7 +108,9 @@ class FrameAssembler:
                 ):
                     self.invalid += 1
                 else:
-                    traffic = tuple(r if r.t_us else replace(r, t_us=t) for r in self._traffic)  # ADS-B: now
+                    traffic = tuple(  # ADS-B carries no time: stamped now (a UTM report at sim time 0 keeps it)
+                        replace(r, t_us=t) if r.source is TrafficSource.MANNED else r for r in self._traffic
+                    )
                     frame = LockstepFrame(msg, gps, truth, tuple(self._detections), traffic)
                     self._pending_time_us = t
                     self.frames += 1

@@ -7,6 +7,7 @@ import time
 
 import numpy as np
 
+from mavlink_bridge.contract.traffic import TrafficReport
 from mavlink_bridge.contract.wire import ActuatorCommand
 from mavlink_bridge.lockstep.answer_kernel import (
     A_ARMED,
@@ -82,6 +83,9 @@ class LockstepServer:
         self._locked = False  # the peer answered a frame: nobody else is heard from now on
         self._frame_time_us = -1  # the frame of the last send (what wait_answer waits for)
         self.answer = np.zeros(N_ANSWER)  # the last valid answer's values (``answer_kernel.A_*``)
+        #: The vehicle's own UTM_GLOBAL_POSITION reports that rode in the datagram of the last valid answer (decoded
+        #: as UAV ``TrafficReport`` objects; empty on most steps). Checked by the simulator, not here (SPEC §13).
+        self.own_reports: tuple[TrafficReport, ...] = ()
         self._payload = np.zeros(96, dtype=np.uint8)  # read_answer's zero-padded payload scratch
         read_answer(self._link.array, 0, 0, self.answer, self._payload)  # load the compiled reader now
         self._datagram = b""
@@ -203,6 +207,7 @@ class LockstepServer:
         """
         frame_time_us, datagram = self._frame_time_us, self._datagram
         link, timer, out, payload = self._link, self.resend_timer, self.answer, self._payload
+        self.own_reports = ()
         array = link.array
         peer = link.peer
         sent_at = self._sent_at_s
@@ -253,9 +258,13 @@ class LockstepServer:
 
     def _decode_other(self, n: int, frame_time_us: int) -> int:
         """A datagram ``read_answer`` did not take, through the Python decoder (counted there); the answer it
-        holds, if any, as a ``read_answer`` result (values in ``answer``)."""
+        holds, if any, as a ``read_answer`` result (values in ``answer``; the own reports with it in
+        ``own_reports``)."""
         result = ANSWER_OTHER
+        reports = []
         for msg in self._decoder.decode(bytes(self._link.array[:n])):
+            if type(msg) is TrafficReport:
+                reports.append(msg)
             if type(msg) is not ActuatorCommand:
                 continue
             t, u = msg.time_us, msg.motor_cmd
@@ -268,6 +277,8 @@ class LockstepServer:
                 self.answer[A_ARMED] = 1.0 if msg.armed else 0.0
                 self.answer[A_GRIPPER_RELEASE] = 1.0 if msg.gripper_release else 0.0
                 result = ANSWER_OK
+        if result == ANSWER_OK and reports:
+            self.own_reports = tuple(reports)
         return result
 
     def _candidate(self, n: int, now: float) -> bool:

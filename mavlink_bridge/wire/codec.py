@@ -41,7 +41,7 @@ import struct
 from collections.abc import Callable
 
 from mavlink_bridge.contract.frames import DEG_E7, GRAVITY_M_S2
-from mavlink_bridge.contract.traffic import TrafficReport, TrafficSource
+from mavlink_bridge.contract.traffic import OwnPositionReport, TrafficReport, TrafficSource
 from mavlink_bridge.contract.wire import (
     ACTUATOR_FLAG_LOCKSTEP,
     ACTUATOR_MODE_ARMED,
@@ -78,7 +78,13 @@ from mavlink_bridge.wire.framing import (
     _dialect,
     _Layout,
 )
-from mavlink_bridge.wire.traffic_codec import ADSB_VEHICLE, UTM_GLOBAL_POSITION, adsb_payload, utm_payload
+from mavlink_bridge.wire.traffic_codec import (
+    ADSB_VEHICLE,
+    UTM_GLOBAL_POSITION,
+    adsb_payload,
+    own_position_payload,
+    utm_payload,
+)
 
 __all__ = [
     "AUTOPILOT_COMPONENT_ID",
@@ -279,6 +285,10 @@ class Encoder:
         if r.source is TrafficSource.MANNED:
             return self._frame(ADSB_VEHICLE, adsb_payload(r))
         return self._frame(UTM_GLOBAL_POSITION, utm_payload(r))
+
+    def own_position(self, r: OwnPositionReport) -> bytes:
+        """UTM_GLOBAL_POSITION of the vehicle's own estimate and intent (``traffic_codec.own_position_payload``)."""
+        return self._frame(UTM_GLOBAL_POSITION, own_position_payload(r))
 
     def encode(self, msg: WireMessage) -> bytes:
         """Any wire message -> one frame (dispatch on type)."""

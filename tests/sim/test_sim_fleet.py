@@ -12,7 +12,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mavlink_bridge.contract.traffic import AdsbEmitterType, TrafficReport, TrafficSource
+from mavlink_bridge.contract.traffic import (
+    AdsbEmitterType,
+    OwnPositionReport,
+    TrafficReport,
+    TrafficSource,
+    UtmFlightState,
+)
 from mavlink_bridge.contract.wire import ActuatorCommand
 from mavlink_bridge.lockstep import LockstepClient, LockstepFrame
 from mavlink_bridge.lockstep.answer_kernel import A_ARMED, A_MOTORS
@@ -152,15 +158,22 @@ def test_obstacle_sensor_sees_the_other_vehicle(tmp_path: Path) -> None:
 
 # ---- the lockstep over loopback ---------------------------------------------------------------------------
 class ScriptedAutopilot(threading.Thread):
-    """A lockstep client answering every frame with fixed motors, until ``stop_after`` frames (then silent)."""
+    """A lockstep client answering every frame with fixed motors, until ``stop_after`` frames (then silent); with a
+    ``sys_id`` it sends its own UTM report (its truth, as if its estimate) with the answer of every 250th frame from
+    frame ``sys_id - 1`` on (1 Hz at 250 Hz)."""
 
-    def __init__(self, address: tuple[str, int], motors: float, stop_after: int | None = None) -> None:
+    def __init__(
+        self, address: tuple[str, int], motors: float, stop_after: int | None = None, sys_id: int | None = None
+    ) -> None:
         super().__init__(daemon=True)
         self.client = LockstepClient(f"udpout:{address[0]}:{address[1]}", heartbeat_period_s=0.02)
         self.motors = motors
         self.stop_after = stop_after
+        self.sys_id = sys_id
         self.frames: list[LockstepFrame] = []
         self.traffic: list[TrafficReport] = []
+        self.traffic_at_us: list[int] = []  # the frame time each report arrived with
+        self.sent: list[OwnPositionReport] = []
         self.hold = threading.Event()
         self.hold.set()
         self.done = threading.Event()
@@ -173,10 +186,17 @@ class ScriptedAutopilot(threading.Thread):
             self.hold.wait()
             self.frames.append(frame)
             self.traffic.extend(frame.traffic)
+            self.traffic_at_us += [frame.time_us] * len(frame.traffic)
             if self.stop_after is not None and len(self.frames) >= self.stop_after:
                 break
             m = self.motors
-            self.client.answer(ActuatorCommand(frame.sensor.time_us, (m, m, m, m), m > 0.0, False))
+            own = None
+            if self.sys_id is not None and len(self.frames) % 250 == self.sys_id - 1:
+                t = frame.truth
+                own = OwnPositionReport(frame.time_us, self.sys_id, t.lat_deg, t.lon_deg, t.alt_amsl_m,
+                                        *t.vel_ned_m_s, UtmFlightState.GROUND, 1.0)  # fmt: skip
+                self.sent.append(own)
+            self.client.answer(ActuatorCommand(frame.sensor.time_us, (m, m, m, m), m > 0.0, False), own)
         self.client.close()
 
 
@@ -189,7 +209,10 @@ def _run_fleet(path: Path, autopilots: list[dict], duration_s: float, **config: 
             **{"start_timeout_s": 20.0, "autopilot_timeout_s": 10.0, **config},  # type: ignore[arg-type]
         )
     )
-    pilots = [ScriptedAutopilot(addr, **kw) for addr, kw in zip(server.local_addresses, autopilots, strict=True)]
+    pilots = [
+        ScriptedAutopilot(addr, **{"sys_id": i + 1, **kw})
+        for i, (addr, kw) in enumerate(zip(server.local_addresses, autopilots, strict=True))
+    ]
     for p in pilots:
         p.start()
     try:
@@ -274,28 +297,45 @@ def test_a_dead_autopilot_loses_its_vehicle_and_the_others_keep_flying(tmp_path:
     assert bravo.final_pos_ned_m[2] > -0.5
 
 
-def test_receiver_reports_the_other_vehicle_and_manned_traffic_at_one_hertz(tmp_path: Path) -> None:
+def test_receiver_relays_the_other_vehicles_own_reports_a_latency_later(tmp_path: Path) -> None:
+    """Another vehicle is reported only as its autopilot reported itself, ``utm_latency_s`` after it sent it; manned
+    traffic at 1 Hz (reception 1 here)."""
     path = _write(tmp_path, FLEET_YAML)
-    summary, (alpha, bravo) = _run_fleet(path, [{"motors": 0.0}, {"motors": 0.0}], 3.0)
-    for me, other_id in ((alpha, 2), (bravo, 1)):
-        uav = [r for r in me.traffic if r.source is TrafficSource.UAV]
+    link = (("adsb_reception", 1.0), ("adsb_latency_s", 0.0), ("utm_latency_s", 0.5))
+    summary, (alpha, bravo) = _run_fleet(path, [{"motors": 0.0}, {"motors": 0.0}], 3.0, traffic_link=link)
+    for me, other in ((alpha, bravo), (bravo, alpha)):
+        uav = [(r, at) for r, at in zip(me.traffic, me.traffic_at_us, strict=True) if r.source is TrafficSource.UAV]
         manned = [r for r in me.traffic if r.source is TrafficSource.MANNED]
-        assert {r.target_id for r in uav} == {other_id}  # never itself
-        assert len(uav) == 3 and len(manned) == 3  # 1 Hz each over 3 s; FAR1 (30 km) is out of range
+        due = [s for s in other.sent if s.t_us + 500_000 < 3_000_000]  # sent at 0, 1, 2 s (bravo), 0.996, 1.996 s
+        assert len(due) >= 2 and [r for r, _ in uav] == [_relayed(s) for s in due]  # what it sent, never itself
+        assert [at - r.t_us for r, at in uav] == [500_000] * len(due)  # 0.5 s later
+        assert len(manned) == 3  # 1 Hz over 3 s; FAR1 (30 km) is out of range
         assert [b.t_us - a.t_us for a, b in itertools.pairwise(manned)] == [1_000_000, 1_000_000]
         heli = manned[-1]
         assert (heli.target_id, heli.callsign, heli.emitter) == (0xA1B2C3, "HELI1", AdsbEmitterType.ROTOCRAFT)
-        assert heli.vel_n_m_s == pytest.approx(40.0, abs=0.01) and abs(heli.vel_e_m_s) < 0.01
+        assert heli.vel_n_m_s == pytest.approx(40.0, abs=8.0) and abs(heli.vel_e_m_s) < 8.0  # NACv 2: < 3 m/s 95 %
         assert me.client.traffic_receiver_t_us >= 2_000_000
     assert summary.vehicles[0].traffic_reports == 6
-    frame_of = {f.sensor.time_us: f for f in alpha.frames}
-    report = next(r for r in alpha.traffic if r.source is TrafficSource.UAV)
-    assert report.lat_deg == pytest.approx(frame_of[report.t_us].truth.lat_deg, abs=1e-7)  # bravo's truth ...
-    assert report.lon_deg > frame_of[report.t_us].truth.lon_deg  # ... 8 m east of alpha
+
+
+def _relayed(sent: OwnPositionReport) -> TrafficReport:
+    """What a receiver decodes of an own report the simulator relayed (cm/s, degE7, mm on the wire)."""
+    return TrafficReport(TrafficSource.UAV, sent.sys_id, "", AdsbEmitterType.UAV, round(sent.lat_deg * 1e7) / 1e7,
+                         round(sent.lon_deg * 1e7) / 1e7, round(sent.alt_amsl_m * 1000) / 1000.0,
+                         round(sent.vel_n_m_s * 100) / 100, round(sent.vel_e_m_s * 100) / 100,
+                         round(sent.vel_d_m_s * 100) / 100, sent.t_us, flight_state=UtmFlightState.GROUND,
+                         update_rate_hz=1.0)  # fmt: skip
+
+
+def test_a_vehicle_whose_autopilot_sends_nothing_is_not_reported(tmp_path: Path) -> None:
+    path = _write(tmp_path, FLEET_YAML)
+    _, (alpha, _) = _run_fleet(path, [{"motors": 0.0}, {"motors": 0.0, "sys_id": None}], 3.0)
+    assert not [r for r in alpha.traffic if r.source is TrafficSource.UAV]
 
 
 def test_range_limit_drops_far_targets(tmp_path: Path) -> None:
     path = _write(tmp_path, FLEET_YAML)
-    _, (alpha, _) = _run_fleet(path, [{"motors": 0.0}, {"motors": 0.0}], 2.0, traffic_range_m=5.0)
+    link = (("adsb_range_m", 5.0), ("utm_range_m", 5.0))
+    _, (alpha, _) = _run_fleet(path, [{"motors": 0.0}, {"motors": 0.0}], 2.0, traffic_link=link)
     assert alpha.traffic == []  # bravo is 8 m away, the helicopter farther
     assert np.isfinite(alpha.frames[-1].truth.lat_deg)

@@ -6,7 +6,9 @@ The simulator's socket-free run (``sim.fleet_run.FleetRun``: the same datagrams,
 i+1, its mission and fence handed over before the first step as MISSION_ITEM_INT would carry them), stepped
 together: each control step every live vehicle's datagram is decoded into its frame (``FrameAssembler``), its
 autopilot steps and its answer goes through the lockstep answer's own writer and reader (motor commands as
-float32, as on the wire), then the physics of all vehicles. The truth hashes are the simulator's (sha256 of each
+float32, as on the wire), its own UTM_GLOBAL_POSITION (1 Hz, once the receiver was heard) through the bridge's
+encoder and decoder to the simulator's relay, as ``LockstepClient`` sends it with the answer, then the physics of
+all vehicles. The truth hashes are the simulator's (sha256 of each
 vehicle's state after every control step), so a case flies to the same hashes in-process and over the lockstep.
 
 Instead of the ground station a script drives each autopilot on sim time (the world's ``failures:`` and the
@@ -55,6 +57,7 @@ from mavlink_bridge.lockstep.answer_kernel import (
     AnswerWriter,
     read_answer,
 )
+from mavlink_bridge.wire.codec import Decoder, Encoder
 from mavlink_bridge.wire.mission_items import xy_from_int, xy_to_int
 from sim.end_reason import EndReason
 from sim.fleet_run import FleetRun, fleet_airframes
@@ -102,6 +105,7 @@ class _Vehicle:
     plan: MissionPlan
     autopilot: Autopilot
     answers: AnswerWriter
+    encoder: Encoder  # its own UTM reports, as ``LockstepClient.answer`` writes them
     assembler: FrameAssembler = field(default_factory=lambda: FrameAssembler())
     texts: list[Any] = field(default_factory=list)
     seen_armed: bool = False
@@ -183,7 +187,7 @@ def fly_world(
                 rtl_alt_m=ap.params.get("MIS_RTL_ALT"),
                 **where,
             )
-        v = _Vehicle(spec.name, plan, ap, AnswerWriter(spec.sys_id, 1))
+        v = _Vehicle(spec.name, plan, ap, AnswerWriter(spec.sys_id, 1), Encoder(spec.sys_id, 1))
         api = VehicleAdapter(ap)
         for mission_type, items in ((MissionType.FENCE, plan.fence), (MissionType.MISSION, plan.items)):
             result, why = api.replace_mission(mission_type, [as_on_the_wire(item) for item in items])
@@ -194,6 +198,7 @@ def fly_world(
     n, sim = run.n, run.sim
     alive = np.ones(n, dtype=bool)
     answer, payload = np.zeros(16), np.zeros(96, dtype=np.uint8)
+    uplink_decoder = Decoder()  # the simulator's reading of the own reports
     timed_out = False
     upload_error = "; ".join(v.upload_error for v in vehicles if v.upload_error)
     error = ""
@@ -234,6 +239,9 @@ def fly_world(
                 continue
             ap.after_answer()
             run.apply(i, answer)
+            own = ap.own_reporter.report_for(cmd.time_us)
+            if own is not None and v.assembler.traffic_receiver_t_us >= 0:
+                run.uplink(i, uplink_decoder.decode(v.encoder.own_position(own)))
         wait_s += time.perf_counter() - wait0
         if not alive.any():
             end = EndReason.AUTOPILOT_LOST

@@ -11,7 +11,7 @@ from traffic_kinematic import FRAME, HOME, report
 
 from autopilot.traffic.tracks import TrackTable
 from mavlink_bridge.contract.frames import GeoPoint
-from mavlink_bridge.contract.traffic import TrafficSource
+from mavlink_bridge.contract.traffic import TrafficSource, UtmFlightState
 
 
 def _table() -> TrackTable:
@@ -87,3 +87,59 @@ def test_table_is_bounded() -> None:
     rejected, _ = table.update(0, reports, 5.0)
     assert rejected == ["traffic report 4: track table full (2)"]
     assert [t.target_id for t in table.tracks] == [2, 3]
+
+
+def _intent_track(pos: tuple, vel: tuple, next_pos: tuple | None) -> object:
+    """The track a UTM report with a next waypoint (about home) makes, through the table."""
+    r = report(TrafficSource.UAV, 2, np.array(pos), np.array(vel), 1_000_000)
+    if next_pos is not None:
+        w = FRAME.geodetic_from_ned(*next_pos)
+        r = dataclasses.replace(r, next_lat_deg=w.lat_deg, next_lon_deg=w.lon_deg, next_alt_amsl_m=w.alt_amsl_m,
+                                flight_state=UtmFlightState.AIRBORNE, h_acc_m=0.5, v_acc_m=0.8)  # fmt: skip
+    table = _table()
+    table.update(1_000_000, [r], 5.0)
+    (track,) = table.tracks
+    return track
+
+
+def test_predict_flies_toward_the_next_waypoint_at_the_reported_speed_then_holds() -> None:
+    # level at 15 m going north at 5 m/s; its next waypoint is 20 m north and 10 m up: a climb it has not begun
+    track = _intent_track((0.0, 0.0, -15.0), (5.0, 0.0, 0.0), (20.0, 0.0, -25.0))
+    assert track.next_pos_home_ned_m == pytest.approx((20.0, 0.0, -25.0), abs=1e-3)
+    assert track.flight_state is UtmFlightState.AIRBORNE and (track.h_acc_m, track.v_acc_m) == (0.5, 0.8)
+    pos, vel = track.predict(3_000_000)  # 2 s: 10 m along the 22.36 m leg
+    along = np.array((20.0, 0.0, -10.0)) / math.hypot(20.0, 10.0)
+    assert pos == pytest.approx(tuple(np.array((0.0, 0.0, -15.0)) + 10.0 * along), abs=1e-3)
+    assert vel == pytest.approx(tuple(5.0 * along), abs=1e-6)
+    assert pos[2] < -15.0 - 4.0  # the climb is predicted; constant velocity says it stays level
+    assert track.position_at(3_000_000)[2] == pytest.approx(-15.0, abs=1e-3)
+    pos, vel = track.predict(11_000_000)  # 10 s: past the waypoint (4.5 s away): holds there
+    assert pos == pytest.approx((20.0, 0.0, -25.0), abs=1e-3) and vel == (0.0, 0.0, 0.0)
+
+
+def test_predict_turns_toward_a_waypoint_off_the_current_course() -> None:
+    # going north, the next waypoint is due east: the turn shows in the prediction, not in position_at
+    track = _intent_track((0.0, 0.0, -15.0), (4.0, 0.0, 0.0), (0.0, 40.0, -15.0))
+    pos, vel = track.predict(2_000_000)
+    assert pos == pytest.approx((0.0, 4.0, -15.0), abs=1e-3) and vel == pytest.approx((0.0, 4.0, 0.0), abs=1e-6)
+    assert track.position_at(2_000_000) == pytest.approx((4.0, 0.0, -15.0), abs=1e-3)
+
+
+def test_predict_without_intent_is_constant_velocity() -> None:
+    track = _intent_track((10.0, 5.0, -20.0), (3.0, -1.0, 0.5), None)
+    assert track.next_pos_home_ned_m is None and math.isnan(track.h_acc_m)
+    for t_us in (500_000, 1_000_000, 4_000_000):
+        pos, vel = track.predict(t_us)
+        assert pos == track.position_at(t_us) and vel == (3.0, -1.0, 0.5)
+
+
+def test_predict_of_a_standing_vehicle_or_a_manned_report_ignores_intent() -> None:
+    standing = _intent_track((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, -15.0))  # on its pad, about to climb
+    pos, vel = standing.predict(5_000_000)
+    assert pos == pytest.approx((0.0, 0.0, 0.0), abs=1e-6) and vel == (0.0, 0.0, 0.0)
+    r = report(TrafficSource.MANNED, 0xA1B2C3, np.array((0.0, 0.0, -40.0)), np.array((30.0, 0.0, 0.0)), 1_000_000)
+    w = FRAME.geodetic_from_ned(0.0, 500.0, -40.0)
+    table = _table()
+    table.update(1_000_000, [dataclasses.replace(r, next_lat_deg=w.lat_deg, next_lon_deg=w.lon_deg,
+                                                 next_alt_amsl_m=w.alt_amsl_m)], 5.0)  # fmt: skip
+    assert table.tracks[0].next_pos_home_ned_m is None  # ADS-B carries no intent: none is believed
