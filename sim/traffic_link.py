@@ -36,9 +36,10 @@ class TrafficLinkConfig:
     #: UTM service: a vehicle is relayed to receivers this close to its reported position (m, 3D; F3411-22a's
     #: largest display area, NetMaxDisplayAreaDiagonalKm = 7, seen from its centre).
     utm_range_m: float = 3_500.0
-    #: ADS-B: navigation accuracy categories of every aircraft's broadcast (NACp 9: EPU < 30 m, NACv 2: < 3 m/s,
-    #: 95 %; an autonomous GNSS source; 14 CFR 91.227 requires NACp >= 8, NACv >= 1).
-    adsb_nacp: int = 9
+    #: ADS-B: navigation accuracy categories of every aircraft's broadcast (NACp 10: EPU < 10 m, VEPU < 15 m,
+    #: NACv 2: < 3 m/s, 95 %; an SBAS (WAAS/EGNOS) position source, the usual ADS-B Out installation; 14 CFR
+    #: 91.227 requires NACp >= 8, NACv >= 1; set 9 for an autonomous GNSS source).
+    adsb_nacp: int = 10
     adsb_nacv: int = 2
     #: ADS-B: the broadcast position is this old when it arrives (14 CFR 91.227: uncompensated latency <= 0.6 s).
     adsb_latency_s: float = 0.6

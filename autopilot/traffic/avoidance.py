@@ -356,9 +356,10 @@ def _is_right_of(own_vel_ned_m_s: Vec3, rel_pos_ned_m: Vec3, direction_ne: tuple
 
 
 def _relative(own: OwnShip, track: TrafficTrack) -> tuple[Vec3, Vec3]:
-    """The track about the vehicle now: (position, velocity), NED."""
-    tp = track.position_at(own.t_us)
-    op, ov, tv = own.pos_home_ned_m, own.vel_ned_m_s, track.vel_ned_m_s
+    """The track about the vehicle now, where its intent puts it (:meth:`TrafficTrack.predict`): (position,
+    velocity), NED."""
+    tp, tv = track.predict(own.t_us)
+    op, ov = own.pos_home_ned_m, own.vel_ned_m_s
     return (tp[0] - op[0], tp[1] - op[1], tp[2] - op[2]), (tv[0] - ov[0], tv[1] - ov[1], tv[2] - ov[2])
 
 

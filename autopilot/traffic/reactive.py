@@ -46,6 +46,10 @@ MANNED_TAU_S = 40.0
 #: vertical one (1.5 x the half-height, 1.34 x the radius level): a multirotor cannot outrun them.
 UAV_REACH = math.sqrt(5.0)
 MANNED_REACH = 1.5
+#: The position uncertainty assumed of ADS-B reports (95 %, m): NACp 10 (EPU < 10 m, VEPU < 15 m; RTCA DO-242A,
+#: DO-260A), what an SBAS position source declares.
+ADSB_EPU_M = 10.0
+ADSB_VEPU_M = 15.0
 #: Sides of the polygon bounding the horizontal speed (circumscribed about the speed circle).
 SPEED_SIDES = 16
 #: The floor and ceiling are approached at most at this rate: the distance left over this time (s).
@@ -113,6 +117,15 @@ def reciprocates(track: TrafficTrack) -> bool:
     return track.source is TrafficSource.UAV and math.hypot(*track.vel_ned_m_s[:2]) >= COLUMN_SPEED_M_S
 
 
+def uncertainty_m(track: TrafficTrack) -> tuple[float, float]:
+    """How far (horizontal, vertical; m, about 95 %) the track may be from where it says: twice the 1-sigma
+    accuracy a UAV's UTM report carries; for ADS-B, which carries none on MAVLink, an SBAS source's NACp 10 bounds."""
+    if track.source is TrafficSource.MANNED:
+        return ADSB_EPU_M, ADSB_VEPU_M
+    h, v = track.h_acc_m, track.v_acc_m
+    return (2.0 * h if math.isfinite(h) else 0.0), (2.0 * v if math.isfinite(v) else 0.0)
+
+
 def covering_sphere(volume: SeparationVolume, reach: float) -> tuple[float, float]:
     """(radius, vertical stretch) of the sphere that covers the cylinder ``volume`` in the stretched space and
     reaches ``reach`` times its half-height vertically (> 1; its horizontal radius is then
@@ -136,7 +149,6 @@ class ReactiveLayer:
         self._out = np.zeros(3)
         self._limits_out = np.zeros(3)
         self._params: TrafficParams | None = None
-        self._spheres = ((0.0, 1.0), (0.0, 1.0))
         self._rows: list[TrafficTrack] = []
         self._version: int | None = None
         angles = np.arange(SPEED_SIDES) * 2.0 * math.pi / SPEED_SIDES
@@ -175,21 +187,26 @@ class ReactiveLayer:
         return ReactiveCommand((float(out[0]), float(out[1]), float(out[2])), self._binding(rows, m, total), False)
 
     def _load(self, t_us: int, tracks: Sequence[TrafficTrack], params: TrafficParams) -> None:
-        """The rows of the tracks to avoid (parked ones left out), columns ``T_*`` of :mod:`orca_kernel`."""
-        if params is not self._params:
-            self._params = params
-            self._spheres = (covering_sphere(params.uav.grown(params.margin), UAV_REACH),
-                             covering_sphere(params.manned.grown(params.margin), MANNED_REACH))  # fmt: skip
-        uav_sphere, manned_sphere = self._spheres
+        """The rows of the tracks to avoid (parked ones left out), columns ``T_*`` of :mod:`orca_kernel`: each
+        track where its intent puts it now (:meth:`TrafficTrack.predict`), its class's volume grown by the margin
+        and by its position uncertainty (:func:`uncertainty_m`), covered by its sphere."""
+        self._params = params
+        uav, manned = params.uav.grown(params.margin), params.manned.grown(params.margin)
         rows: list[TrafficTrack] = []
         table = self._tracks
         for track in tracks:
             if len(rows) == MAX_TRACKS or is_parked(track, t_us):
                 continue
-            manned = track.source is TrafficSource.MANNED
-            table[len(rows)] = (*track.pos_home_ned_m, *track.vel_ned_m_s, track.t_us * 1e-6,
-                                *(manned_sphere if manned else uav_sphere), 0.5 if reciprocates(track) else 1.0,
-                                MANNED_TAU_S if manned else UAV_TAU_S)  # fmt: skip
+            is_manned = track.source is TrafficSource.MANNED
+            base = manned if is_manned else uav
+            hor_m, ver_m = uncertainty_m(track)
+            radius, scale = covering_sphere(SeparationVolume(base.hor_m + hor_m, base.ver_m + ver_m),
+                                            MANNED_REACH if is_manned else UAV_REACH)  # fmt: skip
+            (pn, pe, pd), (vn, ve, vd) = track.predict(t_us)
+            age_s = (t_us - track.t_us) * 1e-6  # the kernel extrapolates from the report's time (and grows by age)
+            table[len(rows)] = (pn - vn * age_s, pe - ve * age_s, pd - vd * age_s, vn, ve, vd, track.t_us * 1e-6,
+                                radius, scale, 0.5 if reciprocates(track) else 1.0,
+                                MANNED_TAU_S if is_manned else UAV_TAU_S)  # fmt: skip
             rows.append(track)
         self._rows = rows
 
