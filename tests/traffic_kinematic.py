@@ -1,8 +1,8 @@
 """A small kinematic closed loop for traffic-avoidance tests: point-mass "own ships", each running its own
-:class:`TrafficAvoidance` on the others' 1 Hz reports and flying its decision (the detour reference exactly, else
-straight to its goal with an acceleration limit), plus scripted straight-flying manned aircraft. A ship with
-``land`` descends vertically to the ground at its goal (a LAND item: no avoidance, as the autopilot in that mode);
-separation counts while both ships are airborne (a ship on the ground is parked traffic)."""
+:class:`TrafficAvoidance` (the strategic detour) and :class:`ReactiveLayer` on the others' 1 Hz reports: it flies
+the velocity its reactive layer bounds (the detour's, else straight to its goal, or down when landing) with an
+acceleration limit, among scripted straight-flying manned aircraft. A ship with ``land`` descends vertically to the
+ground at its goal; separation counts while both ships are airborne (a ship on the ground is parked traffic)."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ import numpy as np
 
 from autopilot.traffic import AvoidLimits, OwnShip, TrafficAvoidance, TrafficParams
 from autopilot.traffic.param_decls import SeparationVolume, TrafficAction
+from autopilot.traffic.reactive import Phase, ReactiveLayer, ReactiveLimits
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame
 from mavlink_bridge.contract.traffic import AdsbEmitterType, TrafficReport, TrafficSource
 
@@ -23,6 +24,8 @@ DT_S = 0.1
 ACC_M_S2 = 3.0
 LAND_M_S = 1.5  # descent speed of a landing ship (MPC_LAND_SPEED-like)
 AIRBORNE_M = 0.5  # a ship lower than this is on the ground
+#: What a ship may fly (MPC_* defaults: 12 m/s, 3 up, 1.5 down, 3 m/s^2; floor 2 m, ceiling 120 m).
+REACTIVE_LIMITS = ReactiveLimits(12.0, 3.0, 1.5, ACC_M_S2, -2.0, -120.0)
 
 
 @dataclass
@@ -39,6 +42,8 @@ class Ship:
     offsets: dict[int, np.ndarray] = field(default_factory=dict)  # step -> the offset of the detour flown then
     land: bool = False  # at its goal it descends to the ground
     landing: bool = False
+    reactive: ReactiveLayer | None = None
+    reactive_steps: int = 0
 
     @property
     def done(self) -> bool:
@@ -90,6 +95,7 @@ def fly(
     for s in ships:
         s.avoidance = TrafficAvoidance(params, s.system_id)
         s.avoidance.set_home(HOME)
+        s.reactive = ReactiveLayer(s.system_id)
     min_uav = min_man = math.inf
     steps = round(duration_s / DT_S)
     for k in range(steps):
@@ -113,24 +119,33 @@ def fly(
                 s.detour_steps += 1
             else:
                 s._next = None  # type: ignore[attr-defined]
-        for s in ships:
+        for s in ships:  # what each would fly (the detour, the landing, the goal), bounded by its reactive layer
             nxt = s._next  # type: ignore[attr-defined]
-            if s.landing:  # straight down to the ground
-                s.vel = np.array((0.0, 0.0, LAND_M_S if s.airborne else 0.0))
-                s.pos = np.array((s.pos[0], s.pos[1], min(float(s.pos[2]) + s.vel[2] * DT_S, 0.0)))
-                continue
-            if nxt is not None:  # the detour reference one step on
-                s.pos = nxt[0] + nxt[1] * DT_S
-                s.vel = nxt[1]
-                continue
-            to_goal = s.goal - s.pos if k * DT_S >= s.start_s else np.zeros(3)
-            dist = float(np.linalg.norm(to_goal))
-            speed = min(s.cruise_m_s, math.sqrt(2.0 * ACC_M_S2 * dist))
-            want = to_goal / dist * speed if dist > 1e-6 else np.zeros(3)
-            dv = want - s.vel
+            if s.landing:
+                pref = np.array((0.0, 0.0, LAND_M_S if s.airborne else 0.0))
+            elif nxt is not None:
+                pref = nxt[1] + np.clip(nxt[0] - s.pos, -3.0, 3.0)
+            else:
+                to_goal = s.goal - s.pos if k * DT_S >= s.start_s else np.zeros(3)
+                dist = float(np.linalg.norm(to_goal))
+                speed = min(s.cruise_m_s, math.sqrt(2.0 * ACC_M_S2 * dist))
+                pref = to_goal / dist * speed if dist > 1e-6 else np.zeros(3)
+            cmd = pref
+            if s.reactive is not None and s.airborne and action is TrafficAction.AVOID:
+                phase = Phase.LAND if s.landing else Phase.MISSION
+                table = s.avoidance.table  # type: ignore[union-attr]
+                c = s.reactive.solve(t_us, tuple(map(float, s.pos)), tuple(map(float, s.vel)),
+                                     tuple(map(float, pref)), table.tracks, params, REACTIVE_LIMITS, phase,
+                                     table.version)  # fmt: skip
+                if c is not None:
+                    cmd = np.array(c.vel_ned_m_s)
+                    s.reactive_steps += 1
+            dv = cmd - s.vel
             n = float(np.linalg.norm(dv))
             s.vel = s.vel + (dv if n <= ACC_M_S2 * DT_S else dv / n * ACC_M_S2 * DT_S)
             s.pos = s.pos + s.vel * DT_S
+            if s.pos[2] > 0.0:  # on the ground
+                s.pos[2], s.vel[2] = 0.0, 0.0
         for m in manned:
             m.pos = m.pos + m.vel * DT_S
         for i, a in enumerate(ships):

@@ -20,6 +20,7 @@ import numpy as np
 from autopilot.safety.failsafe import FailsafeAction, FailsafeEvent, FailsafeKind
 from autopilot.traffic.cpa import Approach, predict_approach
 from autopilot.traffic.param_decls import SeparationVolume, TrafficAction, TrafficParams
+from autopilot.traffic.reactive import reciprocates
 from autopilot.traffic.resolution import (
     AvoidLimits,
     Maneuver,
@@ -217,7 +218,10 @@ class TrafficAvoidance:
                 if blocking:
                     own, conflicts = flying, blocking
                     self.resolution = active = None
-        acting = [c for c in conflicts if c.role is Role.GIVE_WAY or c.approach.loss_in_s <= LAST_RESORT_S]
+        # a quadsitl vehicle flying on is the reactive layer's (ORCA shares every such pair); the strategic detour
+        # re-routes around traffic that will not move aside: manned aircraft, a UAV hovering, landing or taking off
+        acting = [c for c in conflicts if (c.role is Role.GIVE_WAY or c.approach.loss_in_s <= LAST_RESORT_S)
+                  and not reciprocates(c.track)]  # fmt: skip
         if not acting:
             return
         if active is not None:

@@ -102,8 +102,13 @@ def _odd_perpendicular(v0: float, v1: float, v2: float) -> tuple[float, float, f
 #: Columns of the track rows ``orca_planes`` reads (one row per track, about home, NED).
 T_PN, T_PE, T_PD, T_VN, T_VE, T_VD, T_TS, T_RADIUS, T_SCALE, T_RESP, T_TAU = range(11)
 N_TRACK_COLS = 11
-#: Already inside a volume: the ORCA plane asks to leave it within this time (s) (RVO2 uses one time step).
-RECOVER_S = 1.0
+#: Already inside a volume: the ORCA plane asks to leave it within this time (s) (RVO2 uses one time step; a
+#: quadrotor cannot jump, and inside the grown sphere is not yet inside the volume).
+RECOVER_S = 3.0
+#: The acceleration a track may have used since its report (m/s^2): it is extrapolated along its velocity (and
+#: intent), so its age hides at most 1/2 a t^2 of manoeuvre (a multirotor's 3 m/s^2; an aircraft turning at 15 deg
+#: bank and 40 m/s: 2.6 m/s^2), or the closing speed's travel when that is less.
+MANOEUVRE_M_S2 = 3.0
 
 
 @njit(cache=True, fastmath=False)
@@ -123,11 +128,11 @@ def orca_planes(
     ``own_pos`` with velocity ``own_vel``, appended to ``normals``/``offsets`` from row ``m0``; returns the new count.
 
     Each track's separation cylinder is covered by a sphere in a space whose vertical axis is stretched by
-    ``T_SCALE`` (radius ``T_RADIUS`` there, grown by ``grow_m`` plus the track's report age times the closing speed,
-    ``T_AGE_GROW`` holding the age in s); the velocity obstacle of that sphere over the horizon ``T_TAU`` gives the
-    plane as RVO2-3D computes it, the vehicle taking ``T_RESP`` of the change (0.5 reciprocal, 1 full). The plane
-    is mapped back to velocities in metres per second. A track out of reach within its horizon adds no plane;
-    ``index[row]`` is the track of each plane added."""
+    ``T_SCALE`` (radius ``T_RADIUS`` there, grown by ``grow_m`` and by what the report's age hides:
+    ``min(age x closing speed, MANOEUVRE_M_S2 age^2 / 2)``); the velocity obstacle of that sphere over the horizon
+    ``T_TAU`` gives the plane as RVO2-3D computes it, the vehicle taking ``T_RESP`` of the change (0.5
+    reciprocal, 1 full). The plane is mapped back to velocities in metres per second. A track out of reach within
+    its horizon adds no plane; ``index[row]`` is the track of each plane added."""
     m = m0
     for r in range(k):
         c = tracks[r, T_SCALE]
@@ -139,7 +144,8 @@ def orca_planes(
         v1 = own_vel[1] - tracks[r, T_VE]
         v2 = (own_vel[2] - tracks[r, T_VD]) * c
         speed = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
-        radius = tracks[r, T_RADIUS] + grow_m + max(dt, 0.0) * speed  # grown by the report's age x closing speed
+        age = max(dt, 0.0)  # what the report's age hides: the closing speed's travel, or a manoeuvre since
+        radius = tracks[r, T_RADIUS] + grow_m + min(age * speed, 0.5 * MANOEUVRE_M_S2 * age * age)
         tau = tracks[r, T_TAU]
         dist2 = p0 * p0 + p1 * p1 + p2 * p2
         reach = radius + (speed + 2.0 * math.sqrt(own_vel[0] ** 2 + own_vel[1] ** 2 + own_vel[2] ** 2) + 1.0) * tau

@@ -31,7 +31,7 @@ from enum import Enum
 
 import numpy as np
 
-from autopilot.traffic.orca_kernel import N_TRACK_COLS, closest_admissible, orca_planes
+from autopilot.traffic.orca_kernel import N_TRACK_COLS, T_RADIUS, T_SCALE, closest_admissible, orca_planes
 from autopilot.traffic.param_decls import SeparationVolume, TrafficParams
 from autopilot.traffic.rules import COLUMN_SPEED_M_S
 from autopilot.traffic.tracks import TrafficTrack
@@ -238,6 +238,13 @@ class ReactiveLayer:
                 best, name = slack, rows[int(self._index[k])].name
         return name
 
+    def _vertical_reach(self, track: TrafficTrack) -> float:
+        """How far (m) the sphere about ``track`` reaches vertically (its radius over its stretch)."""
+        for k, row in enumerate(self._rows):
+            if row is track:
+                return float(self._tracks[k, T_RADIUS] / self._tracks[k, T_SCALE])
+        return 0.0
+
     def _fallback(self, t_us: int, pos: np.ndarray, rows: list[TrafficTrack], limits: ReactiveLimits,
                   phase: Phase) -> ReactiveCommand:  # fmt: skip
         """Brake to a hover and escape vertically away from the most urgent track, never below the floor."""
@@ -248,20 +255,22 @@ class ReactiveLayer:
             r = max(math.hypot(p[0] - pos[0], p[1] - pos[1]) / volume.hor_m, abs(p[2] - pos[2]) / volume.ver_m)
             if r < ratio:
                 worst, ratio = track, r
-        below = worst.position_at(t_us)[2] - pos[2]  # > 0: the other is below (NED down)
+        other = worst.position_at(t_us)
+        below = other[2] - pos[2]  # > 0: the other is below (NED down)
         if abs(below) >= 1.0:
             up = below > 0.0
         elif worst.source is TrafficSource.MANNED:
             up = -pos[2] - (-limits.floor_down_m) < 5.0  # near the floor: up; else down
         else:
             up = self.system_id < worst.target_id
-        floor_room = limits.floor_down_m - pos[2]  # > 0: room above the floor to descend
+        # escape until the other's sphere is cleared vertically (not further), at most at the climb/descent rate
+        reach_m = self._vertical_reach(worst)
         if phase is Phase.LAND or (phase is Phase.TAKEOFF and -pos[2] < GROUND_LOCK_AGL_M):
             vd, escape = 0.0, "holding"  # at the pad: hold the height (the column above is the other's)
-        elif up and limits.ceiling_down_m - pos[2] < 0.0:
-            vd, escape = -limits.up_m_s, "climbing"
-        elif not up and floor_room > 0.5:
-            vd, escape = min(limits.down_m_s, floor_room / FLOOR_TIME_S), "descending"
+        elif up:
+            room = min(pos[2] - limits.ceiling_down_m, reach_m - below)  # > 0: to climb
+            vd, escape = (-min(limits.up_m_s, room / FLOOR_TIME_S), "climbing") if room > 0.5 else (0.0, "holding")
         else:
-            vd, escape = 0.0, "holding"
+            room = min(limits.floor_down_m - pos[2], reach_m + below)  # > 0: to descend
+            vd, escape = (min(limits.down_m_s, room / FLOOR_TIME_S), "descending") if room > 0.5 else (0.0, "holding")
         return ReactiveCommand((0.0, 0.0, vd), worst.name, True, escape)

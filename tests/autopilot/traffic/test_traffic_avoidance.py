@@ -25,6 +25,16 @@ def _head_on(source: TrafficSource = TrafficSource.UAV, target_id: int = 1, alt_
     return report(source, target_id, np.array((200.0, 1.0, -alt_m)), np.array((-5.0, 0.0, 0.0)), 1_000_000)
 
 
+def _slow_head_on(alt_m: float = 20.0):  # type: ignore[no-untyped-def]
+    """A UAV creeping toward the vehicle on its route (slower than a reciprocating vehicle: it will not move aside)."""
+    return report(TrafficSource.UAV, 1, np.array((200.0, 1.0, -alt_m)), np.array((-0.9, 0.0, 0.0)), 1_000_000)
+
+
+def _hovering(target_id: int = 1, alt_m: float = 20.0):  # type: ignore[no-untyped-def]
+    """A UAV hovering on the route 60 m ahead (it will not move aside: the strategic detour's case)."""
+    return report(TrafficSource.UAV, target_id, np.array((60.0, 1.0, -alt_m)), np.zeros(3), 1_000_000)
+
+
 def _avoidance(action: TrafficAction) -> TrafficAvoidance:
     avoidance = TrafficAvoidance(TrafficParams(action=action), system_id=2)
     avoidance.set_home(HOME)
@@ -69,8 +79,14 @@ def test_return_land_hold_are_commander_failsafes_once_per_conflict(action, fail
     assert _avoidance(action).update(_own(), [_head_on()], LIMITS, airborne=False).failsafe is None
 
 
-def test_avoid_flies_a_detour_that_rejoins_the_route_and_says_so() -> None:
+def test_a_uav_flying_on_is_left_to_the_reactive_layer() -> None:
+    """Both vehicles share a conflict between two flying quadsitl vehicles (ORCA, every step): no detour."""
     decision = _avoidance(TrafficAction.AVOID).update(_own(), [_head_on()], LIMITS)
+    assert decision.conflicts and decision.resolution is None
+
+
+def test_avoid_flies_a_detour_that_rejoins_the_route_and_says_so() -> None:
+    decision = _avoidance(TrafficAction.AVOID).update(_own(), [_hovering()], LIMITS)
     res = decision.resolution
     assert res is not None and res.safe and res.maneuver is Maneuver.RIGHT
     assert any(t.text.startswith("Traffic: giving way to UAV 1: turn right") for t in decision.texts)
@@ -99,7 +115,7 @@ def test_detour_respects_the_fence() -> None:
     """An exclusion zone right of the route: the detour goes another way and keeps the fence margin."""
     zone = CircleZone((100.0, 25.0), 12.0)
     limits = AvoidLimits(down_min_m=-120.0, down_max_m=-2.0, fences=(zone,), fence_margin_m=3.0)
-    decision = _avoidance(TrafficAction.AVOID).update(_own(), [_head_on()], limits)
+    decision = _avoidance(TrafficAction.AVOID).update(_own(), [_slow_head_on()], limits)
     res = decision.resolution
     assert res is not None and res.maneuver is not Maneuver.RIGHT
     assert any("crosses the fence" in why for why in res.refused)
@@ -112,8 +128,7 @@ def test_detour_respects_the_altitude_floor_and_ceiling() -> None:
     """Low and under a ceiling: no descent below CA_MIN_AGL_M, no climb above the ceiling."""
     limits = AvoidLimits(down_min_m=-24.0, down_max_m=-2.0)
     own = _own(pos=(0.0, 0.0, -4.0), goal=(300.0, 0.0, -4.0))
-    intruder = report(TrafficSource.UAV, 1, np.array((200.0, 1.0, -4.0)), np.array((-5.0, 0.0, 0.0)), 1_000_000)
-    res = _avoidance(TrafficAction.AVOID).update(own, [intruder], limits).resolution
+    res = _avoidance(TrafficAction.AVOID).update(own, [_slow_head_on(alt_m=4.0)], limits).resolution
     assert res is not None and res.path is not None
     downs = res.path.sample(0.5)[:, 2]
     assert downs.max() <= -2.0 + 0.1 and downs.min() >= -24.0 - 0.1

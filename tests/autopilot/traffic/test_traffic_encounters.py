@@ -80,7 +80,8 @@ def test_manned_traffic_never_inside_the_nmac_volume() -> None:
         ships, heli = manned_crossing(np.random.default_rng(seed))
         out = fly(ships, heli, duration_s=100.0)
         assert out.min_manned_ratio >= 1.0, f"seed {seed}: NMAC ratio {out.min_manned_ratio:.2f}"
-        assert any("giving way to ICAO A1B2C3" in t for t in ships[0].texts)
+        strategic = any("giving way to ICAO A1B2C3" in t for t in ships[0].texts)
+        assert strategic or ships[0].reactive_steps > 0  # a detour, or the reactive layer moved first
         ships, heli = manned_crossing(np.random.default_rng(seed))
         worst_warn = min(worst_warn, fly(ships, heli, action=TrafficAction.WARN, duration_s=100.0).min_manned_ratio)
     assert worst_warn < 1.0  # the crossings are real NMACs without avoidance
