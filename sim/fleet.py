@@ -259,9 +259,10 @@ class FleetSim:
         pair = airborne[:, None] & airborne[None, :]
         if n_air >= 2:
             np.minimum(self.min_volume_sep_m, np.where(pair, sep, np.inf).min(axis=1), out=self.min_volume_sep_m)
-        inside = np.triu(sep < UAV_VOLUME_HOR_M)  # max(hor, 2 ver) < 10: inside 10 m and 5 m at once
-        if not inside.any():
+        close = sep < UAV_VOLUME_HOR_M  # max(hor, 2 ver) < 10: inside 10 m and 5 m at once
+        if not close.any():  # the usual step: nothing more to do
             return
+        inside = np.triu(close)
         for seen, first, rows in (
             (self._inside_seen, self.volume_pairs, pair),
             (self._inside_seen_ground, self.volume_pairs_ground, ~pair),
