@@ -12,6 +12,7 @@ volume, target 0), ``nmac`` ((vehicle, aircraft) pairs inside the NMAC volume in
 ``completion`` (share of vehicles whose mission the ground station saw done, target 1), ``min_sep_m`` (closest
 airborne pair in the volume's measure) and ``ground_excluded``; the end reason in the note. ``--quick`` flies the
 ring swap only. A flight takes one to three minutes of wall time on the 2-core VM (7 processes for the ring swap).
+Each run's folder (summaries, ``up.log``, the run's log) is kept under ``runs/bench-sitl-traffic-<time>/``.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ import math
 import random
 import subprocess
 import sys
-import tempfile
+import time
 from pathlib import Path
 from typing import Any
 
@@ -52,13 +53,18 @@ def fly(world: Path, stagger_s: float, out_dir: Path) -> dict[str, Any]:
         summary = json.loads((out_dir / "summary.json").read_text())
     except (OSError, ValueError):
         return {"error": f"tools.run wrote no summary (see {out_dir.parent / f'{out_dir.name}.log'})", "sim": {}}
-    return record(summary)
+    flight = record(summary)
+    flight["vehicle_rows"] = summary.get("vehicles") or []
+    return flight
 
 
 def world_results(stem: str, flight: dict[str, Any]) -> list[BenchResult]:
     """The keys of one world's flight record."""
     traffic = flight.get("traffic") or {}
     why = flight.get("error") or f"end {flight.get('sim', {}).get('end_reason', '?')}"
+    rows = flight.get("vehicle_rows") or []
+    failed = [f"{r['name']}: {r.get('reason') or 'not complete'}" for r in rows if not r.get("ok")]
+    why += f"; {'; '.join(failed)[:200]}" if failed else ""
 
     def value(column: str) -> float:
         got = traffic.get(column)
@@ -79,7 +85,8 @@ def world_results(stem: str, flight: dict[str, Any]) -> list[BenchResult]:
 
 def run(quick: bool) -> list[BenchResult]:
     out: list[BenchResult] = []
-    with tempfile.TemporaryDirectory(prefix="bench-sitl-traffic-") as tmp:
-        for stem, world, stagger_s in WORLDS[:1] if quick else WORLDS:
-            out += world_results(stem, fly(world, stagger_s, Path(tmp) / stem))
+    runs = REPO_ROOT / "runs" / time.strftime("bench-sitl-traffic-%Y%m%d-%H%M%S")
+    runs.mkdir(parents=True, exist_ok=True)
+    for stem, world, stagger_s in WORLDS[:1] if quick else WORLDS:
+        out += world_results(stem, fly(world, stagger_s, runs / stem))
     return out
