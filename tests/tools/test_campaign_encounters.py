@@ -32,6 +32,7 @@ def _spec(tmp_path: Path, body: str) -> Path:
         ("name: enc\nencounter: {kind: spiral}\ncases: 4\nseed: 2\n", 2, ["encounter.kind: bad value 'spiral'"]),
         ("name: enc\nencounter: {vehicles: 9}\ncases: 4\nseed: 2\n", 2, ["encounter.vehicles", "2 to 8"]),
         ("name: enc\nencounter: {crowd: 3}\ncases: 4\nseed: 2\n", 2, ["encounter.crowd: unknown key"]),
+        ("name: enc\nencounter: {kind: ring_swap, vehicles: 3}\ncases: 4\nseed: 2\n", 2, ["ring_swap encounter has 4"]),
         (GOOD + "base: x.yaml\n", 5, ["generates its worlds"]),
         (GOOD + "vary:\n  vehicle: {choice: [x500]}\n", 5, ["varies only params"]),
     ],
