@@ -18,6 +18,10 @@ approach to another airborne vehicle in the default UAV separation volume's own 
 16 m is "8 m above or below" or "16 m beside". Vehicles standing on the ground are parked traffic, not in
 conflict (pads are spaced for it): the measure counts pairs while both are airborne.
 
+The pairs that came inside that volume are pair-events (``sim.separation_events``): ``volume_pairs`` (both
+airborne) and ``volume_pairs_ground`` (one of the two standing on the ground: not a loss of separation in flight,
+kept apart to be written with its count), each pair once with the sim time it first came inside.
+
 Each recorded step also folds every vehicle's tilt into ``max_xy2`` (see :func:`tilt_deg`).
 """
 
@@ -143,6 +147,10 @@ class FleetSim:
         self._touching = np.zeros((n, n), dtype=bool)
         self.min_separation_m = np.full(n, np.inf)  # closest approach to any other vehicle (surface to surface)
         self.min_volume_sep_m = np.full(n, np.inf)  # closest airborne approach in the volume's measure (centres)
+        self.volume_pairs: dict[tuple[int, int], float] = {}  # (i < j) airborne pairs inside the volume -> first t_s
+        self.volume_pairs_ground: dict[tuple[int, int], float] = {}  # the same with one of them on the ground
+        self._inside_seen = np.zeros((n, n), dtype=bool)
+        self._inside_seen_ground = np.zeros((n, n), dtype=bool)
         self._others_id = len(world.obstacles) + np.arange(n, dtype=np.float64)
         gap = self._gaps()
         if n > 1 and float(gap.min()) <= 0.0:
@@ -240,15 +248,29 @@ class FleetSim:
             self.end(EndReason.COLLISION, [int(i), int(j)])
 
     def _volume_separation(self, d: np.ndarray) -> None:
-        """Fold the airborne pairs' separations in the volume's measure into ``min_volume_sep_m``; ``d``
-        (n, n, 3): the pairwise position differences."""
+        """Fold the airborne pairs' separations in the volume's measure into ``min_volume_sep_m`` and the pairs inside
+        the volume into ``volume_pairs`` / ``volume_pairs_ground``; ``d`` (n, n, 3): the pairwise differences."""
         airborne = ~self.on_ground
-        if np.count_nonzero(airborne) < 2:
+        n_air = np.count_nonzero(airborne)
+        if n_air == 0:
             return
         sep = np.maximum(np.hypot(d[..., 0], d[..., 1]), np.abs(d[..., 2]) * (UAV_VOLUME_HOR_M / UAV_VOLUME_VER_M))
+        np.fill_diagonal(sep, np.inf)
         pair = airborne[:, None] & airborne[None, :]
-        np.fill_diagonal(pair, False)
-        np.minimum(self.min_volume_sep_m, np.where(pair, sep, np.inf).min(axis=1), out=self.min_volume_sep_m)
+        if n_air >= 2:
+            np.minimum(self.min_volume_sep_m, np.where(pair, sep, np.inf).min(axis=1), out=self.min_volume_sep_m)
+        close = sep < UAV_VOLUME_HOR_M  # max(hor, 2 ver) < 10: inside 10 m and 5 m at once
+        if not close.any():  # the usual step: nothing more to do
+            return
+        inside = np.triu(close)
+        for seen, first, rows in (
+            (self._inside_seen, self.volume_pairs, pair),
+            (self._inside_seen_ground, self.volume_pairs_ground, ~pair),
+        ):
+            new = inside & rows & ~seen
+            for i, j in zip(*np.nonzero(new), strict=True):
+                first[(int(i), int(j))] = self.t_s
+            seen |= new
 
     def end(self, reason: EndReason, vehicles: list[int]) -> None:
         """End the running ones of ``vehicles`` with ``reason`` (they freeze)."""

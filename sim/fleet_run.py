@@ -31,6 +31,7 @@ from mavlink_bridge.wire.traffic_codec import MAV_COMP_ID_ADSB, MAV_TYPE_ADSB
 from sim.end_reason import EndReason
 from sim.fleet import FleetSim, world_vehicles
 from sim.fleet_world import FleetSpec
+from sim.separation_events import MannedPairs, pair_events
 from sim.summary_file import FleetSummary, FleetVehicleSummary, LinkCounts
 from sim.traffic import MannedProximity, ScriptedTraffic, TrafficLinkConfig, TrafficReceiver
 from sim.vehicle_config import VehicleConfig, load_vehicle
@@ -78,6 +79,7 @@ class FleetRun:
         )
         self.receiving = fleet.is_fleet or bool(fleet.traffic)  # a lone vehicle in an empty sky has no receiver
         self.proximity = MannedProximity(self.receiver.traffic, sim.n)
+        self.manned_pairs = MannedPairs(self.receiver.traffic, sim.n)
         names = [v.name for v in vehicles]
         self.recorder = (
             WorldRecorder(names, self.receiver.traffic, recording, recording_id) if recording is not None else None
@@ -149,6 +151,7 @@ class FleetRun:
         sim = self.sim
         sim.step()
         self.proximity.update(sim.t_s, sim.pos_ned, sim.on_ground)
+        self.manned_pairs.update(sim.t_s, sim.pos_ned, sim.on_ground)
         if self.recorder is not None:
             self.recorder.sample(sim.t_us, sim.pos_ned)
 
@@ -221,6 +224,12 @@ class FleetRun:
         sim = self.sim
         wait_s, sleep_s, physics_s, cpu_s = timing_s
         steps = max(sim.steps, 1)
+        names = [v.name for v in self.vehicles]
+        callsigns = [a.callsign for a in self.receiver.traffic.aircraft]
+        manned = self.manned_pairs
+        # a pair also inside in flight is an event, not an exclusion
+        volume_ground = {k: t for k, t in sim.volume_pairs_ground.items() if k not in sim.volume_pairs}
+        nmac_ground = {k: t for k, t in manned.ground.items() if k not in manned.airborne}
         return FleetSummary(
             end_reason=end.name,
             sim_time_s=sim.t_s,
@@ -237,6 +246,10 @@ class FleetRun:
             answer_wait_us=wait_s / steps * 1e6,
             sim_cpu_us_per_step=cpu_s / steps * 1e6,
             vehicles=vehicles,
+            volume_events=pair_events(sim.volume_pairs, names, names),
+            volume_ground_excluded=pair_events(volume_ground, names, names),
+            nmac_events=pair_events(manned.airborne, names, callsigns),
+            nmac_ground_excluded=pair_events(nmac_ground, names, callsigns),
         )
 
 

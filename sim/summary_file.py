@@ -11,6 +11,8 @@ import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from sim.separation_events import PairEvent
+
 SUMMARY_FILE = "sim_summary.json"
 
 
@@ -93,6 +95,11 @@ class FleetSummary(SummaryFile):
     answer_wait_us: float  # waiting for the slowest autopilot's answer (autopilot steps + transport)
     sim_cpu_us_per_step: float
     vehicles: list[FleetVehicleSummary]
+    # pair-events (sim.separation_events): each pair once, with the sim time it first came inside
+    volume_events: list[PairEvent]  # pairs of airborne vehicles inside the UAV volume (10 m / 5 m at once)
+    volume_ground_excluded: list[PairEvent]  # pairs inside it only while one of them stood on the ground
+    nmac_events: list[PairEvent]  # (vehicle, aircraft callsign) inside the NMAC volume with the vehicle in flight
+    nmac_ground_excluded: list[PairEvent]  # the same only while the vehicle was on (or within 1.5 m of) the ground
 
 
 @dataclass(frozen=True, slots=True)

@@ -1,4 +1,6 @@
-"""The encounter Monte Carlo's bench keys (tools.benchmarks.encounters): totals over the rows of both campaigns."""
+"""The encounter Monte Carlo's bench keys (tools.benchmarks.encounters): pair-event totals over the rows of both
+campaigns, the risk and loss-of-separation ratios over the same encounters with their bootstrap intervals, the
+pass rate per kind, vehicle count and traffic class."""
 
 from __future__ import annotations
 
@@ -7,32 +9,54 @@ from pathlib import Path
 
 import pytest
 
-from tools.benchmarks.encounters import AVOID, main, results, totals
+from tools.benchmarks.encounters import AVOID, main, ratio, results, totals
 
 
-def _row(status: str = "ok", **traffic: float) -> dict:
+def _row(case_id: int = 0, status: str = "ok", **traffic: object) -> dict:
     base = {
-        "traffic_vehicles": 2.0, "traffic_contacts": 0.0, "traffic_min_sep_m": 12.0, "traffic_volume_entries": 0.0,
-        "traffic_min_dist_m": 9.0, "traffic_nmac": 0.0, "traffic_completion": 1.0, "fence_breaches": 0,
-        "vary.encounter.manned": False,
+        "case_id": case_id, "traffic_vehicles": 2.0, "traffic_contacts": 0.0, "traffic_min_sep_m": 12.0,
+        "traffic_volume_entries": 0.0, "traffic_volume_vehicles": 0.0, "traffic_min_dist_m": 9.0, "traffic_nmac": 0.0,
+        "traffic_nmac_vehicles": 0.0, "traffic_ground_excluded": 0.0, "traffic_completion": 1.0, "fence_breaches": 0,
+        "end_reason": "COMPLETED", "vary.encounter.manned": False, "vary.encounter.kind": "head_on",
+        "vary.encounter.traffic": "none", "passed": status == "ok",
     }  # fmt: skip
     return {**base, "status": status, **traffic}
 
 
-def test_totals_weigh_completion_by_vehicles_and_skip_unjudged_cases() -> None:
+def test_totals_count_pair_events_weigh_completion_by_vehicles_and_skip_unjudged_cases() -> None:
     rows = [
-        _row(traffic_vehicles=8.0, traffic_completion=0.75, traffic_min_sep_m=9.5, traffic_volume_entries=2.0),
-        _row(**{"vary.encounter.manned": True}, traffic_nmac=1.0, traffic_min_sep_m=math.nan),
-        _row("error", traffic_contacts=5.0, traffic_min_sep_m=0.1),  # could not be judged: counted apart
-    ]
+        _row(0, traffic_vehicles=8.0, traffic_completion=0.75, traffic_min_sep_m=9.5, traffic_volume_entries=2.0,
+             traffic_volume_vehicles=3.0, **{"vary.encounter.kind": "ring_swap"}, end_reason="STUCK"),
+        _row(1, **{"vary.encounter.manned": True}, traffic_nmac=2.0, traffic_nmac_vehicles=1.0,
+             traffic_ground_excluded=1.0, traffic_min_sep_m=math.nan),
+        _row(2, "error", traffic_contacts=5.0, traffic_min_sep_m=0.1),  # could not be judged: counted apart
+    ]  # fmt: skip
     t = totals(rows)
-    assert (t["cases"], t["judged"], t["manned"]) == (3.0, 2.0, 1.0)
-    assert t["completion"] == pytest.approx((8 * 0.75 + 2) / 10)
-    assert (t["contacts"], t["nmac"], t["volume_entries"], t["min_sep_m"]) == (0.0, 1.0, 2.0, 9.5)
-    keys = {r.key: r for r in results(t, totals([_row(traffic_contacts=3.0)]))}
+    assert (t["cases"], t["judged"], t["manned"], t["ring_swaps"], t["eight"]) == (3.0, 2.0, 1.0, 1.0, 1.0)
+    assert t["completion"] == pytest.approx((8 * 0.75 + 2) / 10) and t["stuck"] == 1.0
+    assert (t["contacts"], t["nmac"], t["nmac_vehicles"], t["ground_excluded"]) == (0.0, 2.0, 1.0, 1.0)
+    assert (t["volume_entries"], t["volume_vehicles"], t["min_sep_m"]) == (2.0, 3.0, 9.5)
+    keys = {r.key: r for r in results(rows, [_row(0, traffic_contacts=3.0), _row(1, traffic_nmac=4.0)])}
     assert not keys["traffic_min_sep_m"].met and not keys["traffic_volume_entries"].met
-    assert not keys["traffic_completion"].met and keys["traffic_contacts"].met
-    assert keys["traffic_contacts_warn"].value == 3.0 and not keys["traffic_encounters"].met  # 2 < 300
+    assert not keys["traffic_completion"].met and keys["traffic_contacts"].met and not keys["traffic_nmac"].met
+    assert keys["traffic_contacts_warn"].value == 3.0 and not keys["traffic_encounters"].met  # 2 < 1000
+    assert keys["traffic_risk_ratio"].value == 0.5 and math.isnan(keys["traffic_los_ratio"].value)  # warn: 0 entries
+    assert keys["traffic_pass_rate_kind_ring_swap"].value == 1.0 and keys["traffic_pass_rate_vehicles_8"].value == 1.0
+    assert "traffic_pass_rate_class_none" in keys and keys["traffic_encounters_eight_share"].value == 0.5
+
+
+def test_the_ratios_match_encounters_by_case_id_with_a_seeded_bootstrap_interval() -> None:
+    """Events with avoidance / warn-only over the same encounters (case ids judged both ways), 95 % percentile
+    bootstrap over the encounters: reproducible, containing the estimate, narrowing with more encounters."""
+    avoid = [_row(k, traffic_nmac=float(k % 5 == 0)) for k in range(200)] + [_row(999, traffic_nmac=50.0)]
+    warn = [_row(k, traffic_nmac=float(k % 2 == 0)) for k in range(200)] + [_row(7, "timeout")]
+    value, low, high, matched = ratio(avoid, warn, "traffic_nmac")
+    assert matched == 200 and value == pytest.approx(40 / 100)  # case 999 flew only with avoidance: left out
+    assert low < value < high and (low, high) == ratio(avoid, warn, "traffic_nmac")[1:3]
+    assert low > 0.25 and high < 0.6
+    small = ratio(avoid[:40], warn[:40], "traffic_nmac")
+    assert small[2] - small[1] > high - low
+    assert math.isnan(ratio(avoid, [_row(k) for k in range(200)], "traffic_nmac")[0])  # warn-only had none
 
 
 def test_keys_from_folders_refuse_a_folder_of_another_campaign(tmp_path: Path) -> None:

@@ -32,6 +32,7 @@ def _spec(tmp_path: Path, body: str) -> Path:
         ("name: enc\nencounter: {kind: spiral}\ncases: 4\nseed: 2\n", 2, ["encounter.kind: bad value 'spiral'"]),
         ("name: enc\nencounter: {vehicles: 9}\ncases: 4\nseed: 2\n", 2, ["encounter.vehicles", "2 to 8"]),
         ("name: enc\nencounter: {crowd: 3}\ncases: 4\nseed: 2\n", 2, ["encounter.crowd: unknown key"]),
+        ("name: enc\nencounter: {kind: ring_swap, vehicles: 3}\ncases: 4\nseed: 2\n", 2, ["ring_swap encounter has 4"]),
         (GOOD + "base: x.yaml\n", 5, ["generates its worlds"]),
         (GOOD + "vary:\n  vehicle: {choice: [x500]}\n", 5, ["varies only params"]),
     ],
@@ -52,6 +53,7 @@ def test_a_case_flies_the_generators_world_of_its_seed(tmp_path: Path) -> None:
         "encounter.kind": enc.kind,
         "encounter.vehicles": 3,
         "encounter.manned": enc.manned,
+        "encounter.traffic": enc.traffic,
         "encounter.stagger_s": enc.stagger_s,
     }
     assert materialise(spec, case).world_yaml == enc.yaml_text()
@@ -66,23 +68,49 @@ def test_the_flight_record_of_a_fleet_run() -> None:
          "min_volume_sep_m": 12.0, "min_manned_distance_m": 80.0},
         {"name": "b", "end_reason": "COLLISION", "truth_sha256": "2", "min_separation_m": 0.0,
          "min_volume_sep_m": 9.0, "min_manned_distance_m": None},
+        {"name": "c", "end_reason": "STOPPED", "truth_sha256": "3", "min_separation_m": 0.0,
+         "min_volume_sep_m": 9.0, "min_manned_distance_m": None},
     ]  # fmt: skip
     rows = [
         {"ok": True, "items_total": 4, "items_reached": 4, "landed": True, "disarmed": True, "reason": ""},
         {"ok": False, "items_total": 4, "items_reached": 2, "landed": False, "disarmed": False,
          "reason": "failsafe during the mission: Failsafe: geofence breached"},
+        {"ok": True, "items_total": 4, "items_reached": 4, "landed": True, "disarmed": True, "reason": ""},
     ]  # fmt: skip
-    sim = {"vehicle_contacts": 1, "manned_nmacs": 1, "collisions": 2, "vehicles": truth}
+    sim = {
+        "vehicle_contacts": 1, "manned_nmacs": 1, "collisions": 2, "vehicles": truth,
+        # pair-events: b-c and a-b inside the UAV volume (b in both: 3 vehicles), a under HELI1 and PLANE1 in
+        # flight (one vehicle, two events), c over a parked vehicle once and under HELI1 on its pad once
+        "volume_events": [{"a": "b", "b": "c", "at_s": 10.0}, {"a": "a", "b": "b", "at_s": 12.0}],
+        "volume_ground_excluded": [{"a": "a", "b": "c", "at_s": 40.0}],
+        "nmac_events": [{"a": "a", "b": "HELI1", "at_s": 20.0}, {"a": "a", "b": "PLANE1", "at_s": 30.0}],
+        "nmac_ground_excluded": [{"a": "c", "b": "HELI1", "at_s": 21.0}],
+    }  # fmt: skip
     flight = record({"sim": sim, "vehicles": rows})
     assert flight["sim"]["end_reason"] == "COLLISION" and flight["texts"] == ["Failsafe: geofence breached"]
     assert flight["autopilot"] == {
-        "items_total": 8, "items_reached": 6, "items_bypassed": 0, "landed": False, "disarmed": False,
+        "items_total": 12, "items_reached": 10, "items_bypassed": 0, "landed": False, "disarmed": False,
     }  # fmt: skip
     assert flight["traffic"] == {
-        "traffic_contacts": 1, "traffic_min_sep_m": 9.0, "traffic_volume_entries": 1, "traffic_min_dist_m": 0.0,
-        "traffic_nmac": 1, "traffic_min_manned_m": 80.0, "traffic_completion": 0.5, "traffic_vehicles": 2,
+        "traffic_contacts": 1, "traffic_min_sep_m": 9.0, "traffic_volume_entries": 2, "traffic_volume_vehicles": 3,
+        "traffic_min_dist_m": 0.0, "traffic_nmac": 2, "traffic_nmac_vehicles": 1, "traffic_ground_excluded": 2,
+        "traffic_min_manned_m": 80.0, "traffic_completion": 2 / 3, "traffic_vehicles": 3,
     }  # fmt: skip
     assert "error" in record({"sim": {}, "vehicles": [], "errors": ["quadsitl up died"]})
+
+
+def test_a_row_says_stuck_or_unfinished_when_a_vehicle_did_not_finish() -> None:
+    """The two held-out manned cases that stopped at 125 s with a vehicle stalled on its pad (three items missed,
+    not landed) said COMPLETED: a stuck vehicle (the ground station's ``stuck:`` reason, or inproc's ``stuck``
+    flag) makes the row STUCK, a vehicle still flying at the limit UNFINISHED."""
+    truth = [{"name": n, "end_reason": "COMPLETED", "truth_sha256": n} for n in ("a", "b")]
+    done = {"ok": True, "items_total": 4, "items_reached": 4, "landed": True, "disarmed": True, "reason": ""}
+    stalled = {"ok": False, "items_total": 4, "items_reached": 1, "landed": True, "disarmed": False,
+               "reason": "stuck: no mission progress for 120 s of sim time (crashed?)"}  # fmt: skip
+    flying = {**stalled, "landed": False, "reason": "still flying when the case ended at 600.0 s of sim time"}
+    cases = (([done, stalled], "STUCK"), ([done, {**flying, "stuck": True}], "STUCK"), ([done, flying], "UNFINISHED"))
+    for rows, reason in (*cases, ([done, done], "COMPLETED")):
+        assert record({"sim": {"vehicles": truth}, "vehicles": rows})["sim"]["end_reason"] == reason
 
 
 @pytest.mark.sitl

@@ -78,11 +78,13 @@ def draw(spec: CampaignSpec, case_id: int) -> Case:
 
 
 def _encounter_case(spec: CampaignSpec, case_id: int, sim_seed: int, rng: np.random.Generator) -> Case:
-    """Case ``case_id`` of an encounter campaign: what it drew (kind, vehicles, manned, stagger) as its overrides."""
+    """Case ``case_id`` of an encounter campaign: what it drew (kind, vehicles, manned, traffic class, stagger) as its
+    overrides."""
     enc = encounter_world(sim_seed, **dict(spec.encounter or ()))
     drawn = {key: _sample(rng, dist) for key, dist in spec.vary}
     drawn_enc = (("encounter.kind", enc.kind), ("encounter.vehicles", enc.vehicles))
-    drawn_enc += (("encounter.manned", enc.manned), ("encounter.stagger_s", enc.stagger_s))
+    drawn_enc += (("encounter.manned", enc.manned), ("encounter.traffic", enc.traffic))
+    drawn_enc += (("encounter.stagger_s", enc.stagger_s),)
     return Case(case_id, sim_seed, ENCOUNTER_BASE, "x500", str(drawn.get("params", "default")), "[]", drawn_enc)
 
 

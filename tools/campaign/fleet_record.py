@@ -3,19 +3,28 @@ the fleet run's summaries (the fleet run command's ``summary.json`` in ``sitl`` 
 ``inproc``) folded into the record a results row is built from, and the row's traffic columns.
 
 The row's usual columns become fleet-wide: ``items_*`` summed over the vehicles, ``landed``/``disarmed`` true
-only when every vehicle is, ``collisions`` the simulator's, ``end_reason`` ``COMPLETED`` unless a vehicle ended
-otherwise than stopped (a crash), the truth hash the SHA-256 of the vehicles' hashes. The traffic columns:
+only when every vehicle is, ``collisions`` the simulator's, the truth hash the SHA-256 of the vehicles' hashes.
+``end_reason`` tells how the flight ended: a vehicle's simulator end when one ended otherwise than stopped (a
+crash: ``COLLISION``, ``GROUND_IMPACT``...), else ``STUCK`` when a vehicle was given up as stuck (its reason
+``stuck: ...``: no mission progress for too long), else ``UNFINISHED`` when a vehicle was still flying when the
+flight stopped (the sim-time or wall-clock limit), else ``COMPLETED``. The traffic columns (simulator truth;
+losses of separation as pair-events, ``sim.separation_events``, as DEGAS counts them):
 
-- ``traffic_contacts``: pairs of vehicles that touched (the simulator's truth);
-- ``traffic_min_sep_m``: the closest approach of two airborne vehicles in the default UAV separation volume's
-  measure, ``max(horizontal, 2 * vertical)`` between centres (``sim.fleet``): below 10 m they were inside the
-  volume (10 m horizontally and 5 m vertically at once); NaN when no two vehicles were airborne together;
-- ``traffic_volume_entries``: vehicles that came inside that volume of another (target 0);
+- ``traffic_contacts``: pairs of vehicles that touched;
+- ``traffic_volume_entries``: pairs of airborne vehicles that came inside the default UAV separation volume
+  (10 m horizontally and 5 m vertically at once), each pair once (target 0); ``traffic_volume_vehicles``: the
+  vehicles in those pairs;
+- ``traffic_nmac``: (vehicle, manned aircraft) pairs inside the NMAC volume (500 ft / 100 ft at once) with the
+  vehicle in flight, each pair once (target 0); ``traffic_nmac_vehicles``: the vehicles in them;
+- ``traffic_ground_excluded``: pairs inside either volume only while a vehicle stood on the ground (on its pad:
+  parked, not in flight), not counted above and written here so nothing is excluded silently;
+- ``traffic_min_sep_m``: the closest approach of two airborne vehicles in the volume's measure,
+  ``max(horizontal, 2 * vertical)`` between centres (``sim.fleet``; below 10 m: inside); NaN when no two vehicles
+  were airborne together;
 - ``traffic_min_dist_m``: the closest 3D approach of two vehicles, surface to surface, airborne or not (0 is a
-  contact; pads are >= 14 m apart);
-- ``traffic_nmac``: vehicles that came inside a manned aircraft's NMAC volume (500 ft / 100 ft at once);
+  contact; pads are >= 20 m apart);
 - ``traffic_min_manned_m``: the closest 3D approach to a manned aircraft (NaN: none flew);
-- ``traffic_completion``: the fraction of vehicles whose mission the ground station saw done, landed, disarmed;
+- ``traffic_completion``: the fraction of vehicles whose mission was done, landed, disarmed, no failsafe;
 - ``traffic_vehicles``: how many flew.
 
 In ``sitl`` mode the fleet ground station arms and starts the vehicles on wall-clock timing, so a fleet case
@@ -30,19 +39,34 @@ import math
 from typing import Any
 
 from mavlink_bridge.contract.status_texts import failsafe_in
-from sim.fleet import UAV_VOLUME_HOR_M
+from tools.gcs.summary import is_stuck
 
 TRAFFIC_COLUMNS = (
     "traffic_contacts",
     "traffic_min_sep_m",
     "traffic_volume_entries",
+    "traffic_volume_vehicles",
     "traffic_min_dist_m",
     "traffic_nmac",
+    "traffic_nmac_vehicles",
+    "traffic_ground_excluded",
     "traffic_min_manned_m",
     "traffic_completion",
     "traffic_vehicles",
 )
 _RUN_ENDS = ("STOPPED", "COMPLETED")
+
+
+def end_reason(truth: list[dict[str, Any]], rows: list[dict[str, Any]]) -> str:
+    """How a fleet flight ended (see the module docstring): a crash, ``STUCK``, ``UNFINISHED`` or ``COMPLETED``."""
+    crashed = [str(v["end_reason"]) for v in truth if v.get("end_reason") not in _RUN_ENDS]
+    if crashed:
+        return crashed[0]
+    if any(r.get("stuck") or is_stuck(str(r.get("reason") or "")) for r in rows):
+        return "STUCK"
+    if len(rows) < len(truth) or not all(r.get("landed") and r.get("disarmed") for r in rows):
+        return "UNFINISHED"
+    return "COMPLETED"
 
 
 def record(summary: dict[str, Any]) -> dict[str, Any]:
@@ -52,7 +76,6 @@ def record(summary: dict[str, Any]) -> dict[str, Any]:
     truth = sim.get("vehicles") or []
     if not sim or not truth:
         return {"error": "; ".join(summary.get("errors") or ["the simulator wrote no summary"]), "sim": {}}
-    crashed = [v["end_reason"] for v in truth if v.get("end_reason") not in _RUN_ENDS]
     hashes = "".join(str(v.get("truth_sha256", "")) for v in truth)
     texts = []
     for row in rows:
@@ -63,10 +86,13 @@ def record(summary: dict[str, Any]) -> dict[str, Any]:
     separations = [float(v["min_separation_m"]) for v in truth if v.get("min_separation_m") is not None]
     volume_seps = [float(v["min_volume_sep_m"]) for v in truth if v.get("min_volume_sep_m") is not None]
     n = len(truth)
+    volume = sim.get("volume_events") or []
+    nmac = sim.get("nmac_events") or []
+    ground = len(sim.get("volume_ground_excluded") or []) + len(sim.get("nmac_ground_excluded") or [])
     return {
         "sim": {
             **sim,
-            "end_reason": crashed[0] if crashed else "COMPLETED",
+            "end_reason": end_reason(truth, rows),
             "truth_sha256": hashlib.sha256(hashes.encode()).hexdigest(),
         },
         "autopilot": {
@@ -80,9 +106,12 @@ def record(summary: dict[str, Any]) -> dict[str, Any]:
         "traffic": {
             "traffic_contacts": int(sim.get("vehicle_contacts", 0)),
             "traffic_min_sep_m": min(volume_seps) if volume_seps else math.nan,
-            "traffic_volume_entries": sum(sep < UAV_VOLUME_HOR_M for sep in volume_seps),
+            "traffic_volume_entries": len(volume),
+            "traffic_volume_vehicles": len({e["a"] for e in volume} | {e["b"] for e in volume}),
             "traffic_min_dist_m": min(separations) if separations else math.nan,
-            "traffic_nmac": int(sim.get("manned_nmacs", 0)),
+            "traffic_nmac": len(nmac),
+            "traffic_nmac_vehicles": len({e["a"] for e in nmac}),
+            "traffic_ground_excluded": ground,
             "traffic_min_manned_m": min(manned) if manned else math.nan,
             "traffic_completion": sum(bool(r.get("ok")) for r in rows) / n if n else 0.0,
             "traffic_vehicles": n,

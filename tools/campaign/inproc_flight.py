@@ -18,10 +18,14 @@ vehicle's own merged in, as ``autopilot --world-failures [--fleet-vehicle]`` doe
   like ``sim --duration-s`` (or until the vehicle ended), its record has the single-vehicle ``sim_summary``;
 - a fleet world (an encounter case, ``python -m tools.campaign.inproc_flight``): vehicle i is armed at
   ``arm_at_s + i * stagger_s`` and starts its mission 0.5 s later, and each vehicle is judged as the fleet ground
-  station judges it (``tools.gcs.fly``): done when landed and disarmed after flying, when it crashed, or after
-  ``stall_s`` of sim time without progress; ok when its mission was completed, it landed and disarmed, and no
-  failsafe fired. The run ends when every vehicle is done or at ``sim_time_s``; the record has the shape
-  ``fleet_record.record`` reads (``sim``: the fleet ``sim_summary``; ``vehicles``: one row per vehicle).
+  station judges it (``tools.gcs.fly``): done when landed and disarmed after flying, or when it crashed; stuck
+  (``stuck: ...``) once armed, after ``stuck_s`` of sim time with no mission progress (item reached, landed
+  state, arming) and no motion (it stayed within ``STUCK_MOVE_M``: time enough to hold and resume), or after
+  ``stall_s`` without progress though moving; ok when its mission was completed, it landed and disarmed, and no
+  failsafe fired. The run ends when every vehicle is done, when one is stuck (the others are then "still
+  flying": a verdict is never taken back by a later recovery), or at ``sim_time_s``; the record has the shape
+  ``fleet_record.record`` reads (``sim``: the fleet ``sim_summary``; ``vehicles``: one row per vehicle, ``stuck``
+  among its keys).
 
 A case is a function of its world, parameters and seed: re-flying it gives the same truth hashes
 (``quadsitl campaign replay``). The wall-clock deadline is checked every simulated second.
@@ -68,10 +72,13 @@ from sim.world import load_world
 from tools.campaign.cases import MISSION_START_DELAY_S
 from tools.campaign.fleet_record import record
 from tools.gcs import failsafe_reason
+from tools.gcs.summary import stuck_reason
 
 CONTROL_HZ = 250
 DEFAULT_ARM_AT_S = 3.0
 DEFAULT_STALL_S = 120.0  # as the fleet ground station's --stall-s
+DEFAULT_STUCK_S = 60.0  # no progress and no motion for this long: stuck
+STUCK_MOVE_M = 2.0  # a vehicle that stays within this of where it was is not moving
 DEFAULT_SIM_TIME_S = 900.0
 _RUNNING = int(EndReason.RUNNING)
 _MISSION_COMPLETE = "COMPLETE"
@@ -111,7 +118,10 @@ class _Vehicle:
     seen_armed: bool = False
     progress: tuple[int, bool, bool] = (0, False, False)
     progress_at_s: float = 0.0
+    still_ned: tuple[float, float, float] = (0.0, 0.0, 0.0)  # where it was when it last moved or progressed
+    still_at_s: float = 0.0
     done: bool = False
+    stuck: bool = False
     reason: str = ""
     upload_error: str = ""
 
@@ -137,13 +147,15 @@ def fly_world(
     arm_at_s: float = DEFAULT_ARM_AT_S,
     sim_time_s: float = DEFAULT_SIM_TIME_S,
     stall_s: float | None = DEFAULT_STALL_S,
+    stuck_s: float = DEFAULT_STUCK_S,
     deadline_s: float | None = None,
     rerun: str | None = None,
 ) -> dict[str, Any]:
     """Fly the world at ``world_path``; its record (see the module docstring: the single-vehicle shape for a world
     without ``vehicles:``, else the fleet's). ``vehicle``: the airframe of vehicles without their own (default:
     the world's ``vehicle:``); ``script``: what every autopilot runs instead of the staggered arm and mission
-    start; ``stall_s`` None: no judging, the flight runs to ``sim_time_s`` or until every vehicle ended.
+    start; ``stall_s`` None: no judging, the flight runs to ``sim_time_s`` or until every vehicle ended;
+    ``stuck_s``: sim seconds without progress or motion that make a vehicle stuck.
     ``deadline_s``: wall-clock limit (``timed_out`` in the record). ``rerun``: ``save:PATH.rrd`` records the
     flight as ``autopilot --rerun`` (one vehicle) or ``quadsitl up --rerun`` (a fleet: ``PATH_<name>.rrd`` per
     vehicle, ``PATH_world.rrd``, one id) does."""
@@ -213,9 +225,15 @@ def fly_world(
             break
         if sim.steps % CONTROL_HZ == 0:
             if stall_s is not None:
-                verdicts = [_judge(v, sim.t_s, int(sim.end_reason[i]), stall_s) for i, v in enumerate(vehicles)]
+                pos = sim.pos_ned.tolist()
+                verdicts = [
+                    _judge(v, sim.t_s, int(sim.end_reason[i]), pos[i], stall_s, stuck_s) for i, v in enumerate(vehicles)
+                ]
                 if all(verdicts):  # every vehicle judged every second (no short-circuit)
                     end = EndReason.COMPLETED
+                    break
+                if any(v.stuck for v in vehicles):  # the case ends with its verdict (fleet_record: STUCK)
+                    end = EndReason.STOPPED
                     break
             if deadline_s is not None and time.monotonic() - t0 > deadline_s:
                 timed_out = True
@@ -271,7 +289,7 @@ def fly_world(
             "texts": [t.text for t in v.texts],
             "wall_s": wall_s,
         }
-    rows = [_row(v, wall_s) for v in vehicles]
+    rows = [_row(v, wall_s, sim.t_s) for v in vehicles]
     out = record({"sim": asdict(summary), "vehicles": rows})
     out["error"] = out.get("error") or upload_error or error
     out["timed_out"] = timed_out
@@ -309,8 +327,9 @@ def warm() -> None:
     import sim.fleet_run  # noqa: F401
 
 
-def _judge(v: _Vehicle, t_s: float, end_code: int, stall_s: float) -> bool:
-    """Update vehicle ``v``'s verdict at sim time ``t_s`` (its simulator end code); True once it is done."""
+def _judge(v: _Vehicle, t_s: float, end_code: int, pos_ned: list[float], stall_s: float, stuck_s: float) -> bool:
+    """Update vehicle ``v``'s verdict at sim time ``t_s`` (its simulator end code, its true position); True once it
+    is done (``v.stuck`` when given up as stuck)."""
     if v.done:
         return True
     commander = v.autopilot.commander
@@ -320,18 +339,25 @@ def _judge(v: _Vehicle, t_s: float, end_code: int, stall_s: float) -> bool:
     progress = (reached, on_ground, armed)
     if progress != v.progress:
         v.progress, v.progress_at_s = progress, t_s
+    if active := v.progress_at_s == t_s or math.dist(pos_ned, v.still_ned) > STUCK_MOVE_M:
+        v.still_ned, v.still_at_s = (pos_ned[0], pos_ned[1], pos_ned[2]), t_s
     v.seen_armed = v.seen_armed or armed
     if end_code != _RUNNING:
         v.reason, v.done = f"the vehicle ended {EndReason(end_code).name} in the simulator", True
     elif v.seen_armed and not armed and on_ground:
         v.done = True
+    elif v.seen_armed and not active and t_s - v.still_at_s > stuck_s:
+        why = f"no mission progress and no motion (within {STUCK_MOVE_M:g} m) for {stuck_s:g} s of sim time"
+        v.reason, v.done, v.stuck = stuck_reason(why), True, True
     elif t_s - v.progress_at_s > stall_s:
-        v.reason, v.done = f"no mission progress for {stall_s:g} s of sim time (crashed or stuck?)", True
+        why = f"no mission progress for {stall_s:g} s of sim time (moving, but not along its mission)"
+        v.reason, v.done, v.stuck = stuck_reason(why), True, True
     return v.done
 
 
-def _row(v: _Vehicle, wall_s: float) -> dict[str, Any]:
-    """Vehicle ``v``'s row, as the fleet ground station's summary has it."""
+def _row(v: _Vehicle, wall_s: float, end_s: float) -> dict[str, Any]:
+    """Vehicle ``v``'s row, as the fleet ground station's summary has it (and ``stuck``); ``end_s``: the sim time
+    the case ended at."""
     s = v.autopilot.summary(wall_s)
     total = int(s["items_total"])  # type: ignore[call-overload]
     reached = set(s["reached_seqs"])  # type: ignore[call-overload]
@@ -339,6 +365,8 @@ def _row(v: _Vehicle, wall_s: float) -> dict[str, Any]:
     reason = v.reason or v.upload_error or failsafe_reason(v.texts)
     if not reason and v.done and not mission_done:
         reason = "the vehicle landed and disarmed before the mission was complete"
+    if not reason and not v.done:
+        reason = f"still flying when the case ended at {end_s:.1f} s of sim time"
     landed, disarmed = bool(s["landed"]), bool(s["disarmed"])
     return {
         "name": v.name,
@@ -350,6 +378,7 @@ def _row(v: _Vehicle, wall_s: float) -> dict[str, Any]:
         "landed": landed,
         "disarmed": disarmed,
         "reason": reason,
+        "stuck": v.stuck,
         "traffic_texts": [t.text for t in v.texts if t.text.startswith("Traffic")],
     }
 

@@ -1,6 +1,11 @@
 """``summary.json`` and ``report.md`` of a campaign: pass rate with its exact (Clopper-Pearson) 95 % interval,
 the pass rate per level of every ``choice`` input, ECDF plots (PNG) of clearance, tracking error and energy,
-the failures grouped by reason, and the ten worst cases with the command that replays each."""
+the failures grouped by reason, and the ten worst cases with the command that replays each.
+
+Fleet cases (rows with the traffic columns, ``tools.campaign.fleet_record``) add the pass rate per encounter kind,
+vehicle count and traffic class (:func:`fleet_groups`), the traffic totals (contacts, pair-events inside the UAV
+volume and the NMAC volume, excluded ground events, completion over the vehicles) and ECDFs of the separations
+(closest airborne pair in the UAV volume's measure, closest 3D approach, closest approach to manned traffic)."""
 
 from __future__ import annotations
 
@@ -22,6 +27,29 @@ ECDFS = (
     ("min_clearance_m", "minimum clearance to obstacles [m]", "ecdf_clearance.png"),
     ("tracking_pos_rms_m", "position tracking error RMS [m]", "ecdf_tracking.png"),
     ("energy_used_frac", "battery used [fraction of capacity]", "ecdf_energy.png"),
+    ("traffic_min_sep_m", "closest airborne pair, max(horizontal, 2 x vertical) [m] (< 10: inside)", "ecdf_sep.png"),
+    ("traffic_min_dist_m", "closest approach of two vehicles, surface to surface [m]", "ecdf_dist.png"),
+    ("traffic_min_manned_m", "closest approach to a manned aircraft [m]", "ecdf_manned.png"),
+)
+#: Columns summarised in the distributions table (those with a value in some row).
+METRICS = (
+    "min_clearance_m", "tracking_pos_rms_m", "tracking_pos_max_m", "max_tilt_deg", "energy_used_frac",
+    "traffic_min_sep_m", "traffic_min_dist_m", "traffic_min_manned_m", "traffic_completion",
+)  # fmt: skip
+#: The groups of fleet cases the pass rate is given per: (name, row column).
+FLEET_GROUPS = (
+    ("encounter kind", "vary.encounter.kind"),
+    ("vehicles", "traffic_vehicles"),
+    ("traffic class", "vary.encounter.traffic"),
+)
+#: Traffic totals over the fleet cases (row column, label).
+TRAFFIC_TOTALS = (
+    ("traffic_contacts", "vehicle-vehicle contacts (pairs)"),
+    ("traffic_volume_entries", "pairs of airborne vehicles inside the UAV volume (10 m / 5 m)"),
+    ("traffic_volume_vehicles", "vehicles in those pairs"),
+    ("traffic_nmac", "(vehicle, manned aircraft) pairs inside the NMAC volume in flight"),
+    ("traffic_nmac_vehicles", "vehicles in those pairs"),
+    ("traffic_ground_excluded", "pairs inside a volume only with a vehicle on the ground (excluded)"),
 )
 _STATUS_ORDER = {"error": 0, "timeout": 1, "fail": 2, "ok": 3}
 
@@ -52,9 +80,12 @@ def reason_groups(rows: list[dict[str, Any]]) -> dict[str, int]:
 
 
 def worst(rows: list[dict[str, Any]], n: int = WORST_N) -> list[dict[str, Any]]:
-    """Errors, timeouts and failures first, then the largest tracking error."""
+    """Errors, timeouts and failures first, then the largest tracking error (fleet cases: the closest pair)."""
 
     def key(r: dict[str, Any]) -> tuple[int, float]:
+        if "traffic_vehicles" in r:
+            sep = r.get("traffic_min_sep_m")
+            return (_STATUS_ORDER.get(r["status"], 9), sep if isinstance(sep, float) and math.isfinite(sep) else 1e9)
         rms = r.get("tracking_pos_rms_m")
         return (_STATUS_ORDER.get(r["status"], 9), -(rms if isinstance(rms, float) and math.isfinite(rms) else -1.0))
 
@@ -81,6 +112,50 @@ def per_level(spec: CampaignSpec, rows: list[dict[str, Any]]) -> dict[str, dict[
                 "ci95_high": high,
             }
     return out
+
+
+def _level(value: Any) -> str:
+    """A group's level as text (a float vehicle count as an integer)."""
+    if isinstance(value, float) and value.is_integer():
+        return str(int(value))
+    return str(value)
+
+
+def fleet_groups(rows: list[dict[str, Any]]) -> dict[str, dict[str, dict[str, float]]]:
+    """For fleet cases: pass rate (with its interval) per encounter kind, vehicle count and traffic class (the
+    groups whose column some row has); empty when no row is a fleet case."""
+    fleet = [r for r in rows if "traffic_vehicles" in r]
+    out: dict[str, dict[str, dict[str, float]]] = {}
+    for name, column in FLEET_GROUPS:
+        by_level: dict[str, list[bool]] = defaultdict(list)
+        for r in fleet:
+            if r.get(column) is not None:
+                by_level[_level(r[column])].append(bool(r["passed"]))
+        if not by_level:
+            continue
+        out[name] = {}
+        for level, passes in sorted(by_level.items(), key=lambda kv: (len(kv[0]), kv[0])):
+            low, high = pass_interval(sum(passes), len(passes))
+            out[name][level] = {"cases": len(passes), "pass_rate": sum(passes) / len(passes), "ci95_low": low,
+                                "ci95_high": high}  # fmt: skip
+    return out
+
+
+def traffic_totals(rows: list[dict[str, Any]]) -> dict[str, float] | None:
+    """The traffic totals over the fleet cases that were judged (``ok``/``fail``) and the completion over their
+    vehicles; None when no row is a fleet case."""
+    judged = [r for r in rows if "traffic_vehicles" in r and r["status"] in ("ok", "fail")]
+    if not judged:
+        return None
+    out = {column: sum(finite([r.get(column) for r in judged])) for column, _ in TRAFFIC_TOTALS}
+    vehicles = sum(finite([r.get("traffic_vehicles") for r in judged]))
+    done = sum(finite([r.get("traffic_completion", 0.0) * r.get("traffic_vehicles", 0.0) for r in judged]))
+    return {
+        "cases": float(len(judged)),
+        "vehicles": vehicles,
+        **out,
+        "completion": done / vehicles if vehicles else math.nan,
+    }
 
 
 def _plot_ecdfs(rows: list[dict[str, Any]], out_dir: Path) -> list[str]:
@@ -130,10 +205,9 @@ def summarise(spec: CampaignSpec, out_dir: Path, rows: list[dict[str, Any]]) -> 
         "pass_rate_ci95": [low, high],
         "failures_by_reason": reason_groups(rows),
         "per_level": per_level(spec, rows),
-        "metrics": {
-            c: _stat(finite([r.get(c) for r in rows]))
-            for c in ("min_clearance_m", "tracking_pos_rms_m", "tracking_pos_max_m", "max_tilt_deg", "energy_used_frac")
-        },
+        "fleet_groups": fleet_groups(rows),
+        "traffic": traffic_totals(rows),
+        "metrics": {c: _stat(finite([r.get(c) for r in rows])) for c in METRICS},
         "case_wall_s_mean": sum(walls) / len(walls) if walls else math.nan,
         "worst": [
             {
@@ -183,6 +257,7 @@ def write_report(spec: CampaignSpec, out_dir: Path) -> dict[str, Any]:
                 lines.append(f"| {key} | `{level}` | {s['cases']} | {s['pass_rate']:.1%} | "
                              f"[{s['ci95_low']:.1%}, {s['ci95_high']:.1%}] |")  # fmt: skip
         lines.append("")
+    lines += _fleet_lines(summary)
     lines += ["## Failures by reason", ""]
     lines += [f"- {count} x {reason}" for reason, count in summary["failures_by_reason"].items()] or ["- none"]
     lines += ["", "## Distributions", ""]
@@ -196,11 +271,11 @@ def write_report(spec: CampaignSpec, out_dir: Path) -> dict[str, Any]:
         "",
         f"## The {min(WORST_N, len(rows))} worst cases",
         "",
-        "| case | status | reason | tracking RMS [m] | replay |",
+        "| case | status | reason | tracking RMS [m] (fleet: closest pair [m]) | replay |",
         "|---|---|---|---|---|",
     ]
     for r in worst(rows):
-        rms = r.get("tracking_pos_rms_m")
+        rms = r.get("traffic_min_sep_m" if "traffic_vehicles" in r else "tracking_pos_rms_m")
         rms_text = f"{rms:.3f}" if isinstance(rms, float) and math.isfinite(rms) else "-"
         reason = str(r["reason"]).replace("|", "/").replace("\n", " ")[:120] or "-"
         lines.append(
@@ -208,6 +283,37 @@ def write_report(spec: CampaignSpec, out_dir: Path) -> dict[str, Any]:
         )
     (out_dir / REPORT_FILE).write_text("\n".join(lines) + "\n")
     return summary
+
+
+def _fleet_lines(summary: dict[str, Any]) -> list[str]:
+    """The report's fleet sections: traffic totals and the pass rate per kind, vehicle count, traffic class."""
+    traffic = summary["traffic"]
+    if traffic is None:
+        return []
+    lines = [
+        "## Traffic",
+        "",
+        f"Over {traffic['cases']:g} judged fleet cases, {traffic['vehicles']:g} vehicles (simulator truth; a pair "
+        "inside a volume is one event however often; docs/traffic.md):",
+        "",
+        "| total | value |",
+        "|---|---|",
+    ]
+    lines += [f"| {label} (`{column}`) | {traffic[column]:g} |" for column, label in TRAFFIC_TOTALS]
+    lines += [f"| missions completed (`traffic_completion`, over the vehicles) | {traffic['completion']:.1%} |", ""]
+    if summary["fleet_groups"]:
+        lines += [
+            "## Pass rate per encounter kind, vehicle count and traffic class",
+            "",
+            "| group | level | cases | pass rate | 95 % interval |",
+            "|---|---|---|---|---|",
+        ]
+        for group, levels in summary["fleet_groups"].items():
+            for level, s in levels.items():
+                lines.append(f"| {group} | `{level}` | {s['cases']} | {s['pass_rate']:.1%} | "
+                             f"[{s['ci95_low']:.1%}, {s['ci95_high']:.1%}] |")  # fmt: skip
+        lines.append("")
+    return lines
 
 
 def _rule_text(rule: Any) -> str:

@@ -215,7 +215,7 @@ class _Checker:
 
     def encounter(self, doc: dict) -> tuple[tuple[str, Any], ...]:
         """``encounter: {kind: K, vehicles: N, manned: B}`` (each optional: drawn per case from its seed)."""
-        from tools.encounters import KINDS
+        from tools.encounters import KINDS, MIN_VEHICLES
 
         raw = doc["encounter"]
         if "base" in doc:
@@ -236,6 +236,11 @@ class _Checker:
             if not ok:
                 fix = {"kind": f"one of {', '.join(KINDS)}", "vehicles": "2 to 8", "manned": "true or false"}[key]
                 raise self.fail(node, f"bad value {value!r}", fix)
+        low = MIN_VEHICLES.get(raw.get("kind", ""), 2)
+        if raw.get("vehicles", 8) < low:
+            raise self.fail(
+                ("encounter", "vehicles"), f"a {raw['kind']} encounter has {low} to 8 vehicles", f"{low} to 8"
+            )
         return tuple(sorted(raw.items()))
 
     def integer(self, doc: dict, key: str, low: int) -> int:

@@ -42,7 +42,7 @@ from mavlink_bridge.gcs_client.client import (
 from mavlink_bridge.gcs_client.fleet_link import FleetLink
 from tools.gcs.link import GcsScriptError, say, vehicle_clients
 from tools.gcs.progress import MissionBars, flight_state_text, sim_time_text
-from tools.gcs.summary import FleetFlight, VehicleFlight, fly_summary, mission_done
+from tools.gcs.summary import FleetFlight, VehicleFlight, fly_summary, mission_done, stuck_reason
 
 #: Wall seconds without any message from a flying vehicle before the ground station gives it up.
 LOST_AFTER_S = 10.0
@@ -234,7 +234,7 @@ def _judge(v: _Vehicle, link: FleetLink, stall_s: float | None) -> None:
         and status.sim_time_s is not None
         and status.sim_time_s - (v.progress_at_sim_s or 0.0) > stall_s
     ):
-        v.reason, v.done = f"no mission progress for {stall_s:g} s of sim time (crashed or stuck?)", True
+        v.reason, v.done = stuck_reason(f"no mission progress for {stall_s:g} s of sim time (crashed?)"), True
     if v.done:
         v.t_done = time.monotonic()
 

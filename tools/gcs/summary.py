@@ -14,6 +14,18 @@ from mavlink_bridge.contract.vehicle_api import LandedState, StatusText
 from mavlink_bridge.gcs_client.client import VehicleStatus
 
 MISSION_STATE_COMPLETE = 5
+#: How the reason of a vehicle given up as stuck (no mission progress for too long) begins: a campaign row whose
+#: vehicle was stuck ends ``STUCK`` (tools.campaign.fleet_record).
+STUCK_PREFIX = "stuck:"
+
+
+def stuck_reason(why: str) -> str:
+    """The reason of a vehicle given up as stuck: ``stuck: <why>``."""
+    return f"{STUCK_PREFIX} {why}"
+
+
+def is_stuck(reason: str) -> bool:
+    return reason.startswith(STUCK_PREFIX)
 
 
 @dataclass(frozen=True, slots=True)

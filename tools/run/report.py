@@ -126,11 +126,20 @@ def print_fleet(summary: dict[str, object], problems: list[str], out_dir: Path) 
         rtf = sim.get("real_time_factor")
         rtf_text = f"{rtf:.2f}x" if isinstance(rtf, int | float) else "n/a"
         print(f"sim time / RTF         {sim.get('sim_time_s')} s / {rtf_text}")
+        print(f"losses of separation   {_pairs(sim, 'volume_events')} in the UAV volume, {_pairs(sim, 'nmac_events')} "
+              f"NMAC (pairs; with a vehicle on the ground, not counted: {_pairs(sim, 'volume_ground_excluded')}, "
+              f"{_pairs(sim, 'nmac_ground_excluded')})")  # fmt: skip
     _print_end(problems, out_dir)
     recording = summary["recording"]
     if isinstance(recording, list) and recording:
         print(f"recording: one recording in {len(recording)} files (one per autopilot + the world)")
         print(f"           open it with: .venv/bin/rerun {out_dir}/*.rrd")
+
+
+def _pairs(sim: dict[str, object], key: str) -> str:
+    """How many pair-events the simulator's summary lists under ``key`` ('n/a' when it has none)."""
+    events = sim.get(key)
+    return str(len(events)) if isinstance(events, list) else "n/a"
 
 
 def _print_end(problems: list[str], out_dir: Path) -> None:
