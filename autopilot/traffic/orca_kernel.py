@@ -201,3 +201,33 @@ def orca_planes(
         index[m] = r
         m += 1
     return m
+
+
+@njit(cache=True, fastmath=False)
+def least_violating(normals: np.ndarray, offsets: np.ndarray, m_hard: int, m: int, pref: np.ndarray,
+                    scratch: np.ndarray, out: np.ndarray) -> float:  # fmt: skip
+    """When no velocity meets every constraint: the velocity closest to ``pref`` that meets the first ``m_hard``
+    (the vehicle's own limits, always feasible together) and violates the others (rows ``m_hard..m-1``) by the
+    least common amount ``d`` (RVO2's fallback: minimise the largest penetration), found by bisection on ``d``;
+    returns ``d`` (m/s)."""
+    lo, hi = 0.0, 0.0
+    for k in range(m_hard, m):
+        hi = max(hi, offsets[k])
+    hi = max(hi, 0.0) + 100.0
+    for k in range(m):
+        scratch[k] = offsets[k] - (hi if k >= m_hard else 0.0)
+    closest_admissible(normals, scratch, m, pref, out)  # feasible at the upper bound
+    best0, best1, best2 = out[0], out[1], out[2]
+    for _ in range(30):
+        mid = 0.5 * (lo + hi)
+        for k in range(m_hard, m):
+            scratch[k] = offsets[k] - mid
+        if closest_admissible(normals, scratch, m, pref, out) < 0:
+            hi = mid
+            best0, best1, best2 = out[0], out[1], out[2]
+        else:
+            lo = mid
+        if hi - lo < 1e-3:
+            break
+    out[0], out[1], out[2] = best0, best1, best2
+    return hi

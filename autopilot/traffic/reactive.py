@@ -31,7 +31,14 @@ from enum import Enum
 
 import numpy as np
 
-from autopilot.traffic.orca_kernel import N_TRACK_COLS, T_RADIUS, T_SCALE, closest_admissible, orca_planes
+from autopilot.traffic.orca_kernel import (
+    N_TRACK_COLS,
+    T_RADIUS,
+    T_SCALE,
+    closest_admissible,
+    least_violating,
+    orca_planes,
+)
 from autopilot.traffic.param_decls import SeparationVolume, TrafficParams
 from autopilot.traffic.rules import COLUMN_SPEED_M_S
 from autopilot.traffic.tracks import TrafficTrack
@@ -142,6 +149,7 @@ class ReactiveLayer:
         self._tracks = np.zeros((MAX_TRACKS, N_TRACK_COLS))
         self._normals = np.zeros((_ROWS, 3))
         self._offsets = np.zeros(_ROWS)
+        self._scratch = np.zeros(_ROWS)
         self._index = np.zeros(_ROWS, dtype=np.int64)
         self._pos = np.zeros(3)
         self._vel = np.zeros(3)
@@ -180,7 +188,7 @@ class ReactiveLayer:
             return None
         failed = closest_admissible(self._normals, self._offsets, total, pref, self._out)
         if failed >= 0:
-            return self._fallback(t_us, pos, rows, limits, phase)
+            return self._fallback(t_us, pos, rows, limits, phase, total)
         out, lim = self._out, self._limits_out
         if abs(out[0] - lim[0]) + abs(out[1] - lim[1]) + abs(out[2] - lim[2]) < SAME_M_S:
             return None
@@ -246,8 +254,10 @@ class ReactiveLayer:
         return 0.0
 
     def _fallback(self, t_us: int, pos: np.ndarray, rows: list[TrafficTrack], limits: ReactiveLimits,
-                  phase: Phase) -> ReactiveCommand:  # fmt: skip
-        """Brake to a hover and escape vertically away from the most urgent track, never below the floor."""
+                  phase: Phase, total: int) -> ReactiveCommand:  # fmt: skip
+        """Brake to a hover and escape vertically away from the most urgent track, never below the floor: that is
+        the velocity wanted, and the one flown is the closest to it that keeps the vehicle's limits and violates
+        every track's plane least (:func:`least_violating`), so the escape from one never runs into another."""
         worst, ratio = rows[0], math.inf
         for track in rows:
             p = track.position_at(t_us)
@@ -273,4 +283,9 @@ class ReactiveLayer:
         else:
             room = min(limits.floor_down_m - pos[2], reach_m + below)  # > 0: to descend
             vd, escape = (min(limits.down_m_s, room / FLOOR_TIME_S), "descending") if room > 0.5 else (0.0, "holding")
-        return ReactiveCommand((0.0, 0.0, vd), worst.name, True, escape)
+        if phase is Phase.TAKEOFF and -pos[2] < GROUND_LOCK_AGL_M:
+            return ReactiveCommand((0.0, 0.0, 0.0), worst.name, True, escape)  # on the pad: stay there
+        want, out = self._pref, self._out
+        want[0], want[1], want[2] = 0.0, 0.0, vd
+        least_violating(self._normals, self._offsets, OWN_ROWS, total, want, self._scratch, out)
+        return ReactiveCommand((float(out[0]), float(out[1]), float(out[2])), worst.name, True, escape)
