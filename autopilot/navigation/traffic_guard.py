@@ -47,6 +47,9 @@ PULL_GAIN_1_S = 1.0
 PULL_MAX_M_S = 3.0
 #: The column checks look this far past the time to climb or descend through the column (s).
 COLUMN_MARGIN_S = 5.0
+#: A landing waits while a track is predicted through the column below within this time (s): one that would cross
+#: it later meets a vehicle descending, which the reactive layers of both keep apart.
+LANDING_WINDOW_S = 5.0
 #: The climb-out column of a departure reaches this high above the pad (m): above a delivery drone's cruise.
 DEPARTURE_COLUMN_M = 30.0
 
@@ -217,8 +220,7 @@ class TrafficGuard:
             top, speed = -DEPARTURE_COLUMN_M, max(-pref[2], 0.3)
             window = DEPARTURE_COLUMN_M / speed + COLUMN_MARGIN_S
         elif phase is Phase.LAND and pref[2] > 0.0 and -pos[2] >= GROUND_LOCK_AGL_M:
-            top, speed = pos[2], max(pref[2], 0.3)
-            window = -pos[2] / speed + COLUMN_MARGIN_S
+            top, window = pos[2], LANDING_WINDOW_S  # the descent itself is the reactive layer's (others avoid it)
         else:
             return None
         for track in tracks:
