@@ -1,9 +1,9 @@
 """The autopilot: composes its modules and steps them once per lockstep frame (SPEC §3-§4). No sockets.
 
-Every frame (250 Hz): [failures] -> [stale-data check] -> estimator -> setpoints -> [avoidance] -> cascade ->
-[motor failures] -> ActuatorCommand. At 50 Hz and after any command: failsafes (10 Hz), navigator, commander.
-The answer goes out *before* the bookkeeping (:meth:`Autopilot.after_answer`), while the simulator integrates.
-The runner only composes and steps the modules; ``docs/architecture.md`` says what each owns, reads and emits."""
+Every frame (250 Hz): [failures] -> [stale-data check] -> estimator -> setpoints -> [avoidance] -> [traffic's
+reactive layer] -> cascade -> [motor failures] -> ActuatorCommand (+ its UTM report). At 50 Hz and after any
+command: failsafes (10 Hz), navigator, commander. The answer goes out *before* the bookkeeping
+(:meth:`Autopilot.after_answer`), while the simulator integrates; ``docs/architecture.md`` says what each owns."""
 
 from __future__ import annotations
 
@@ -317,13 +317,7 @@ class Autopilot:
             override = nav.avoid(state, target, self.frame_detections)  # each frame's: the sensor runs at 10 Hz
             if override is not None:
                 fc.override(override)
-        traffic = nav.traffic
-        if traffic.busy and (target.kind is TargetKind.POSITION or target.kind is TargetKind.LAND):
-            ref = fc.reference  # the reactive layer bounds it (every autonomous mode; manual modes only warn)
-            bound = traffic.bound(state.time_us, self._dt_s, state.pos_ned_m, state.vel_ned_m_s, ref.pos_ned_m,
-                                  ref.vel_ned_m_s, commander.mode, target.kind is TargetKind.LAND)  # fmt: skip
-            if bound is not None:
-                fc.override(bound)
+        nav.traffic.bound(state, fc, commander.mode, target.kind, self._dt_s)  # the reactive layer, every auto mode
         out = self._pending_control = fc.control(state)
         return (out[0], out[1], out[2], out[3])
 

@@ -122,7 +122,8 @@ ALLOWED_IMPORTS: dict[str, frozenset[str]] = {
         "tools.benchmarks": (
             "autopilot", "autopilot.commander", "autopilot.control", "autopilot.estimation", "autopilot.flight_tasks",
             "autopilot.geofence", "autopilot.mission", "autopilot.navigation", "autopilot.planner",
-            "autopilot.reporting", "autopilot.telemetry", "mavlink_bridge.contract", "mavlink_bridge.gcs_client",
+            "autopilot.reporting", "autopilot.telemetry", "autopilot.traffic", "mavlink_bridge.contract",
+            "mavlink_bridge.gcs_client",
             "mavlink_bridge.gcs_server", "mavlink_bridge.lockstep", "mavlink_bridge.wire", "sim", "tools",
             "tools.campaign", "tools.research",
         ),

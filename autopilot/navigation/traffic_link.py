@@ -18,7 +18,7 @@ from typing import Protocol, TypeVar
 import numpy as np
 
 from autopilot.estimation import VehicleState
-from autopilot.flight_tasks.setpoints import NavTarget, TargetKind
+from autopilot.flight_tasks.setpoints import NavTarget, Reference, TargetKind
 from autopilot.geofence.fence import Geofence
 from autopilot.geofence.planner_zones import planner_fence_zones
 from autopilot.navigation.home_frame import HomeFrame
@@ -48,6 +48,14 @@ class StepOutput(Protocol):
 
 O = TypeVar("O", bound=StepOutput)
 R = TypeVar("R")
+
+
+class ControlLike(Protocol):
+    """What :meth:`TrafficLink.bound` uses of the flight control: this step's reference, and its override."""
+
+    @property
+    def reference(self) -> Reference: ...
+    def override(self, override: ReferenceOverride) -> Reference: ...
 
 
 class NavigatorLike(Protocol):
@@ -140,19 +148,25 @@ class TrafficLink:
             self.say(text)
         return decision.failsafe
 
-    def bound(self, t_us: int, dt_s: float, pos_ned_m: Vec3, vel_ned_m_s: Vec3, ref_pos_ned_m: Vec3,
-              ref_vel_ned_m_s: Vec3, mode: FlightMode, landing: bool) -> ReferenceOverride | None:  # fmt: skip
-        """The reactive layer's reference for this control step (about the origin), or None to fly the one given
-        (``ref_*``: this step's reference, the mission's or the detour's; ``landing``: a LAND target)."""
+    def bound(self, state: VehicleState, control: ControlLike, mode: FlightMode, kind: TargetKind,
+              dt_s: float) -> ReferenceOverride | None:  # fmt: skip
+        """The reactive layer's reference for this control step (about the origin), given to ``control`` (which
+        holds this step's reference: the mission's, the landing's or the detour's) when it bounds it; None when
+        the reference stays. Position and landing targets only (an idle or velocity target is not the autopilot's
+        own flight)."""
         frame = self._frame
-        if frame is None:
+        if not self.busy or frame is None or (kind is not TargetKind.POSITION and kind is not TargetKind.LAND):
             return None
-        out = self.guard.step(t_us, dt_s, frame, pos_ned_m, vel_ned_m_s, ref_pos_ned_m, ref_vel_ned_m_s, mode,
-                              landing, self.avoidance.table, self.avoidance.params)  # fmt: skip
+        ref = control.reference
+        out = self.guard.step(state.time_us, dt_s, frame, state.pos_ned_m, state.vel_ned_m_s, ref.pos_ned_m,
+                              ref.vel_ned_m_s, mode, kind is TargetKind.LAND, self.avoidance.table,
+                              self.avoidance.params)  # fmt: skip
         if self.guard.texts:
             for text in self.guard.texts:
                 self.say(text)
             self.guard.texts.clear()
+        if out is not None:
+            control.override(out)
         return out
 
     def override(self, t_us: int, make: Callable[[Vec3, Vec3, Vec3], R]) -> R | None:

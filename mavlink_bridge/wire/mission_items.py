@@ -8,7 +8,9 @@ float MISSION_ITEM (MAVProxy) carries x/y as plain floats.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
+import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
 
 from mavlink_bridge.contract.vehicle_api import MissionItem, MissionType
@@ -45,6 +47,23 @@ def xy_to_int(value: float, frame: int, what: str = "x") -> int:
 def xy_from_int(value: int, frame: int) -> float:
     """The coordinate (degrees, metres or raw) carried by an int32 wire value in ``frame``."""
     return value / _xy_scale(frame)
+
+
+def as_on_the_wire(item: MissionItem) -> MissionItem:
+    """``item`` as an autopilot receives it in MISSION_ITEM_INT: x/y as int32 at the frame's scale, params and z as
+    float32 (what an in-process flight hands over instead of an upload)."""
+    frame = item.frame
+    f32 = np.float32
+    return replace(
+        item,
+        param1=float(f32(item.param1)),
+        param2=float(f32(item.param2)),
+        param3=float(f32(item.param3)),
+        param4=float(f32(item.param4)),
+        x_lat_deg=xy_from_int(xy_to_int(item.x_lat_deg, frame), frame),
+        y_lon_deg=xy_from_int(xy_to_int(item.y_lon_deg, frame), frame),
+        z_alt_m=float(f32(item.z_alt_m)),
+    )
 
 
 def _mission_type(raw: int) -> MissionType:

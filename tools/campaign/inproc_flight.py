@@ -41,7 +41,7 @@ import json
 import math
 import sys
 import time
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -54,7 +54,7 @@ from autopilot.mission.plan import MissionPlan
 from autopilot.runner import Autopilot, AutopilotConfig
 from autopilot.vehicle_adapter import VehicleAdapter
 from mavlink_bridge.contract.status_texts import is_bypassed
-from mavlink_bridge.contract.vehicle_api import LandedState, MissionItem, MissionResult, MissionType
+from mavlink_bridge.contract.vehicle_api import LandedState, MissionResult, MissionType
 from mavlink_bridge.lockstep import FrameAssembler
 from mavlink_bridge.lockstep.answer_kernel import (
     ANSWER_OK,
@@ -62,7 +62,7 @@ from mavlink_bridge.lockstep.answer_kernel import (
     read_answer,
 )
 from mavlink_bridge.wire.codec import Decoder, Encoder
-from mavlink_bridge.wire.mission_items import xy_from_int, xy_to_int
+from mavlink_bridge.wire.mission_items import as_on_the_wire
 from sim.end_reason import EndReason
 from sim.fleet_run import FleetRun, fleet_airframes
 from sim.fleet_world import load_fleet
@@ -82,26 +82,6 @@ STUCK_MOVE_M = 2.0  # a vehicle that stays within this of where it was is not mo
 DEFAULT_SIM_TIME_S = 900.0
 _RUNNING = int(EndReason.RUNNING)
 _MISSION_COMPLETE = "COMPLETE"
-
-
-def _f32(value: float) -> float:
-    return float(np.float32(value))
-
-
-def as_on_the_wire(item: MissionItem) -> MissionItem:
-    """``item`` as the autopilot receives it in MISSION_ITEM_INT (the sitl mode's upload): x/y as int32 at the
-    frame's scale, params and z as float32."""
-    frame = item.frame
-    return replace(
-        item,
-        param1=_f32(item.param1),
-        param2=_f32(item.param2),
-        param3=_f32(item.param3),
-        param4=_f32(item.param4),
-        x_lat_deg=xy_from_int(xy_to_int(item.x_lat_deg, frame), frame),
-        y_lon_deg=xy_from_int(xy_to_int(item.y_lon_deg, frame), frame),
-        z_alt_m=_f32(item.z_alt_m),
-    )
 
 
 @dataclass(slots=True)
