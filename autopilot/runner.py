@@ -1,5 +1,4 @@
 """The autopilot: composes its modules and steps them once per lockstep frame (SPEC §3-§4). No sockets.
-
 Every frame (250 Hz): [failures] -> [stale-data check] -> estimator -> setpoints -> [avoidance] -> [traffic's
 reactive layer] -> cascade -> [motor failures] -> ActuatorCommand (+ its UTM report). At 50 Hz and after any
 command: failsafes (10 Hz), navigator, commander. The answer goes out *before* the bookkeeping
