@@ -196,8 +196,8 @@ class ReactiveLayer:
 
     def _load(self, t_us: int, tracks: Sequence[TrafficTrack], params: TrafficParams) -> None:
         """The rows of the tracks to avoid (parked ones left out), columns ``T_*`` of :mod:`orca_kernel`: each
-        track where its intent puts it now (:meth:`TrafficTrack.predict`), its class's volume grown by the margin
-        and by its position uncertainty (:func:`uncertainty_m`), covered by its sphere."""
+        track's report, its class's volume grown by the margin and by its position uncertainty
+        (:func:`uncertainty_m`), covered by its sphere."""
         self._params = params
         uav, manned = params.uav.grown(params.margin), params.manned.grown(params.margin)
         rows: list[TrafficTrack] = []
@@ -210,11 +210,10 @@ class ReactiveLayer:
             hor_m, ver_m = uncertainty_m(track)
             radius, scale = covering_sphere(SeparationVolume(base.hor_m + hor_m, base.ver_m + ver_m),
                                             MANNED_REACH if is_manned else UAV_REACH)  # fmt: skip
-            (pn, pe, pd), (vn, ve, vd) = track.predict(t_us)
-            age_s = (t_us - track.t_us) * 1e-6  # the kernel extrapolates from the report's time (and grows by age)
-            table[len(rows)] = (pn - vn * age_s, pe - ve * age_s, pd - vd * age_s, vn, ve, vd, track.t_us * 1e-6,
-                                radius, scale, 0.5 if reciprocates(track) else 1.0,
-                                MANNED_TAU_S if is_manned else UAV_TAU_S)  # fmt: skip
+            # the report itself: over ORCA's few seconds its velocity says more than its next waypoint (the kernel
+            # extrapolates it and grows the sphere by what its age hides)
+            resp, tau = 0.5 if reciprocates(track) else 1.0, MANNED_TAU_S if is_manned else UAV_TAU_S
+            table[len(rows)] = (*track.pos_home_ned_m, *track.vel_ned_m_s, track.t_us * 1e-6, radius, scale, resp, tau)
             rows.append(track)
         self._rows = rows
 
