@@ -26,8 +26,6 @@ MAX_SPEED_V_M_S = 100.0
 ALT_RANGE_M = (-1000.0, 30000.0)
 #: Below this reported speed (m/s) intent is not flown: a vehicle standing still says nothing of how fast it will go.
 MIN_INTENT_SPEED_M_S = 0.1
-#: Intent is believed while the reported velocity points at the next waypoint within this cosine (about 25 deg).
-INTENT_COS = 0.9
 #: A next waypoint further than this from the reported position (m) is not believed (garbage, not intent).
 MAX_INTENT_DISTANCE_M = 50_000.0
 #: A report stamped this far after the autopilot's clock is rejected (the simulator owns time).
@@ -73,9 +71,9 @@ class TrafficTrack:
     def predict(self, t_us: int) -> tuple[Vec3, Vec3]:
         """(position about home, velocity NED) at ``t_us`` using the intent: from the reported position straight
         toward the next waypoint at the reported speed (3D), then holding at the waypoint (velocity 0). Without a
-        next waypoint, below ``MIN_INTENT_SPEED_M_S``, when the velocity does not point at the waypoint (within
-        ``INTENT_COS``: the vehicle is avoiding or turning) or for a time before the report: constant velocity
-        (:meth:`position_at`)."""
+        next waypoint, below ``MIN_INTENT_SPEED_M_S``, or for a time before the report: constant velocity
+        (:meth:`position_at`). The strategic layer's minute-long predictions use it; the reactive layer flies on
+        the reports themselves (over its seconds the velocity says more, and a vehicle avoiding is off its route)."""
         p, v, w = self.pos_home_ned_m, self.vel_ned_m_s, self.next_pos_home_ned_m
         dt = (t_us - self.t_us) * 1e-6
         speed = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
@@ -83,8 +81,6 @@ class TrafficTrack:
             return self.position_at(t_us), v
         d = (w[0] - p[0], w[1] - p[1], w[2] - p[2])
         dist = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-        if dist > 1e-6 and (d[0] * v[0] + d[1] * v[1] + d[2] * v[2]) < INTENT_COS * dist * speed:
-            return self.position_at(t_us), v  # not flying toward it (avoiding, turning): its velocity says more
         if dist <= speed * dt:
             return w, (0.0, 0.0, 0.0)
         k = speed / dist
