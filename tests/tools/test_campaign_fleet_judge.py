@@ -43,7 +43,7 @@ def _fly(hold_s: float, moving: bool = False) -> tuple[_Vehicle, _Flight, float]
     still, or ``moving`` 3 m a second without progress), then reaches its waypoint, lands, disarms. Judged once
     a sim second until done; (vehicle, its flight, the sim time of the verdict)."""
     ap = _Flight()
-    v = _Vehicle("uav0", None, ap, None)  # type: ignore[arg-type]
+    v = _Vehicle("uav0", None, ap, None, None)  # type: ignore[arg-type]
     for t in range(400):
         if t >= 3:
             ap.set(True, False, 0, [0.0, 0.0, 0.0])

@@ -3,7 +3,8 @@ case (the old ``inproc_flight`` over ``VehicleSim``) and of a fleet world (the o
 ``FleetRun``), recorded from the code before they were merged (commit 51a0bc0). The single-vehicle case's digest
 is also what its ``mode: sitl`` flight gives (``test_campaign_local``: sitl = inproc bit for bit). The fleet world's
 digests were re-pinned when the receivers stopped reporting truth (UTM relay of the vehicles' own reports, a noisy
-ADS-B link): the same world and seed over UDP at speed max and 2.0 gives these same hashes."""
+ADS-B link), and again when the reactive layer began to fly (the two pads are 8 m apart, inside each other's
+volume: the climb-outs are bounded); the same world and seed flown twice gives the same hashes."""
 
 from __future__ import annotations
 
@@ -61,8 +62,8 @@ def test_a_fleet_world_keeps_its_per_vehicle_digests(tmp_path: Path) -> None:
     world.write_text(PAIR)
     out = fly_world(world, seed=9, stagger_s=2.0, sim_time_s=30.0)
     assert [v["truth_sha256"] for v in out["sim"]["vehicles"]] == [
-        "5d12fe318531c9e719035eb2a52b125e693b115816d155194f368a05b787fc7f",
-        "e28aab5185176cda928058cda38b7c7a3cad8b003dcd09d62c2b79eaae76baa5",
+        "2bca46f1a81e90fe6b6585098f63d2c70285df1163e3173031450fefa793710c",
+        "19e43eb85729993d01af922e9dc028ad58022e96c8ca2576f0c5591c6d1f3351",
     ]
     # each hears the other's own reports (1 Hz, 1 s late) and the helicopter's ADS-B (1 Hz, 0.6 s late, 95 %)
     assert [v["traffic_reports"] for v in out["sim"]["vehicles"]] == [56, 57]
