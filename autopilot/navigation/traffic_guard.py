@@ -36,8 +36,12 @@ from mavlink_bridge.contract.frames import Vec3
 from mavlink_bridge.contract.traffic import TrafficSource
 from mavlink_bridge.contract.vehicle_api import FlightMode, Severity, StatusText
 
-#: Solve at most this often (µs of sim time): the navigator's rate.
+#: Solve at most this often (µs of sim time): the navigator's rate; and, while the velocity flown keeps more than
+#: CLEAR_SLACK_M_S from every track's plane (no track can close that in the interval: 0.1 s x 3 m/s^2 x 2), at
+#: CLEAR_PERIOD_US.
 SOLVE_PERIOD_US = 20_000
+CLEAR_PERIOD_US = 100_000
+CLEAR_SLACK_M_S = 1.0
 #: Once engaged, the reactive reference is flown at least this long (µs): no chattering between the two.
 MIN_ENGAGED_US = 1_000_000
 #: An avoidance shorter than this (µs) ends without a text, and the next one says its start only if it changed.
@@ -149,7 +153,8 @@ class TrafficGuard:
         if params.action is not TrafficAction.AVOID or not table.has_tracks:
             self.release()
             return None
-        if t_us - self._solved_us >= SOLVE_PERIOD_US:
+        period = SOLVE_PERIOD_US if self.engaged or self.layer.slack_m_s < CLEAR_SLACK_M_S else CLEAR_PERIOD_US
+        if t_us - self._solved_us >= period:
             self._solved_us = t_us
             self._solve(t_us, frame, pos_ned_m, vel_ned_m_s, ref_pos_ned_m, ref_vel_ned_m_s, mode, landing,
                         table.tracks, params, table.version)  # fmt: skip

@@ -159,6 +159,9 @@ class ReactiveLayer:
         self._params: TrafficParams | None = None
         self._rows: list[TrafficTrack] = []
         self._version: int | None = None
+        #: After a solve: by how much (m/s) the velocity flown keeps clear of the nearest track's plane (inf: no
+        #: track in reach, 0: the layer binds); the guard solves less often while it is large.
+        self.slack_m_s = math.inf
         angles = np.arange(SPEED_SIDES) * 2.0 * math.pi / SPEED_SIDES
         self._normals[:SPEED_SIDES] = np.stack((-np.cos(angles), -np.sin(angles), np.zeros(SPEED_SIDES)), axis=1)
         self._normals[SPEED_SIDES : OWN_ROWS] = ((0, 0, -1), (0, 0, 1), (0, 0, -1), (0, 0, 1), (1, 0, 0), (-1, 0, 0),
@@ -185,13 +188,17 @@ class ReactiveLayer:
         total = orca_planes(t_us * 1e-6, pos, vel, self._tracks, len(rows), brake_m, self._normals, self._offsets, m,
                             self._index)  # fmt: skip
         if total == m:
+            self.slack_m_s = math.inf
             return None
         failed = closest_admissible(self._normals, self._offsets, total, pref, self._out)
         if failed >= 0:
+            self.slack_m_s = 0.0
             return self._fallback(t_us, pos, rows, limits, phase, total)
         out, lim = self._out, self._limits_out
         if abs(out[0] - lim[0]) + abs(out[1] - lim[1]) + abs(out[2] - lim[2]) < SAME_M_S:
+            self.slack_m_s = float((self._normals[m:total] @ out - self._offsets[m:total]).min())
             return None
+        self.slack_m_s = 0.0
         return ReactiveCommand((float(out[0]), float(out[1]), float(out[2])), self._binding(rows, m, total), False)
 
     def _load(self, t_us: int, tracks: Sequence[TrafficTrack], params: TrafficParams) -> None:
@@ -238,12 +245,8 @@ class ReactiveLayer:
 
     def _binding(self, rows: list[TrafficTrack], m: int, total: int) -> str:
         """The track whose plane the solution lies on (the most binding), for the texts."""
-        out, best, name = self._out, math.inf, rows[int(self._index[m])].name
-        for k in range(m, total):
-            slack = float(self._normals[k] @ out - self._offsets[k])
-            if slack < best:
-                best, name = slack, rows[int(self._index[k])].name
-        return name
+        slack = self._normals[m:total] @ self._out - self._offsets[m:total]
+        return rows[int(self._index[m + int(np.argmin(slack))])].name
 
     def _vertical_reach(self, track: TrafficTrack) -> float:
         """How far (m) the sphere about ``track`` reaches vertically (its radius over its stretch)."""
