@@ -1,6 +1,6 @@
 """Fleet lockstep real-time factor with the EKF: one simulator, N autopilot processes (issue 23, SPEC §13).
 
-A fleet world of N x500s on a 10 m grid; every autopilot flies ``lockstep_flight``'s script (arm, take off to
+A fleet world of N x500s on a 20 m grid (the UAV volume and a margin: pads closer are inside it); every autopilot flies ``lockstep_flight``'s script (arm, take off to
 10 m, fly 20 m, land: parallel tracks, no conflicts) with the EKF, all over UDP at ``--speed max``.
 ``fleet_rtf_nN`` is the simulator's ``real_time_factor`` (sim seconds per wall second from the moment every
 autopilot is connected to the end). The breakdown says what bounds it, per control step:
@@ -34,7 +34,7 @@ from tools.benchmarks.lockstep_flight import FLIGHT_SCRIPT, fly
 from tools.sitl import REPO_ROOT, SitlError, read_json
 
 TARGETS = {4: 5.0, 8: 3.0, 32: 1.0}
-GRID_M = 10.0
+GRID_M = 20.0  # pads at least the UAV volume plus margin apart (issue 28): the reactive layer keeps them so
 
 
 def fleet_world(n: int) -> str:
