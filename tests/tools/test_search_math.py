@@ -47,17 +47,17 @@ def test_proposal_densities_integrate_to_one() -> None:
     assert Proposal.nominal(space).log_pdf([Point((0.3,), (1,))])[0] == pytest.approx(math.log(1 / 3))
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_ce_importance_sampling_finds_a_known_rare_probability(seed: int) -> None:
-    res = ce_is(SQUARE, corner, seed=seed, rho=0.1, level_batch=100, final=300)
-    assert res.reached
-    est = res.estimate
-    assert est.ci95[0] <= P_CORNER <= est.ci95[1]
-    assert 0.5 < est.p / P_CORNER < 1.5
-    assert 0.5 < est.mean_weight < 1.6
-    assert est.ess > 10
-    plain = np.random.default_rng(seed).random((600, 2)).sum(axis=1) > 1.9  # Monte Carlo at the same budget
-    assert plain.sum() <= 12  # ~3 expected: what IS improves on
+def test_ce_importance_sampling_finds_a_known_rare_probability() -> None:
+    runs = [ce_is(SQUARE, corner, seed=seed, rho=0.1, level_batch=100, final=300) for seed in range(20)]
+    assert all(r.reached for r in runs)
+    ratios = [r.estimate.p / P_CORNER for r in runs]
+    assert 0.9 < float(np.mean(ratios)) < 1.1  # unbiased (measured over 40 seeds: 1.00)
+    covered = sum(r.estimate.ci95[0] <= P_CORNER <= r.estimate.ci95[1] for r in runs)
+    assert covered >= 17  # the 95 % interval holds P (over 40 seeds: 38)
+    assert all(0.5 < r.estimate.mean_weight < 1.6 and r.estimate.ess > 10 for r in runs)
+    flights = np.mean([len(r.levels) * 100 + 300 for r in runs])
+    plain = np.random.default_rng(0).random((int(flights), 2)).sum(axis=1) > 1.9  # Monte Carlo, the same budget
+    assert plain.sum() <= 12  # ~3 failures expected: what importance sampling improves on
 
 
 def test_ce_importance_sampling_with_a_choice_input() -> None:
