@@ -35,7 +35,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="quadsitl campaign",
         description="Fly many seeded variations of a mission on Dask distributed; one results table and a report.",
-        epilog="Replay a case: quadsitl campaign replay DIR CASE. Schema and cluster recipes: docs/campaigns.md",
+        epilog="Replay a case: quadsitl campaign replay DIR CASE. Hunt for failures: quadsitl campaign search FILE "
+        "--out DIR; their probability: quadsitl campaign estimate FILE --out DIR. Schema and cluster recipes: "
+        "docs/campaigns.md",
     )
     p.add_argument("--version", action="version", version=version_text("quadsitl campaign"))
     p.add_argument("campaign", type=Path, help="campaign file (YAML)")

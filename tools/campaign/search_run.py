@@ -158,6 +158,13 @@ def _setup(spec: CampaignSpec, out_dir: Path, resume: bool) -> tuple[SearchConfi
         raise SearchSetupError(
             f"{spec.path}: no 'search:' key; fix: add search: {{objective: ..., method: cmaes}} (docs/campaigns.md)"
         )
+    if spec.search.method == "cmaes":
+        try:
+            import cma  # noqa: F401
+        except ImportError:
+            raise SearchSetupError(
+                "method cmaes needs pycma; fix: pip install -e '.[campaign]' (or pip install cma==4.5.0)"
+            ) from None
     space = space_of(spec, spec.search.inputs)
     prepare_dir(spec, out_dir, resume)
     return spec.search, space
