@@ -114,3 +114,20 @@ def test_resume_reads_the_flown_batches_back_and_extends_the_budget(searched: Pa
     assert len(rows) == 24 and {k: before[k] for k in before} == {r["case_id"]: r["truth_hash"] for r in rows[:16]}
     summary = json.loads((searched / "summary.json").read_text())
     assert summary["flights"] == 24 and summary["flights_flown_now"] == 8
+
+
+def test_estimate_flies_levels_and_a_final_batch_beside_plain_monte_carlo(tmp_path: Path) -> None:
+    tail = "search: {objective: {name: tracking, bound_m: 0.45}, method: cem}\n"
+    tail += "estimate: {rho: 0.2, level_batch: 10, final: 10, max_levels: 1}\n"
+    out = tmp_path / "is"
+    args = ["--out", str(out), "--workers", "1", "--no-progress", "--mc", "6"]
+    assert main(["estimate", str(_file(tmp_path, tail)), *args]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["flights"] == 20 and len(summary["levels"]) == 1
+    rows = read_rows(out)
+    final = [r for r in rows if r["search_role"] == "is-final"]
+    assert [r["case_id"] for r in final] == list(range(10, 20))
+    assert all(r["is_log_w"] == r["is_log_w"] for r in final)  # the final batch's weights are in its rows
+    assert all(r["is_log_w"] != r["is_log_w"] for r in rows if r["search_role"] == "ce-level")  # NaN elsewhere
+    assert summary["mc"]["flights"] == 6 and len(read_rows(out / "mc")) == 6
+    assert 0.0 <= summary["p_is"] <= summary["p_is_ci95"][1]
