@@ -58,8 +58,8 @@ class EstimateOutcome:
 
 
 class FlightEvaluator:
-    """``evaluate(first_case, points)`` for the optimisers: fly the batch's cases (or read them back), return
-    their margins; ``role(first_case)`` names the rows' ``search_role``/``search_batch``."""
+    """``evaluate(first_case, points)`` for the optimisers: fly the batch's cases (or read back the rows DIR
+    already has), return their margins. ``role`` is written into the rows' ``search_role``."""
 
     def __init__(
         self,
@@ -120,8 +120,10 @@ class FlightEvaluator:
     def _check(self, r: dict[str, Any], overrides: tuple[tuple[str, Any], ...]) -> None:
         for key, value in overrides:
             got = r.get(f"vary.{key}")
-            same = math.isclose(float(got), float(value), rel_tol=1e-12, abs_tol=1e-12) if self.kinds.get(
-                f"vary.{key}") else str(got) == (value if isinstance(value, str) else json.dumps(value))  # fmt: skip
+            if self.kinds.get(f"vary.{key}"):
+                same = math.isclose(float(got), float(value), rel_tol=1e-12, abs_tol=1e-12)
+            else:
+                same = str(got) == (value if isinstance(value, str) else json.dumps(value))
             if not same:
                 raise SearchSetupError(
                     f"{self.out_dir}: case {r['case_id']} was flown with {key} = {got}, the search asks {value}; "
@@ -129,12 +131,13 @@ class FlightEvaluator:
                 )
 
     def finish(self, meta: dict[str, str]) -> None:
+        """Merge every row (those of a batch cut short by Ctrl-C included) into ``results.parquet``."""
         self.shards.flush()
-        if results.read_rows(self.out_dir):
-            for k, w in self.log_w.items():  # the final batch's weights, known once the batch is flown
-                self.done[k]["is_log_w"] = w
-            rows = [self.done[k] for k in sorted(self.done)]
-            _write_rows(self.out_dir, rows, meta)
+        merged = {int(r["case_id"]): r for r in results.read_rows(self.out_dir)} | self.done
+        for k, w in self.log_w.items():  # the final batch's weights, known once the batch is flown
+            merged[k]["is_log_w"] = w
+        if merged:
+            _write_rows(self.out_dir, [merged[k] for k in sorted(merged)], meta)
 
 
 def _write_rows(out_dir: Path, rows: list[dict[str, Any]], meta: dict[str, str]) -> None:
