@@ -112,3 +112,13 @@ def test_objective_margins() -> None:
     assert tracking.margin(crashed) == -1.0  # a crash is a failure whatever the column says
     assert math.isnan(tracking.margin(dict(ok, status="error")))
     assert math.isnan(clearance.margin(dict(ok, min_clearance_m=math.nan)))
+
+
+def test_monte_carlo_flights_to_failure_from_one_pool() -> None:
+    from tools.benchmarks.failure_search import mc_flights_to_failure
+
+    pool = [False] * 10
+    pool[2] = pool[7] = True
+    assert mc_flights_to_failure(pool, 2) == [3, 3]  # from case 0: the failure at 2; from case 5: at 7
+    assert mc_flights_to_failure(pool, 5) == [3, 1, 4, 2, 5]  # from case 8 it wraps round to case 2
+    assert mc_flights_to_failure([False] * 6, 3) == [6, 6, 6]  # none: the pool's size, a lower bound
