@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml $(INTEROP_REQUIREMENTS)
 	@echo "[setup] creating $(VENV) and installing quadsitl with its dependencies (pip, about 1 min the first time)..."
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	$(BIN)/python -m pip install --quiet -e '.[dev,campaign]'
 	$(BIN)/python -m pip install --quiet --no-deps -r $(INTEROP_REQUIREMENTS)
 	touch $(STAMP)
 	@echo "[setup] packages installed"

@@ -21,7 +21,7 @@ _COMMANDS = {
         "autopilot.launcher",
         "start the simulator and the autopilot (one per vehicle of a fleet world); Ctrl-C stops all",
     ),
-    "campaign": ("tools.campaign.cli", "fly many seeded flights on Dask; results table, report, replay"),
+    "campaign": ("tools.campaign.cli", "fly many seeded flights on Dask; report, replay, failure search, estimate"),
 }
 
 

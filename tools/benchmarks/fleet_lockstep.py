@@ -1,7 +1,8 @@
 """Fleet lockstep real-time factor with the EKF: one simulator, N autopilot processes (issue 23, SPEC §13).
 
-A fleet world of N x500s on a 20 m grid (the UAV volume and a margin: pads closer are inside it); every autopilot flies ``lockstep_flight``'s script (arm, take off to
-10 m, fly 20 m, land: parallel tracks, no conflicts) with the EKF, all over UDP at ``--speed max``.
+A fleet world of N x500s on a 20 m grid (the UAV volume and a margin: pads closer are inside it); every autopilot
+flies ``lockstep_flight``'s script (arm, take off to 10 m, fly 20 m, land: parallel tracks, no conflicts) with
+the EKF, all over UDP at ``--speed max``.
 ``fleet_rtf_nN`` is the simulator's ``real_time_factor`` (sim seconds per wall second from the moment every
 autopilot is connected to the end). The breakdown says what bounds it, per control step:
 

@@ -38,6 +38,7 @@ from tools.campaign.inputs import (
     resolve_path,
     with_override,
 )
+from tools.campaign.search_config import EstimateConfig, SearchConfig, parse_estimate, parse_search
 
 MODES = ("sitl", "inproc")
 #: The ``base`` of an encounter campaign's cases (their fleet worlds are generated, not read from a file).
@@ -79,6 +80,8 @@ _TOP_KEYS = (
     "arm_at_s",
     "estimator",
     "encounter",
+    "search",
+    "estimate",
 )
 #: ``encounter:`` keys (tools.encounters.encounter_world's arguments; each drawn from the case's seed when absent).
 ENCOUNTER_KEYS = ("kind", "vehicles", "manned")
@@ -136,6 +139,8 @@ class CampaignSpec:
     estimator: str
     text: str  # the file as written (kept in the results' metadata)
     encounter: tuple[tuple[str, Any], ...] | None = None  # fleet encounters generated per case (docs/traffic.md)
+    search: SearchConfig | None = None  # quadsitl campaign search / estimate (tools.campaign.search_config)
+    estimate: EstimateConfig | None = None  # estimate: (its defaults when absent)
 
 
 def load_campaign(path: str | Path) -> CampaignSpec:
@@ -211,6 +216,8 @@ class _Checker:
             estimator=estimator,
             text=self.path.read_text(),
             encounter=encounter,
+            search=parse_search(doc["search"], vary, self.fail) if "search" in doc else None,
+            estimate=parse_estimate(doc.get("estimate"), self.fail) if "estimate" in doc else None,
         )
 
     def encounter(self, doc: dict) -> tuple[tuple[str, Any], ...]:
