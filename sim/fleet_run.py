@@ -10,7 +10,9 @@ of the recording. Per control step its user (the UDP server ``sim.server`` or th
     ...each autopilot answers...        # run.apply(i, answer) / run.stop_motors(i) for a lost one
     run.advance()                       # physics of all batches, contacts, manned proximity, recording
 
-so both transports fly the same bytes and the same physics. ``summaries`` turns the end state into the
+so both transports fly the same bytes and the same physics. ``flights_over()`` (checked by both before a step when
+the run should end with the flight, ``--end-when-landed``) says when every vehicle has flown and is done: armed
+once, now disarmed on the ground, or ended (crash, contact). ``summaries`` turns the end state into the
 per-vehicle part of ``sim_summary.json``, ``summary`` into the whole (``sim.summary_file``).
 """
 
@@ -90,6 +92,8 @@ class FleetRun:
         self._next_detection_us = [(i * period_us // n) // control_us * control_us for i in range(n)]
         self.traffic_sent = np.zeros(n, dtype=np.int64)
         self._no_reports: list[list] = [[] for _ in range(n)]
+        self._armed_seen = [False] * n  # the answers said armed at least once
+        self._armed = [False] * n  # the last answer said armed
 
     @property
     def n(self) -> int:
@@ -129,7 +133,23 @@ class FleetRun:
             self.sim.release_payload(i)
             who = f"{self.vehicles[i].name}: " if self.fleet.is_fleet else ""
             log.info("%spayload released at t=%.3f s", who, self.sim.t_s)
-        self.sim.set_motors(i, answer[A_MOTORS : A_MOTORS + 4] if answer[A_ARMED] == 1.0 else 0.0)
+        armed = answer[A_ARMED] == 1.0
+        self._armed[i] = armed
+        if armed:
+            self._armed_seen[i] = True
+        self.sim.set_motors(i, answer[A_MOTORS : A_MOTORS + 4] if armed else 0.0)
+
+    def flights_over(self) -> bool:
+        """True when every vehicle's flight is over: it was armed and is now disarmed on the ground, or it ended
+        (crash, contact, non-finite state). A vehicle never armed is not over (it has not flown yet)."""
+        sim = self.sim
+        on_ground, end_reason = sim.on_ground, sim.end_reason
+        for i, seen in enumerate(self._armed_seen):
+            if end_reason[i] != _RUNNING:
+                continue
+            if not (seen and not self._armed[i] and on_ground[i]):
+                return False
+        return True
 
     def stop_motors(self, i: int) -> None:
         """Vehicle i's autopilot is gone: its motors stop (it falls)."""

@@ -12,8 +12,9 @@ vehicle's state after every control step), so a case flies to the same hashes in
 Instead of the ground station a script drives each autopilot on sim time (the world's ``failures:`` and the
 vehicle's own merged in, as ``autopilot --world-failures [--fleet-vehicle]`` does):
 
-- a single-vehicle campaign case (:func:`fly`): the case's ``script.yaml``; the flight runs to ``sim_time_s``
-  like ``sim --duration-s`` (or until the vehicle ended), its record has the single-vehicle ``sim_summary``;
+- a single-vehicle campaign case (:func:`fly`): the case's ``script.yaml``; the flight runs until it is over,
+  like ``sim --end-when-landed --duration-s sim_time_s`` (landed and disarmed, or the vehicle ended, or
+  ``sim_time_s``), its record has the single-vehicle ``sim_summary``;
 - a fleet world (an encounter case, ``python -m tools.campaign.inproc_flight``): vehicle i is armed at
   ``arm_at_s + i * stagger_s`` and starts its mission 0.5 s later, and each vehicle is judged as the fleet ground
   station judges it (``tools.gcs.fly``): done when landed and disarmed after flying, when it crashed, or after
@@ -135,11 +136,13 @@ def fly_world(
     stall_s: float | None = DEFAULT_STALL_S,
     deadline_s: float | None = None,
     rerun: str | None = None,
+    end_when_landed: bool = False,
 ) -> dict[str, Any]:
     """Fly the world at ``world_path``; its record (see the module docstring: the single-vehicle shape for a world
     without ``vehicles:``, else the fleet's). ``vehicle``: the airframe of vehicles without their own (default:
     the world's ``vehicle:``); ``script``: what every autopilot runs instead of the staggered arm and mission
-    start; ``stall_s`` None: no judging, the flight runs to ``sim_time_s`` or until every vehicle ended.
+    start; ``stall_s`` None: no judging, the flight runs to ``sim_time_s`` or until every vehicle ended (with
+    ``end_when_landed``: or every flight is over, ``FleetRun.flights_over``, as ``sim --end-when-landed``).
     ``deadline_s``: wall-clock limit (``timed_out`` in the record). ``rerun``: ``save:PATH.rrd`` records the
     flight as ``autopilot --rerun`` (one vehicle) or ``quadsitl up --rerun`` (a fleet: ``PATH_<name>.rrd`` per
     vehicle, ``PATH_world.rrd``, one id) does."""
@@ -204,6 +207,9 @@ def fly_world(
             end = EndReason(int(sim.end_reason.max()))
             break
         if sim.t_s >= sim_time_s - 1e-9:
+            end = EndReason.COMPLETED
+            break
+        if end_when_landed and run.flights_over():
             end = EndReason.COMPLETED
             break
         if sim.steps % CONTROL_HZ == 0:
@@ -292,7 +298,9 @@ def fly(
     if load_fleet(world_path).is_fleet:
         return fly_world(world_path, stagger_s=stagger_s, **common)
     script = load_script(case_dir / "script.yaml")
-    return fly_world(world_path, vehicle=str(case["vehicle"]), script=script, stall_s=None, **common)
+    return fly_world(
+        world_path, vehicle=str(case["vehicle"]), script=script, stall_s=None, end_when_landed=True, **common
+    )
 
 
 def warm() -> None:
