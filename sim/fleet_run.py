@@ -142,12 +142,9 @@ class FleetRun:
     def flights_over(self) -> bool:
         """True when every vehicle's flight is over: it was armed and is now disarmed on the ground, or it ended
         (crash, contact, non-finite state). A vehicle never armed is not over (it has not flown yet)."""
-        sim = self.sim
-        on_ground, end_reason = sim.on_ground, sim.end_reason
-        for i, seen in enumerate(self._armed_seen):
-            if end_reason[i] != _RUNNING:
-                continue
-            if not (seen and not self._armed[i] and on_ground[i]):
+        seen, armed, on_ground = self._armed_seen, self._armed, self.sim.on_ground
+        for i, end in enumerate(self.sim.end_reason.tolist()):
+            if end == _RUNNING and not (seen[i] and not armed[i] and on_ground[i]):  # in flight: no array look-up
                 return False
         return True
 

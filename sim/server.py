@@ -229,7 +229,7 @@ class SimServer:
             self._wait_for_autopilots()
             wall0, cpu0 = time.perf_counter(), time.process_time()
             while True:
-                if not sim.running.any():
+                if not sim.any_running():
                     end = EndReason(int(sim.end_reason.max()))
                     break
                 if self._stop_requested:

@@ -196,6 +196,7 @@ def fly_world(
 
     n, sim = run.n, run.sim
     alive = np.ones(n, dtype=bool)
+    live = n  # autopilots alive (a count: no array reduction per step)
     answer, payload = np.zeros(16), np.zeros(96, dtype=np.uint8)
     timed_out = False
     upload_error = "; ".join(v.upload_error for v in vehicles if v.upload_error)
@@ -203,7 +204,7 @@ def fly_world(
     end = EndReason.STOPPED
     wait_s = physics_s = 0.0
     while not upload_error:  # a refused upload: nothing flies
-        if stall_s is None and not sim.running.any():
+        if stall_s is None and not sim.any_running():
             end = EndReason(int(sim.end_reason.max()))
             break
         if sim.t_s >= sim_time_s - 1e-9:
@@ -236,12 +237,13 @@ def fly_world(
             if read_answer(v.answers.buffer, length, sim.t_us, answer, payload) != ANSWER_OK:
                 error = f"{v.name}: the autopilot's answer at t={sim.t_us} us was refused by the simulator's reader"
                 alive[i] = False
+                live -= 1
                 run.stop_motors(i)
                 continue
             ap.after_answer()
             run.apply(i, answer)
         wait_s += time.perf_counter() - wait0
-        if not alive.any():
+        if not live:
             end = EndReason.AUTOPILOT_LOST
             break
         physics0 = time.perf_counter()
