@@ -15,7 +15,8 @@ on its id, so the first N cases are the 1000-case campaign's first N.
 - Engine overhead: the first cases flown bare in this process (``inproc_flight.fly``, after ``warm``), then the
   same cases through an engine of 1 set-up worker (``run_case`` on Dask: case files, the flight, the row, the
   result's trip back): ``campaign_bare_flight_s`` and ``campaign_engine_flight_s`` per flight, and their
-  difference ``campaign_engine_overhead_per_flight_s``.
+  difference ``campaign_engine_overhead_per_flight_s``; ``campaign_bare_flight_cpu_s`` is a bare flight's CPU time
+  (what a shared machine's load does not inflate).
 """
 
 from __future__ import annotations
@@ -58,16 +59,17 @@ def _engine_wall_s(payloads: list[CasePayload], workers: int, setup: Any = None)
         return time.perf_counter() - t0, rows
 
 
-def _bare_wall_s(payloads: list[CasePayload]) -> float:
-    """Wall seconds of ``inproc_flight.fly`` alone over the cases, in this process (warmed first)."""
+def _bare_s(payloads: list[CasePayload]) -> tuple[float, float, float]:
+    """Wall, CPU and sim seconds of ``inproc_flight.fly`` alone over the cases, in this process (warmed first)."""
     warm()
-    total = 0.0
+    wall = cpu = sim = 0.0
     for p in payloads:
         folder = write_case(p)
-        t0 = time.perf_counter()
-        fly(folder, p.deadline_s)
-        total += time.perf_counter() - t0
-    return total
+        t0, c0 = time.perf_counter(), time.process_time()
+        flight = fly(folder, p.deadline_s)
+        wall, cpu = wall + time.perf_counter() - t0, cpu + time.process_time() - c0
+        sim += flight["sim"]["sim_time_s"]
+    return wall, cpu, sim
 
 
 def run(quick: bool) -> list[BenchResult]:
@@ -85,7 +87,7 @@ def run(quick: bool) -> list[BenchResult]:
         lockstep_1w, sitl_rows = _engine_wall_s(_payloads(sitl, n_lockstep, root / "sitl1"), 1)
         lockstep_2w, _ = _engine_wall_s(_payloads(sitl, n_lockstep, root / "sitl2"), 2)
         engine_s, _ = _engine_wall_s(_payloads(spec, n_overhead, root / "engine"), 1, warm)
-        bare_s = _bare_wall_s(_payloads(spec, n_overhead, root / "bare"))
+        bare_s, bare_cpu_s, bare_sim_s = _bare_s(_payloads(spec, n_overhead, root / "bare"))
     by_id = {r["case_id"]: r["truth_hash"] for r in rows}
     same = all(r["truth_hash"] and by_id.get(r["case_id"]) == r["truth_hash"] for r in sitl_rows)
     passed = sum(bool(r["passed"]) for r in rows)
@@ -122,6 +124,11 @@ def run(quick: bool) -> list[BenchResult]:
             note=f"the {n_lockstep} lockstep flights' truth hashes = the in-process flights'",
         ),
         BenchResult("campaign_bare_flight_s", bare, note=f"inproc_flight.fly alone, mean of {n_overhead} cases"),
+        BenchResult(
+            "campaign_bare_flight_cpu_s",
+            bare_cpu_s / n_overhead,
+            note=f"its CPU time ({1e6 * bare_cpu_s / (250 * bare_sim_s):.0f} us per 250 Hz step)",
+        ),
         BenchResult("campaign_engine_flight_s", engine, note="the same cases through the engine, 1 worker"),
         BenchResult(
             "campaign_engine_overhead_per_flight_s",
