@@ -133,7 +133,7 @@ class FleetRun:
             self.sim.release_payload(i)
             who = f"{self.vehicles[i].name}: " if self.fleet.is_fleet else ""
             log.info("%spayload released at t=%.3f s", who, self.sim.t_s)
-        armed = answer[A_ARMED] == 1.0
+        armed = bool(answer[A_ARMED] == 1.0)
         self._armed[i] = armed
         if armed:
             self._armed_seen[i] = True
@@ -149,7 +149,8 @@ class FleetRun:
         return True
 
     def stop_motors(self, i: int) -> None:
-        """Vehicle i's autopilot is gone: its motors stop (it falls)."""
+        """Vehicle i's autopilot is gone: its motors stop (it falls; disarmed for ``flights_over``)."""
+        self._armed[i] = False
         self.sim.set_motors(i, np.zeros(4))
 
     def advance(self) -> None:
