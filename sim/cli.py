@@ -1,9 +1,9 @@
 """``quadsitl sim`` / ``python -m sim``: the lockstep simulator process (SPEC §12).
 
 One server (``sim.server.SimServer``) for a world of one vehicle and a fleet world alike. Exit status: 0 when
-the run completed or was stopped (SIGINT/SIGTERM, ``--duration-s``), 3 when the autopilot vanished (a fleet:
-every autopilot; AUTOPILOT_LOST), 4 when the vehicle (every vehicle) ended the run (collision, ground impact,
-non-finite state), 2 for bad options or files. In every case
+the run completed or was stopped (SIGINT/SIGTERM, ``--duration-s``, ``--end-when-landed``), 3 when the autopilot
+vanished (a fleet: every autopilot; AUTOPILOT_LOST), 4 when the vehicle (every vehicle) ended the run (collision,
+ground impact, non-finite state), 2 for bad options or files. In every case
 after start-up ``--log-dir/sim_summary.json`` is written.
 """
 
@@ -97,6 +97,11 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument(flag, dest=field, type=kind, default=None, metavar="X", help=help_)
     p.add_argument("--log-dir", type=Path, default=None, metavar="DIR", help="where sim_summary.json is written")
     p.add_argument("--duration-s", type=float, default=None, metavar="S", help="stop after this much sim time")
+    p.add_argument(
+        "--end-when-landed",
+        action="store_true",
+        help="end the run (COMPLETED) once every vehicle has been armed and is disarmed on the ground",
+    )
     p.add_argument("--physics-hz", type=int, default=1000, metavar="HZ", help="physics rate (default 1000)")
     p.add_argument("--control-hz", type=int, default=250, metavar="HZ", help="lockstep/control rate (default 250)")
     p.add_argument(
@@ -162,6 +167,7 @@ def config_from_args(args: argparse.Namespace) -> SimConfig:
         seed=args.seed,
         speed=args.speed,
         duration_s=args.duration_s,
+        end_when_landed=args.end_when_landed,
         physics_hz=args.physics_hz,
         control_hz=args.control_hz,
         autopilot_timeout_s=args.autopilot_timeout_s,

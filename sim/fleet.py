@@ -209,6 +209,10 @@ class FleetSim:
         """(n,) bool: vehicles still integrated (not crashed or ended)."""
         return self.end_reason == _RUNNING
 
+    def any_running(self) -> bool:
+        """True while a vehicle is still integrated (a list test: ``running.any()`` costs ~2 µs a step)."""
+        return _RUNNING in self.end_reason.tolist()
+
     # ---- a control step ------------------------------------------------------------------------------
     def set_motors(self, i: int, motors: np.ndarray) -> None:
         """Vehicle i's motor commands (4,) for the next step (0 = stopped)."""

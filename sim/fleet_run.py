@@ -11,7 +11,9 @@ of the recording. Per control step its user (the UDP server ``sim.server`` or th
                                         # run.uplink(i, reports): its own UTM reports that came with the answer
     run.advance()                       # physics of all batches, contacts, manned proximity, recording
 
-so both transports fly the same bytes and the same physics. ``summaries`` turns the end state into the
+so both transports fly the same bytes and the same physics. ``flights_over()`` (checked by both before a step when
+the run should end with the flight, ``--end-when-landed``) says when every vehicle has flown and is done: armed
+once, now disarmed on the ground, or ended (crash, contact). ``summaries`` turns the end state into the
 per-vehicle part of ``sim_summary.json``, ``summary`` into the whole (``sim.summary_file``).
 """
 
@@ -95,6 +97,8 @@ class FleetRun:
         self._next_detection_us = [(i * period_us // n) // control_us * control_us for i in range(n)]
         self.traffic_sent = np.zeros(n, dtype=np.int64)
         self._no_reports: list[list] = [[] for _ in range(n)]
+        self._armed_seen = [False] * n  # the answers said armed at least once
+        self._armed = [False] * n  # the last answer said armed
 
     @property
     def n(self) -> int:
@@ -134,7 +138,20 @@ class FleetRun:
             self.sim.release_payload(i)
             who = f"{self.vehicles[i].name}: " if self.fleet.is_fleet else ""
             log.info("%spayload released at t=%.3f s", who, self.sim.t_s)
-        self.sim.set_motors(i, answer[A_MOTORS : A_MOTORS + 4] if answer[A_ARMED] == 1.0 else 0.0)
+        armed = bool(answer[A_ARMED] == 1.0)
+        self._armed[i] = armed
+        if armed:
+            self._armed_seen[i] = True
+        self.sim.set_motors(i, answer[A_MOTORS : A_MOTORS + 4] if armed else 0.0)
+
+    def flights_over(self) -> bool:
+        """True when every vehicle's flight is over: it was armed and is now disarmed on the ground, or it ended
+        (crash, contact, non-finite state). A vehicle never armed is not over (it has not flown yet)."""
+        seen, armed, on_ground = self._armed_seen, self._armed, self.sim.on_ground
+        for i, end in enumerate(self.sim.end_reason.tolist()):
+            if end == _RUNNING and not (seen[i] and not armed[i] and on_ground[i]):  # in flight: no array look-up
+                return False
+        return True
 
     def uplink(self, i: int, reports: tuple[object, ...] | list[object]) -> None:
         """Vehicle i's own UTM_GLOBAL_POSITION reports (decoded) that came with its answer to this step's frame:
@@ -143,7 +160,8 @@ class FleetRun:
             self.receiver.uplink(i, self.sim.t_us, reports)
 
     def stop_motors(self, i: int) -> None:
-        """Vehicle i's autopilot is gone: its motors stop (it falls)."""
+        """Vehicle i's autopilot is gone: its motors stop (it falls; disarmed for ``flights_over``)."""
+        self._armed[i] = False
         self.sim.set_motors(i, np.zeros(4))
 
     def advance(self) -> None:

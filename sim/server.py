@@ -7,7 +7,8 @@ lockstep server on the listen port + i. Loop per control step (``control_hz``, d
     record the previous step (truth hashes, tilt, truth log) while the autopilots work
     for each of them: wait for its answer (each lockstep re-sends on its own)  -> time advances only now
     apply answers (armed -> motors, else 0; gripper release -> payload dropped) -> physics of all -> contacts
-    end checks (every vehicle ended, duration, stop request, every autopilot lost) -> pacing (``--speed``)
+    end checks (every vehicle ended, duration, stop request, every autopilot lost, with ``end_when_landed``
+    every flight over: ``FleetRun.flights_over``) -> pacing (``--speed``)
 
 Time is owned here and only advances after every answer for the current step arrived, so a run is a
 deterministic function of (world, vehicles, seed, autopilots) at any ``speed``; the wall clock only paces
@@ -59,6 +60,7 @@ class SimConfig:
     seed: int = 0
     speed: float | None = None  # sim s per wall s; None = as fast as possible
     duration_s: float | None = None  # sim time limit; None = until stopped
+    end_when_landed: bool = False  # end COMPLETED once every vehicle flew and is disarmed on the ground
     physics_hz: int = 1000
     control_hz: int = 250
     autopilot_timeout_s: float = 3.0  # wall seconds of silence before AUTOPILOT_LOST
@@ -231,12 +233,15 @@ class SimServer:
             self._wait_for_autopilots()
             wall0, cpu0 = time.perf_counter(), time.process_time()
             while True:
-                if not sim.running.any():
+                if not sim.any_running():
                     end = EndReason(int(sim.end_reason.max()))
                     break
                 if self._stop_requested:
                     break
                 if cfg.duration_s is not None and sim.t_s >= cfg.duration_s - 1e-9:
+                    end = EndReason.COMPLETED
+                    break
+                if cfg.end_when_landed and run.flights_over():
                     end = EndReason.COMPLETED
                     break
                 if not self.alive.any():  # nobody connected: STOPPED before the start

@@ -17,9 +17,8 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from mavlink_bridge.contract.frames import GRAVITY_M_S2
+from mavlink_bridge.contract.source_lines import YamlSyntaxError, parse_yaml
 
 VEHICLES_DIR = Path(__file__).resolve().parent / "vehicles"
 
@@ -209,7 +208,7 @@ def load_vehicle(name_or_path: str | Path) -> VehicleConfig:
     if not path.is_file():
         raise VehicleConfigError(f"vehicle: no such file {str(path)!r}")
     try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise VehicleConfigError(f"{path}: not valid YAML ({exc})") from exc
+        data = parse_yaml(path.read_text(), path).data  # parsed once per process (a campaign worker's cases)
+    except YamlSyntaxError as exc:
+        raise VehicleConfigError(str(exc)) from exc
     return vehicle_config_from_dict(data, origin=str(path))

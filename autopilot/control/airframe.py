@@ -13,7 +13,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import yaml
+
+from mavlink_bridge.contract.source_lines import YamlSyntaxError, parse_yaml
 
 AIRFRAME_DIR = Path(__file__).resolve().parent.parent / "airframes"
 
@@ -97,7 +98,10 @@ def load_airframe(name_or_path: str | Path) -> Airframe:
     if not path.is_file():
         known = sorted(p.stem for p in AIRFRAME_DIR.glob("*.yaml"))
         raise AirframeError(f"airframe {name_or_path!r} not found (known: {known})")
-    data = yaml.safe_load(path.read_text())
+    try:
+        data = parse_yaml(path.read_text(), path).data  # parsed once per process (a campaign worker's cases)
+    except YamlSyntaxError as exc:
+        raise AirframeError(str(exc)) from exc
     if not isinstance(data, dict):
         raise AirframeError(f"{path}: expected a mapping")
     required = ("mass_kg", "inertia_kg_m2", "rotor_pos_frd_m", "rotor_yaw_dir", "k_f", "k_m", "omega_max_rad_s")

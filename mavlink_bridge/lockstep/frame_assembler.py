@@ -23,6 +23,27 @@ from mavlink_bridge.wire.codec import Decoder, Heartbeat
 from mavlink_bridge.wire.traffic_codec import MAV_TYPE_ADSB
 
 
+class _FrameBuilder:
+    """Plain twin of :class:`LockstepFrame` (same slots), filled and re-classed: a frozen slotted dataclass costs a
+    descriptor call per field, every frame (``autopilot.estimation.truth._StateBuilder`` explains the pattern)."""
+
+    __slots__ = LockstepFrame.__slots__
+
+
+def _frame(
+    sensor: SensorSample,
+    gps: GpsSample | None,
+    truth: GroundTruth,
+    detections: tuple[ObstacleDetection, ...],
+    traffic: tuple[TrafficReport, ...],
+) -> LockstepFrame:
+    """``LockstepFrame(sensor, gps, truth, detections, traffic)`` without the frozen dataclass's ``__init__``."""
+    f = _FrameBuilder()
+    f.sensor, f.gps, f.truth, f.detections, f.traffic = sensor, gps, truth, detections, traffic
+    f.__class__ = LockstepFrame  # type: ignore[assignment]
+    return f  # type: ignore[return-value]
+
+
 class FrameAssembler:
     """Datagrams from the sim in, each new valid frame out once.
 
@@ -111,7 +132,7 @@ class FrameAssembler:
                     traffic = tuple(  # ADS-B carries no time: stamped now (a UTM report at sim time 0 keeps it)
                         replace(r, t_us=t) if r.source is TrafficSource.MANNED else r for r in self._traffic
                     )
-                    frame = LockstepFrame(msg, gps, truth, tuple(self._detections), traffic)
+                    frame = _frame(msg, gps, truth, tuple(self._detections), traffic)
                     self._pending_time_us = t
                     self.frames += 1
                     if receiver_heard:

@@ -136,6 +136,20 @@ class DecoderStats:
     signed: int = 0  # frames that carried a MAVLink 2 signature (accepted, not verified here)
 
 
+class _TruthBuilder:
+    """Plain twin of :class:`GroundTruth` (same slots), filled by attribute and re-classed: building a frozen
+    slotted dataclass costs a descriptor call per field, every frame (``autopilot.estimation.truth._StateBuilder``
+    explains the pattern)."""
+
+    __slots__ = GroundTruth.__slots__
+
+
+class _SensorBuilder:
+    """Plain twin of :class:`SensorSample` (see :class:`_TruthBuilder`)."""
+
+    __slots__ = SensorSample.__slots__
+
+
 class Decoder:
     """Whole UDP datagrams -> wire messages. Never raises on input.
 
@@ -178,17 +192,25 @@ class Decoder:
         while k < n:
             kind = v[k]
             if kind == 3.0:  # KIND_TRUTH
-                q, w = (v[k + 2], v[k + 3], v[k + 4], v[k + 5]), (v[k + 6], v[k + 7], v[k + 8])
-                vel, acc = (v[k + 12], v[k + 13], v[k + 14]), (v[k + 15], v[k + 16], v[k + 17])
-                out.append(GroundTruth(int(v[k + 1]), q, w, v[k + 9], v[k + 10], v[k + 11], vel, acc))
+                t = _TruthBuilder()
+                t.time_us = int(v[k + 1])
+                t.q_ned_frd = (v[k + 2], v[k + 3], v[k + 4], v[k + 5])
+                t.rate_frd_rad_s = (v[k + 6], v[k + 7], v[k + 8])
+                t.lat_deg, t.lon_deg, t.alt_amsl_m = v[k + 9], v[k + 10], v[k + 11]
+                t.vel_ned_m_s = (v[k + 12], v[k + 13], v[k + 14])
+                t.accel_frd_m_s2 = (v[k + 15], v[k + 16], v[k + 17])
+                t.__class__ = GroundTruth  # type: ignore[assignment]
+                out.append(t)  # type: ignore[arg-type]
                 k += 18
             elif kind == 1.0:  # KIND_SENSOR
-                a, g, m = (
-                    (v[k + 2], v[k + 3], v[k + 4]),
-                    (v[k + 5], v[k + 6], v[k + 7]),
-                    (v[k + 8], v[k + 9], v[k + 10]),
-                )
-                out.append(SensorSample(int(v[k + 1]), a, g, m, v[k + 11], v[k + 12], v[k + 13]))
+                s = _SensorBuilder()
+                s.time_us = int(v[k + 1])
+                s.accel_frd_m_s2 = (v[k + 2], v[k + 3], v[k + 4])
+                s.gyro_frd_rad_s = (v[k + 5], v[k + 6], v[k + 7])
+                s.mag_frd_gauss = (v[k + 8], v[k + 9], v[k + 10])
+                s.abs_pressure_hpa, s.pressure_alt_m, s.temperature_degc = v[k + 11], v[k + 12], v[k + 13]
+                s.__class__ = SensorSample  # type: ignore[assignment]
+                out.append(s)  # type: ignore[arg-type]
                 k += 14
             elif kind == 5.0:  # KIND_ACTUATORS
                 motors = (v[k + 3], v[k + 4], v[k + 5], v[k + 6])

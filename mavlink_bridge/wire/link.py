@@ -32,6 +32,9 @@ Address = tuple[str, int]
 
 _MAX_DATAGRAM_BYTES = 65535
 _SPIN_BACKOFF_MAX = 256
+#: A spin's yield that returns later than this (s) ran another process: the CPU is wanted, stop spinning (a yield
+#: with nothing else runnable returns in ~1 µs; a peer's lockstep step takes ~50-150 µs).
+CONTENDED_YIELD_S = 30e-6
 _yield_cpu = getattr(os, "sched_yield", None) or (lambda: None)  # Linux and macOS have it
 _TRANSIENT_ERRNOS = frozenset({errno.EAGAIN, errno.EWOULDBLOCK, errno.ECONNREFUSED, errno.EINTR, errno.ENOBUFS})
 
@@ -158,6 +161,7 @@ class UdpLink:
         "last_sender",
         "peer",
         "send_errors",
+        "spin_contended",
         "spin_s",
         "url",
     )
@@ -168,6 +172,7 @@ class UdpLink:
         self.spin_s = spin_s if spin_s > 0.0 and spin_allowed() else 0.0
         self._spin_backoff = 1  # waits to skip spinning after the next miss (doubles per miss, up to 256)
         self._spin_skip = 0  # waits left to do without spinning
+        self.spin_contended = False  # the last spin ended because another process wanted the CPU
         self._listening = url.mode is LinkMode.LISTEN
         self.send_errors = 0
         self.last_sender: Address | None = None
@@ -224,20 +229,24 @@ class UdpLink:
         peer follows it. With ``spin_s`` > 0 the socket is first polled without sleeping for up to
         ``spin_s`` (a lockstep peer answers within tens of µs; waking a sleeping process costs about
         as much again), then the process sleeps in ``poll`` for the rest of ``timeout_s``. The spin yields
-        the CPU between polls (another runnable process on it goes first), and a spin that ends
+        the CPU between polls (another runnable process on it goes first) and ends at the first yield that ran
+        another process (an oversubscribed host: two lockstep pairs on two cores); a spin that ends
         empty-handed (slow peer, or a machine too busy to give both ends a CPU) is skipped for the next
-        1, 2, 4 … 256 waits, so spinning only continues while it pays.
+        1, 2, 4 … 256 waits, so spinning only continues while it pays and no other process wants the CPU.
         """
         if timeout_s > 0.0:
             if self.spin_s > 0.0:
                 if self._spin_skip == 0:
                     n = self._spin(min(self.spin_s, timeout_s))
-                    if n >= 0:
+                    if n >= 0 and not self.spin_contended:
                         self._spin_backoff = 1
                         return n
-                    timeout_s -= self.spin_s
-                    self._spin_skip = self._spin_backoff  # the peer is slower than the spin (or busy): back off
+                    # the peer is slower than the spin, or the CPU is wanted by another process: back off
+                    self._spin_skip = self._spin_backoff
                     self._spin_backoff = min(2 * self._spin_backoff, _SPIN_BACKOFF_MAX)
+                    if n >= 0:
+                        return n
+                    timeout_s -= self.spin_s
                 else:
                     self._spin_skip -= 1
             if timeout_s > 0.0 and not self._poll.poll(timeout_s * 1000.0):
@@ -245,14 +254,23 @@ class UdpLink:
         return self._take()
 
     def _spin(self, spin_s: float) -> int:
-        """Busy-poll the socket for up to ``spin_s`` (wall); the datagram's length or -1."""
+        """Busy-poll the socket for up to ``spin_s`` (wall); the datagram's length or -1. Ends early, with
+        ``spin_contended`` set, at the first yield that gave the CPU away (it took over ``CONTENDED_YIELD_S``):
+        another process wanted this CPU, so the host is oversubscribed and spinning takes the time the peer (or
+        another lockstep pair) needs."""
         take, clock, yield_cpu = self._take, time.perf_counter, _yield_cpu
-        end = clock() + spin_s
+        self.spin_contended = False
+        now = clock()
+        end = now + spin_s
         while True:
             n = take()
-            if n >= 0 or clock() >= end:
+            if n >= 0 or now >= end:
                 return n
             yield_cpu()  # polite: another runnable process on this CPU (a peer, another SITL) goes first
+            before, now = now, clock()
+            if now - before > CONTENDED_YIELD_S:
+                self.spin_contended = True
+                return take()
 
     def _take(self) -> int:
         """One datagram into the buffer if the socket has one (never blocks): its length, else -1."""

@@ -339,3 +339,27 @@ def test_range_limit_drops_far_targets(tmp_path: Path) -> None:
     _, (alpha, _) = _run_fleet(path, [{"motors": 0.0}, {"motors": 0.0}], 2.0, traffic_link=link)
     assert alpha.traffic == []  # bravo is 8 m away, the helicopter farther
     assert np.isfinite(alpha.frames[-1].truth.lat_deg)
+
+
+def test_the_flights_are_over_once_every_vehicle_flew_and_is_disarmed_on_the_ground(tmp_path: Path) -> None:
+    """``FleetRun.flights_over`` (``sim --end-when-landed``): not before arming, not while armed, not while a
+    disarmed vehicle is still in the air; a vehicle that ended (crashed) does not hold the others back."""
+    path = _write(tmp_path, FLEET_YAML)
+    fleet = load_fleet(path)
+    run = FleetRun(load_world(path), fleet, fleet_airframes(fleet, "x500"))
+    armed, disarmed = np.zeros(16), np.zeros(16)
+    armed[A_ARMED] = 1.0
+    assert not run.flights_over()  # nobody armed yet: nothing has flown
+    for i in (0, 1):
+        run.apply(i, armed)
+    assert not run.flights_over()
+    run.apply(0, disarmed)
+    assert not run.flights_over()  # bravo still armed
+    run.apply(1, disarmed)
+    assert run.sim.on_ground.all() and run.flights_over()
+    run.sim.batches[0].state[1, 2] = -5.0  # bravo disarmed but in the air (falling): not over
+    run.sim.gather()
+    run.sim.batches[0].on_ground[1] = False
+    assert not run.flights_over()
+    run.sim.end(EndReason.GROUND_IMPACT, [1])  # it crashed: its flight is over
+    assert run.flights_over()

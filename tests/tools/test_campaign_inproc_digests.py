@@ -4,7 +4,9 @@ case (the old ``inproc_flight`` over ``VehicleSim``) and of a fleet world (the o
 is also what its ``mode: sitl`` flight gives (``test_campaign_local``: sitl = inproc bit for bit). The fleet world's
 digests were re-pinned when the receivers stopped reporting truth (UTM relay of the vehicles' own reports, a noisy
 ADS-B link), and again when the reactive layer began to fly (the two pads are 8 m apart, inside each other's
-volume: the climb-outs are bounded); the same world and seed flown twice gives the same hashes."""
+volume: the climb-outs are bounded); the same world and seed flown twice gives the same hashes. Case 1 was
+re-pinned when a case began to end at landing (disarmed on the ground at 19.784 s instead of flying on to the
+25 s ``sim_time_s``): the same flight, a hash over fewer steps."""
 
 from __future__ import annotations
 
@@ -45,7 +47,7 @@ traffic:
     ("case_id", "end_reason", "sim_time_s", "digest"),
     [
         (0, "GROUND_IMPACT", 13.036, "ddc45d2dbf3f0617b8f4ffcc6d231ac14b70e14927b1524ebaae4eee4ee04667"),
-        (1, "COMPLETED", 25.0, "5e5f9957c7db8dcb893e99b18f987287dd16bd05ccacda1d014e50b92e08bf50"),
+        (1, "COMPLETED", 19.784, "91415613036cb771243fd89794d3d32bf7b2a11af4694b48f3f22a8036b6b870"),
     ],
 )
 def test_a_single_vehicle_case_keeps_its_digest(
@@ -62,8 +64,8 @@ def test_a_fleet_world_keeps_its_per_vehicle_digests(tmp_path: Path) -> None:
     world.write_text(PAIR)
     out = fly_world(world, seed=9, stagger_s=2.0, sim_time_s=30.0)
     assert [v["truth_sha256"] for v in out["sim"]["vehicles"]] == [
-        "2bca46f1a81e90fe6b6585098f63d2c70285df1163e3173031450fefa793710c",
-        "19e43eb85729993d01af922e9dc028ad58022e96c8ca2576f0c5591c6d1f3351",
+        "92ec01e5a3d8daefb50a5a5c02922fde9427e5a34734b4ddc95fcf951292444b",
+        "3b2017f2bacbb2c4830060e727395de90820a621ee446b4279276bbcfc7c9142",
     ]
     # each hears the other's own reports (1 Hz, 1 s late) and the helicopter's ADS-B (1 Hz, 0.6 s late, 95 %)
     assert [v["traffic_reports"] for v in out["sim"]["vehicles"]] == [56, 57]

@@ -14,8 +14,9 @@ vehicle's state after every control step), so a case flies to the same hashes in
 Instead of the ground station a script drives each autopilot on sim time (the world's ``failures:`` and the
 vehicle's own merged in, as ``autopilot --world-failures [--fleet-vehicle]`` does):
 
-- a single-vehicle campaign case (:func:`fly`): the case's ``script.yaml``; the flight runs to ``sim_time_s``
-  like ``sim --duration-s`` (or until the vehicle ended), its record has the single-vehicle ``sim_summary``;
+- a single-vehicle campaign case (:func:`fly`): the case's ``script.yaml``; the flight runs until it is over,
+  like ``sim --end-when-landed --duration-s sim_time_s`` (landed and disarmed, or the vehicle ended, or
+  ``sim_time_s``), its record has the single-vehicle ``sim_summary``;
 - a fleet world (an encounter case, ``python -m tools.campaign.inproc_flight``): vehicle i is armed at
   ``arm_at_s + i * stagger_s`` and starts its mission 0.5 s later, and each vehicle is judged as the fleet ground
   station judges it (``tools.gcs.fly``): done when landed and disarmed after flying, or when it crashed; stuck
@@ -80,6 +81,8 @@ DEFAULT_STALL_S = 120.0  # as the fleet ground station's --stall-s
 DEFAULT_STUCK_S = 60.0  # no progress and no motion for this long: stuck
 STUCK_MOVE_M = 2.0  # a vehicle that stays within this of where it was is not moving
 DEFAULT_SIM_TIME_S = 900.0
+#: The world :func:`warm` flies (the shipped delivery mission).
+WARM_WORLD = Path(__file__).resolve().parent.parent.parent / "missions" / "delivery.yaml"
 _RUNNING = int(EndReason.RUNNING)
 _MISSION_COMPLETE = "COMPLETE"
 
@@ -130,11 +133,13 @@ def fly_world(
     stuck_s: float = DEFAULT_STUCK_S,
     deadline_s: float | None = None,
     rerun: str | None = None,
+    end_when_landed: bool = False,
 ) -> dict[str, Any]:
     """Fly the world at ``world_path``; its record (see the module docstring: the single-vehicle shape for a world
     without ``vehicles:``, else the fleet's). ``vehicle``: the airframe of vehicles without their own (default:
     the world's ``vehicle:``); ``script``: what every autopilot runs instead of the staggered arm and mission
     start; ``stall_s`` None: no judging, the flight runs to ``sim_time_s`` or until every vehicle ended;
+    (with ``end_when_landed``: or every flight is over, ``FleetRun.flights_over``, as ``sim --end-when-landed``);
     ``stuck_s``: sim seconds without progress or motion that make a vehicle stuck.
     ``deadline_s``: wall-clock limit (``timed_out`` in the record). ``rerun``: ``save:PATH.rrd`` records the
     flight as ``autopilot --rerun`` (one vehicle) or ``quadsitl up --rerun`` (a fleet: ``PATH_<name>.rrd`` per
@@ -189,6 +194,7 @@ def fly_world(
 
     n, sim = run.n, run.sim
     alive = np.ones(n, dtype=bool)
+    live = n  # autopilots alive (a count: no array reduction per step)
     answer, payload = np.zeros(16), np.zeros(96, dtype=np.uint8)
     uplink_decoder = Decoder()  # the simulator's reading of the own reports
     timed_out = False
@@ -197,10 +203,13 @@ def fly_world(
     end = EndReason.STOPPED
     wait_s = physics_s = 0.0
     while not upload_error:  # a refused upload: nothing flies
-        if stall_s is None and not sim.running.any():
+        if stall_s is None and not sim.any_running():
             end = EndReason(int(sim.end_reason.max()))
             break
         if sim.t_s >= sim_time_s - 1e-9:
+            end = EndReason.COMPLETED
+            break
+        if end_when_landed and run.flights_over():
             end = EndReason.COMPLETED
             break
         if sim.steps % CONTROL_HZ == 0:
@@ -233,6 +242,7 @@ def fly_world(
             if read_answer(v.answers.buffer, length, sim.t_us, answer, payload) != ANSWER_OK:
                 error = f"{v.name}: the autopilot's answer at t={sim.t_us} us was refused by the simulator's reader"
                 alive[i] = False
+                live -= 1
                 run.stop_motors(i)
                 continue
             ap.after_answer()
@@ -241,7 +251,7 @@ def fly_world(
             if own is not None and v.assembler.traffic_receiver_t_us >= 0:
                 run.uplink(i, uplink_decoder.decode(v.encoder.own_position(own)))
         wait_s += time.perf_counter() - wait0
-        if not alive.any():
+        if not live:
             end = EndReason.AUTOPILOT_LOST
             break
         physics0 = time.perf_counter()
@@ -298,13 +308,16 @@ def fly(
     if load_fleet(world_path).is_fleet:
         return fly_world(world_path, stagger_s=stagger_s, **common)
     script = load_script(case_dir / "script.yaml")
-    return fly_world(world_path, vehicle=str(case["vehicle"]), script=script, stall_s=None, **common)
+    return fly_world(
+        world_path, vehicle=str(case["vehicle"]), script=script, stall_s=None, end_when_landed=True, **common
+    )
 
 
 def warm() -> None:
-    """Load the compiled kernels of an in-process flight (a Dask worker's setup, before its first case)."""
-    import autopilot.runner  # noqa: F401
-    import sim.fleet_run  # noqa: F401
+    """A Dask worker's set-up, once before its first case: the first 8 s of the delivery mission in process (arm,
+    take-off), which imports the modules, loads the compiled kernels from numba's cache and parses the shipped
+    airframes (~0.8 s of CPU that the first case would otherwise pay)."""
+    fly_world(WARM_WORLD, script=vehicle_script(0, 1.0, 0.0), sim_time_s=8.0, stall_s=None)
 
 
 def _judge(v: _Vehicle, t_s: float, end_code: int, pos_ned: list[float], stall_s: float, stuck_s: float) -> bool:

@@ -8,10 +8,11 @@ the flight record either way (the simulator's and the autopilot's summaries, the
 One vehicle: the supervisor starts the autopilot (``python -m autopilot``, script + resolved params of the case,
 a GCS link on free loopback ports), uploads the fence and the mission through the bundled ground-station client
 (``mavlink_bridge.gcs_client.client.GcsClient``) *before* the simulator exists, then starts the simulator
-(``python -m sim --speed max --duration-s SIM_TIME``): the lockstep begins with the mission on board, arm and
-mission start come from the script at fixed sim times, and the simulator ends the flight at exactly
-``sim_time_s``, so the whole flight (and its truth hash) is a function of the case's files alone (the same
-flight as ``inproc``). The ground station stays on the link to collect STATUSTEXTs (failsafes).
+(``python -m sim --speed max --duration-s SIM_TIME --end-when-landed``): the lockstep begins with the mission on
+board, arm and mission start come from the script at fixed sim times, and the simulator ends the flight at the
+first step its vehicle is disarmed on the ground after flying (or when it crashed, or at ``sim_time_s``), so the
+whole flight (and its truth hash) is a function of the case's files alone (the same flight as ``inproc``). The
+ground station stays on the link to collect STATUSTEXTs (failsafes).
 
 A fleet: the fleet run command (``FLEET_RUN``: one simulator, one autopilot per vehicle, the fleet ground station
 arming and starting them ``stagger_s`` apart on the wall clock), its summary folded into the record by
@@ -160,7 +161,8 @@ def _fly_one(case_dir: Path, case: dict[str, Any], rerun: str | None) -> dict[st
     sim_args = [
         SIM, "--listen", f"udp:127.0.0.1:{sim_port}", "--world", str(world), "--vehicle", case["vehicle"],
         "--seed", str(case["sim_seed"]), "--speed", "max", "--duration-s", f"{case['sim_time_s']!r}",
-        "--log-dir", str(case_dir), "--autopilot-timeout-s", "30", "--start-timeout-s", str(STARTUP_S),
+        "--end-when-landed", "--log-dir", str(case_dir), "--autopilot-timeout-s", "30",
+        "--start-timeout-s", str(STARTUP_S),
     ]  # fmt: skip
     for stale in ("sim_summary.json", "autopilot_summary.json"):
         (case_dir / stale).unlink(missing_ok=True)

@@ -77,21 +77,9 @@ def versions() -> str:
 def run_case(payload: CasePayload) -> dict[str, Any]:
     """Fly the case and return its row (see :func:`row`); never raises for a failed flight."""
     t0 = time.monotonic()
-    case_dir = Path(payload.case_dir)
     try:
-        write_case_files(payload.files, case_dir)
+        case_dir = write_case(payload)
         fleet = payload.files.fleet
-        case_json = {
-            "case_id": payload.case.case_id,
-            "vehicle": payload.case.vehicle,
-            "sim_seed": payload.case.sim_seed,
-            "sim_time_s": payload.sim_time_s,
-            "estimator": payload.estimator,
-            "fleet": fleet,
-            "stagger_s": payload.case.stagger_s,
-            "deadline_s": payload.deadline_s,
-        }
-        (case_dir / "case.json").write_text(json.dumps(case_json, indent=1) + "\n")
         if payload.mode == "sitl":
             flight = _fly_sitl(case_dir, payload.deadline_s, payload.rerun)
         elif fleet:
@@ -105,6 +93,24 @@ def run_case(payload: CasePayload) -> dict[str, Any]:
     except Exception as exc:  # a refused input or a crash in-process: an error row, the campaign goes on
         flight = {"error": f"{type(exc).__name__}: {exc}", "sim": {}, "autopilot": {}, "texts": []}
     return row(payload, flight, time.monotonic() - t0)
+
+
+def write_case(payload: CasePayload) -> Path:
+    """The case's folder with everything its flight reads: the case files and ``case.json``."""
+    case_dir = Path(payload.case_dir)
+    write_case_files(payload.files, case_dir)
+    case_json = {
+        "case_id": payload.case.case_id,
+        "vehicle": payload.case.vehicle,
+        "sim_seed": payload.case.sim_seed,
+        "sim_time_s": payload.sim_time_s,
+        "estimator": payload.estimator,
+        "fleet": payload.files.fleet,
+        "stagger_s": payload.case.stagger_s,
+        "deadline_s": payload.deadline_s,
+    }
+    (case_dir / "case.json").write_text(json.dumps(case_json, indent=1) + "\n")
+    return case_dir
 
 
 def _fly_sitl(case_dir: Path, deadline_s: float, rerun: str | None) -> dict[str, Any]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+import time
 
 import pytest
 
@@ -105,3 +106,26 @@ def test_spinning_backs_off_while_the_peer_is_slow(monkeypatch: pytest.MonkeyPat
                 a.send(b"x")
                 assert server.recv(0.5) == b"x"
         assert len(spins) == 3 + 8 - 2
+
+
+def test_spinning_stops_when_another_process_wants_the_cpu(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A yield that ran another process for longer than CONTENDED_YIELD_S (two lockstep pairs on two cores) ends
+    the spin, and the next waits sleep in poll instead of spinning (the backoff), even though the datagram came."""
+    monkeypatch.setattr("mavlink_bridge.wire.link.spin_allowed", lambda: True)
+    server = UdpLink.from_url("udpin:127.0.0.1:0", spin_s=0.05)
+    with server, UdpLink.from_url(f"udpout:127.0.0.1:{server.local_address[1]}") as a:
+
+        def busy_cpu() -> None:  # the yield gave the CPU to another process, which sent the datagram
+            a.send(b"x")
+            time.sleep(0.001)
+
+        monkeypatch.setattr("mavlink_bridge.wire.link._yield_cpu", busy_cpu)
+        spins: list[float] = []
+        real_spin = UdpLink._spin
+        monkeypatch.setattr(UdpLink, "_spin", lambda link, s: spins.append(s) or real_spin(link, s))
+        t0 = time.monotonic()
+        assert server.recv(1.0) == b"x" and server.spin_contended
+        assert time.monotonic() - t0 < 0.04  # ended at the contended yield, not after the 50 ms spin
+        a.send(b"y")
+        assert server.recv(1.0) == b"y"
+        assert len(spins) == 1  # the second wait did not spin
