@@ -5,8 +5,8 @@
 - ``missions/ring_swap6.yaml``: six vehicles swap pads across a 40 m circle at one altitude, all at once
   (``--stagger-s 0``);
 - ``missions/depot_helicopter.yaml``: five vehicles leave a depot 4 s apart, fly to drop points and back while a
-  helicopter crosses 60 m from the depot at 25 m, there and back (over it at 20 and 60 s: whenever the ground station
-  starts the vehicles, it meets them in the air).
+  helicopter crosses 60 m from the depot at 25 m, there and back (over it at 20 and 60 s of sim time; the ground
+  station starts the vehicles about 16 s in: they wait for it on their pads or meet it in the air).
 
 Keys per world (``sitl_<world>_...``): ``volume_entries`` (pairs of airborne vehicles inside the 10 m / 5 m UAV
 volume, target 0), ``nmac`` ((vehicle, aircraft) pairs inside the NMAC volume in flight, target 0), ``contacts``,
