@@ -118,7 +118,8 @@ class TrafficGuard:
         self._engaged_us = -1
         self._solved_us = -SOLVE_PERIOD_US
         self._vel: list[float] = [0.0, 0.0, 0.0]
-        self._limits_version = -1
+        self._limits_version: object = None
+        self.fences: tuple[object, ...] = ()  # the geofence's zones about home (the navigator's link sets them)
         self._limits: ReactiveLimits | None = None
         self._said: tuple[str, bool] | None = None
 
@@ -127,15 +128,18 @@ class TrafficGuard:
         return self._engaged_us >= 0
 
     def limits(self) -> ReactiveLimits:
-        """What the vehicle may fly: MPC_* speeds and acceleration, CA_MIN_AGL_M, CA_CEILING_M / GF_MAX_VER_DIST."""
-        if self._limits is None or self._limits_version != self.params.version:
+        """What the vehicle may fly: MPC_* speeds and acceleration, CA_MIN_AGL_M, CA_CEILING_M / GF_MAX_VER_DIST,
+        the fence's zones (``fences``, about home) with CA_FENCE_MARG_M."""
+        key = (self.params.version, self.fences)
+        if self._limits is None or self._limits_version != key:
             g = self.params.get
             ceiling = g("CA_CEILING_M")
             if g("GF_MAX_VER_DIST") > 0.0:
                 ceiling = min(ceiling, g("GF_MAX_VER_DIST"))
             self._limits = ReactiveLimits(g("MPC_XY_VEL_MAX"), g("MPC_Z_VEL_MAX_UP"), g("MPC_Z_VEL_MAX_DN"),
-                                          g("MPC_ACC_HOR"), -g("CA_MIN_AGL_M"), -ceiling)  # fmt: skip
-            self._limits_version = self.params.version
+                                          g("MPC_ACC_HOR"), -g("CA_MIN_AGL_M"), -ceiling, self.fences,
+                                          g("CA_FENCE_MARG_M"))  # fmt: skip
+            self._limits_version = key
         return self._limits
 
     def release(self, t_us: int | None = None) -> None:

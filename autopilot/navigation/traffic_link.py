@@ -129,6 +129,7 @@ class TrafficLink:
             self._pending = reports[-self.avoidance.table.max_tracks :]
             return None
         self.avoidance.set_home(frame.geo)
+        self.guard.fences = geofence.zones  # the reactive layer keeps inside the fence too
         route: tuple[Vec3, ...] = ()
         cruise = self.params.get("MIS_CRUISE_SPD")
         mission = mode is FlightMode.AUTO_MISSION and target is not None and target.kind is TargetKind.POSITION

@@ -74,7 +74,12 @@ PARKED_SPEED_M_S = 0.5
 MAX_TRACKS = 64
 #: The vehicle's own half-spaces: the speed polygon, descent and climb rates, floor, ceiling, the ground lock's 4.
 OWN_ROWS = SPEED_SIDES + 8
-_ROWS = MAX_TRACKS + OWN_ROWS
+_ROWS = MAX_TRACKS + OWN_ROWS + 8
+#: Fence zones nearer than this (m) bound the velocity (at most MAX_FENCE_ROWS of them); the edge's normal is
+#: taken over FENCE_STEP_M.
+FENCE_LOOK_M = 40.0
+MAX_FENCE_ROWS = 8
+FENCE_STEP_M = 0.5
 #: The offset of a half-space not in force (every velocity is on its side).
 OFF = -1e9
 
@@ -100,6 +105,8 @@ class ReactiveLimits:
     acc_m_s2: float
     floor_down_m: float
     ceiling_down_m: float
+    fences: tuple[object, ...] = ()  # the fence's zones (``contains``, ``boundary_distance_m``, ``inclusion``)
+    fence_margin_m: float = 3.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -159,6 +166,7 @@ class ReactiveLayer:
         self._params: TrafficParams | None = None
         self._rows: list[TrafficTrack] = []
         self._version: int | None = None
+        self._m_hard = OWN_ROWS
         #: After a solve: by how much (m/s) the velocity flown keeps clear of the nearest track's plane (inf: no
         #: track in reach, 0: the layer binds); the guard solves less often while it is large.
         self.slack_m_s = math.inf
@@ -181,7 +189,7 @@ class ReactiveLayer:
         pos, vel, pref = self._pos, self._vel, self._pref
         pos[:], vel[:], pref[:] = pos_home_ned_m, vel_ned_m_s, pref_ned_m_s
         self._own_limits(pos, vel, pref, limits, phase)
-        m = OWN_ROWS
+        m = self._m_hard = OWN_ROWS + self._fence_rows(pos, limits)
         closest_admissible(self._normals, self._offsets, m, pref, self._limits_out)
         speed2 = vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2]
         brake_m = min(speed2 / (2.0 * limits.acc_m_s2), MAX_BRAKE_GROW_M)
@@ -243,6 +251,28 @@ class ReactiveLayer:
         offsets[k + 6] = min(pref[1], 0.0) if near_ground else OFF
         offsets[k + 7] = min(-pref[1], 0.0) if near_ground else OFF
 
+    def _fence_rows(self, pos: np.ndarray, limits: ReactiveLimits) -> int:
+        """Half-spaces after the own limits for each fence zone within ``FENCE_LOOK_M``: no velocity toward its
+        edge faster than the room left beyond ``limits.fence_margin_m`` over ``FLOOR_TIME_S`` (none once there);
+        the edge's normal from the zone's distance, numerically. Zero velocity meets them all. Their count."""
+        k = 0
+        for zone in limits.fences:
+            if k == MAX_FENCE_ROWS:
+                break
+            room = _allowed_distance(zone, pos[0], pos[1])
+            if room > FENCE_LOOK_M:
+                continue
+            gn = (_allowed_distance(zone, pos[0] + FENCE_STEP_M, pos[1]) - room) / FENCE_STEP_M
+            ge = (_allowed_distance(zone, pos[0], pos[1] + FENCE_STEP_M) - room) / FENCE_STEP_M
+            norm = math.hypot(gn, ge)
+            if norm < 1e-6:
+                continue
+            row = OWN_ROWS + k  # g . v >= -(room - margin) / T: toward the edge only as fast as the room allows
+            self._normals[row] = (gn / norm, ge / norm, 0.0)
+            self._offsets[row] = -max(room - limits.fence_margin_m, 0.0) / FLOOR_TIME_S
+            k += 1
+        return k
+
     def _binding(self, rows: list[TrafficTrack], m: int, total: int) -> str:
         """The track whose plane the solution lies on (the most binding), for the texts."""
         slack = self._normals[m:total] @ self._out - self._offsets[m:total]
@@ -289,5 +319,14 @@ class ReactiveLayer:
             return ReactiveCommand((0.0, 0.0, 0.0), worst.name, True, escape)  # on the pad: stay there
         want, out = self._pref, self._out
         want[0], want[1], want[2] = 0.0, 0.0, vd
-        least_violating(self._normals, self._offsets, OWN_ROWS, total, want, self._scratch, out)
+        least_violating(self._normals, self._offsets, self._m_hard, total, want, self._scratch, out)
         return ReactiveCommand((float(out[0]), float(out[1]), float(out[2])), worst.name, True, escape)
+
+
+def _allowed_distance(zone: object, north_m: float, east_m: float) -> float:
+    """How far (m) the point is inside the allowed side of a fence zone (inside an inclusion, outside an exclusion);
+    negative on the wrong side."""
+    p = (north_m, east_m, 0.0)
+    d = zone.boundary_distance_m(p)  # type: ignore[attr-defined]
+    inside = zone.contains(p)  # type: ignore[attr-defined]
+    return d if inside == zone.inclusion else -d  # type: ignore[attr-defined]

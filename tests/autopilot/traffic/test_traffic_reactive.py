@@ -202,3 +202,19 @@ def test_ring_swap_keeps_the_volume(n: int) -> None:
     worst, arrived = _ring_swap(n, 60.0, latency_s=0.5)
     assert worst >= 1.0, f"a pair came inside the 10 m / 5 m volume (ratio {worst:.2f})"
     assert arrived == n
+
+
+def test_the_escape_stays_inside_the_fence() -> None:
+    """Near the edge of a 300 m inclusion circle, pushed toward it by traffic: no faster than the room allows."""
+    from autopilot.geofence.fence import CircleZone
+
+    fence = (CircleZone((0.0, 0.0), 300.0, True),)
+    limits = ReactiveLimits(12.0, 3.0, 1.5, 3.0, -2.0, -120.0, fence, 3.0)
+    layer = ReactiveLayer(1)
+    heli = TrafficTrack(TrafficSource.MANNED, 0xA1B2C3, "HELI1", (-400.0, 0.0, -20.0), (40.0, 0.0, 0.0), 0)
+    own = (290.0, 0.0, -15.0)
+    c = layer.solve(0, own, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), [heli], PARAMS, limits, Phase.MISSION)
+    assert c is not None
+    assert c.vel_ned_m_s[0] <= (300.0 - 290.0 - 3.0) / 2.0 + 0.05  # the room beyond the margin, over 2 s
+    free = layer.solve(0, own, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), [heli], PARAMS, LIMITS, Phase.MISSION)
+    assert free is not None and free.vel_ned_m_s[0] > c.vel_ned_m_s[0] + 0.5  # without the fence it would go on
