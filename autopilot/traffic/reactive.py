@@ -237,7 +237,7 @@ class ReactiveLayer:
         """The offsets of the vehicle's own half-spaces (rows 0..OWN_ROWS-1, normals set once; always feasible
         together: zero velocity satisfies them); a row not in force has an offset no velocity misses."""
         offsets = self._offsets
-        offsets[:SPEED_SIDES] = -max(limits.speed_xy_m_s, math.hypot(pref[0], pref[1]), math.hypot(vel[0], vel[1]))
+        offsets[:SPEED_SIDES] = -max(limits.speed_xy_m_s, math.hypot(pref[0], pref[1]))  # the cruise, at least
         k = SPEED_SIDES
         offsets[k] = -max(limits.down_m_s, pref[2])  # vd <= down
         offsets[k + 1] = -max(limits.up_m_s, -pref[2])  # vd >= -up
@@ -253,7 +253,8 @@ class ReactiveLayer:
 
     def _fence_rows(self, pos: np.ndarray, limits: ReactiveLimits) -> int:
         """Half-spaces after the own limits for each fence zone within ``FENCE_LOOK_M``: no velocity toward its
-        edge faster than the room left beyond ``limits.fence_margin_m`` over ``FLOOR_TIME_S`` (none once there);
+        edge faster than crosses the room left beyond ``limits.fence_margin_m`` in ``FLOOR_TIME_S`` or than brakes
+        to a stop in it at ``limits.acc_m_s2`` (none once there);
         the edge's normal from the zone's distance, numerically. Zero velocity meets them all. Their count."""
         k = 0
         for zone in limits.fences:
@@ -267,9 +268,10 @@ class ReactiveLayer:
             norm = math.hypot(gn, ge)
             if norm < 1e-6:
                 continue
-            row = OWN_ROWS + k  # g . v >= -(room - margin) / T: toward the edge only as fast as the room allows
+            row = OWN_ROWS + k  # g . v >= -speed: toward the edge only as fast as stops before it
+            left = max(room - limits.fence_margin_m, 0.0)
             self._normals[row] = (gn / norm, ge / norm, 0.0)
-            self._offsets[row] = -max(room - limits.fence_margin_m, 0.0) / FLOOR_TIME_S
+            self._offsets[row] = -min(left / FLOOR_TIME_S, math.sqrt(2.0 * limits.acc_m_s2 * left))
             k += 1
         return k
 
