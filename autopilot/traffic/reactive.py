@@ -237,10 +237,12 @@ class ReactiveLayer:
         """The offsets of the vehicle's own half-spaces (rows 0..OWN_ROWS-1, normals set once; always feasible
         together: zero velocity satisfies them); a row not in force has an offset no velocity misses."""
         offsets = self._offsets
-        offsets[:SPEED_SIDES] = -max(limits.speed_xy_m_s, math.hypot(pref[0], pref[1]))  # the cruise, at least
+        # MPC_XY_VEL_MAX bounds any cruise asked for; the preferred velocity is no bound (while the layer flies, the
+        # reference goes on from its own velocity: a bound from it would ratchet)
+        offsets[:SPEED_SIDES] = -limits.speed_xy_m_s
         k = SPEED_SIDES
-        offsets[k] = -max(limits.down_m_s, pref[2])  # vd <= down
-        offsets[k + 1] = -max(limits.up_m_s, -pref[2])  # vd >= -up
+        offsets[k] = -limits.down_m_s  # vd <= down
+        offsets[k + 1] = -limits.up_m_s  # vd >= -up
         # approach the floor at most at the rate that stops on it (none below it but in a landing), and the ceiling
         floor = -max((limits.floor_down_m - pos[2]) / FLOOR_TIME_S, 0.0)
         offsets[k + 2] = floor if phase is not Phase.LAND else OFF
