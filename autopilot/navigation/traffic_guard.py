@@ -17,20 +17,19 @@ Texts: one when avoidance starts (naming the track and the phase), one when the 
 
 from __future__ import annotations
 
-import math
-
 from autopilot.navigation.home_frame import HomeFrame
 from autopilot.navigation.outputs import ReferenceOverride
 from autopilot.parameters.store import ParamStore
-from autopilot.traffic.param_decls import TrafficAction, TrafficParams
+from autopilot.traffic.cpa import predict_approach
+from autopilot.traffic.param_decls import SeparationVolume, TrafficAction, TrafficParams
 from autopilot.traffic.reactive import (
     GROUND_LOCK_AGL_M,
     Phase,
     ReactiveCommand,
     ReactiveLayer,
     ReactiveLimits,
-    is_parked,
 )
+from autopilot.traffic.rules import parked
 from autopilot.traffic.tracks import TrackTable, TrafficTrack
 from mavlink_bridge.contract.frames import Vec3
 from mavlink_bridge.contract.traffic import TrafficSource
@@ -81,30 +80,15 @@ def phase_of(mode: FlightMode, landing: bool, pos_home_ned_m: Vec3, pref_ned_m_s
 def column_conflict(track: TrafficTrack, t_us: int, pos_home_ned_m: Vec3, top_down_m: float, window_s: float,
                     params: TrafficParams) -> float | None:  # fmt: skip
     """Seconds until ``track`` (flying straight) enters the column above (or below) the vehicle, from the ground up
-    to ``top_down_m`` (NED about home) grown by its class's volume, within ``window_s``; None if it does not."""
+    to ``top_down_m`` (NED about home) grown by its class's volume, within ``window_s``; None if it does not. The
+    column is one cylinder about its middle, so the closest-approach prediction (:func:`predict_approach`) says."""
     volume = (params.manned if track.source is TrafficSource.MANNED else params.uav).grown(params.margin)
+    middle_down_m = 0.5 * top_down_m
     p = track.position_at(t_us)
-    rn, re = p[0] - pos_home_ned_m[0], p[1] - pos_home_ned_m[1]
-    vn, ve, vd = track.vel_ned_m_s
-    a = vn * vn + ve * ve
-    c = rn * rn + re * re - volume.hor_m * volume.hor_m
-    if a < 1e-9:
-        lo, hi = (0.0, window_s) if c < 0.0 else (math.inf, -math.inf)
-    else:
-        b = 2.0 * (rn * vn + re * ve)
-        disc = b * b - 4.0 * a * c
-        if disc <= 0.0:
-            return None
-        s = math.sqrt(disc)
-        lo, hi = max((-b - s) / (2.0 * a), 0.0), min((-b + s) / (2.0 * a), window_s)
-    if lo >= hi:
-        return None
-    bottom, top = volume.ver_m, top_down_m - volume.ver_m  # from below the ground to above the column's top
-    for t in (lo, 0.5 * (lo + hi), hi):
-        d = p[2] + vd * t
-        if top <= d <= bottom:
-            return lo
-    return None
+    rel = (p[0] - pos_home_ned_m[0], p[1] - pos_home_ned_m[1], p[2] - middle_down_m)
+    column = SeparationVolume(volume.hor_m, abs(middle_down_m) + volume.ver_m)
+    approach = predict_approach(rel, track.vel_ned_m_s, window_s, column)
+    return approach.loss_in_s if approach.conflict else None
 
 
 class TrafficGuard:
@@ -186,7 +170,7 @@ class TrafficGuard:
             self.release()
             return
         limits = self.limits()
-        held = self._column_threat(t_us, pos, pref, phase, tracks, params, limits)
+        held = self._column_threat(t_us, pos, pref, phase, tracks, params)
         if held is not None:
             pref[2] = 0.0  # hold the height: no climb out of the pad, no descent into the column
         command = self.layer.solve(t_us, pos, vel_ned_m_s, (pref[0], pref[1], pref[2]), tracks, params, limits,
@@ -221,8 +205,7 @@ class TrafficGuard:
                 self.texts.append(StatusText(Severity.NOTICE, text))
 
     def _column_threat(self, t_us: int, pos: Vec3, pref: list[float], phase: Phase,
-                       tracks: tuple[TrafficTrack, ...], params: TrafficParams,
-                       limits: ReactiveLimits) -> str | None:  # fmt: skip
+                       tracks: tuple[TrafficTrack, ...], params: TrafficParams) -> str | None:  # fmt: skip
         """The departure hold and the landing clearance: the track predicted through the column the vehicle is
         about to climb out of (from the pad) or descend into, before it would be through; None when clear."""
         if phase is Phase.TAKEOFF and pref[2] < 0.0 and -pos[2] < GROUND_LOCK_AGL_M:
@@ -233,6 +216,6 @@ class TrafficGuard:
         else:
             return None
         for track in tracks:
-            if not is_parked(track, t_us) and column_conflict(track, t_us, pos, top, window, params) is not None:
+            if not parked(track, t_us) and column_conflict(track, t_us, pos, top, window, params) is not None:
                 return track.name
         return None

@@ -20,7 +20,6 @@ import numpy as np
 from autopilot.safety.failsafe import FailsafeAction, FailsafeEvent, FailsafeKind
 from autopilot.traffic.cpa import Approach, predict_approach
 from autopilot.traffic.param_decls import SeparationVolume, TrafficAction, TrafficParams
-from autopilot.traffic.reactive import reciprocates
 from autopilot.traffic.resolution import (
     AvoidLimits,
     Maneuver,
@@ -30,7 +29,17 @@ from autopilot.traffic.resolution import (
     Threat,
     predicted_min_ratio,
 )
-from autopilot.traffic.rules import COLUMN_SPEED_M_S, LAST_RESORT_S, Role, climbs, lateral_sense, owns_column, role
+from autopilot.traffic.rules import (
+    COLUMN_SPEED_M_S,
+    LAST_RESORT_S,
+    Role,
+    climbs,
+    lateral_sense,
+    owns_column,
+    parked,
+    reciprocates,
+    role,
+)
 from autopilot.traffic.tracks import TrackKey, TrackTable, TrafficTrack
 from mavlink_bridge.contract.frames import GeoPoint, Vec3
 from mavlink_bridge.contract.traffic import TrafficSource
@@ -43,8 +52,6 @@ _FAILSAFE = {TrafficAction.RETURN: FailsafeAction.RTL, TrafficAction.LAND: Fails
 REPLAN_US = 500_000
 #: Offsets are sized this much beyond the planning volume they are checked against (tracking slack).
 OFFSET_SLACK = 1.15
-#: A still track lower than this above home is on the ground (m).
-GROUND_AGL_M = 1.5
 #: How far the conflict window of the most urgent conflict is followed past the horizon (s).
 WINDOW_LOOKAHEAD_S = 600.0
 #: A descent from manned traffic stops this far above the altitude floor (the detour's curve may overshoot) (m).
@@ -172,7 +179,7 @@ class TrafficAvoidance:
         out: list[Conflict] = []
         advised: set[TrackKey] = set()
         for track in tracks:
-            if on_ground(track, own.t_us):
+            if parked(track, own.t_us):
                 continue
             rel, rel_vel = _relative(own, track)
             volume = volume_for(p, track)
@@ -246,7 +253,7 @@ class TrafficAvoidance:
 
     def _conflict(self, own: OwnShip, track: TrafficTrack) -> Conflict | None:
         """``track`` as a conflict of ``own`` flying straight on (the detection volume), or None."""
-        if on_ground(track, own.t_us):
+        if parked(track, own.t_us):
             return None
         rel, rel_vel = _relative(own, track)
         volume = volume_for(self.params, track)
@@ -321,13 +328,6 @@ def _down_to_floor(resolver: Resolver, down_m: float, window: tuple[float, float
             return down
         down -= below_m
     return down_m if down < 1.0 else down
-
-
-def on_ground(track: TrafficTrack, t_us: int) -> bool:
-    """A track standing on the ground at home level (a vehicle parked at the depot): not separated from (surface
-    traffic is the operator's business; home pads may be closer than the UAV volume)."""
-    n, e, d = track.vel_ned_m_s
-    return -track.position_at(t_us)[2] < GROUND_AGL_M and math.hypot(n, e) < 0.5 and abs(d) < 0.5
 
 
 def _route_velocity(own: OwnShip) -> Vec3:

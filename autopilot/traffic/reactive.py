@@ -40,7 +40,7 @@ from autopilot.traffic.orca_kernel import (
     orca_planes,
 )
 from autopilot.traffic.param_decls import SeparationVolume, TrafficParams
-from autopilot.traffic.rules import COLUMN_SPEED_M_S
+from autopilot.traffic.rules import parked, reciprocates
 from autopilot.traffic.tracks import TrafficTrack
 from mavlink_bridge.contract.frames import Vec3
 from mavlink_bridge.contract.traffic import TrafficSource
@@ -67,9 +67,6 @@ GROUND_LOCK_AGL_M = 2.0
 SAME_M_S = 0.02
 #: Braking distance is counted up to this (m).
 MAX_BRAKE_GROW_M = 8.0
-#: A parked track (still, near home level) is not avoided (m above home, m/s).
-PARKED_AGL_M = 1.5
-PARKED_SPEED_M_S = 0.5
 #: Tracks held at most (the arrays are sized once).
 MAX_TRACKS = 64
 #: The vehicle's own half-spaces: the speed polygon, descent and climb rates, floor, ceiling, the ground lock's 4.
@@ -117,18 +114,6 @@ class ReactiveCommand:
     threat: str  # the track whose plane binds (or the most urgent one, in the fallback)
     fallback: bool
     escape: str = ""  # the fallback's vertical sense: "climbing", "descending" or "holding"
-
-
-def is_parked(track: TrafficTrack, t_us: int) -> bool:
-    """Still on the ground at home level (a vehicle on its pad): surface traffic, not avoided in the air."""
-    n, e, d = track.vel_ned_m_s
-    return -track.position_at(t_us)[2] < PARKED_AGL_M and math.hypot(n, e) < PARKED_SPEED_M_S and abs(d) < 0.5
-
-
-def reciprocates(track: TrafficTrack) -> bool:
-    """A quadsitl vehicle flying on (it takes half of every change); manned traffic and a UAV taking off, landing or
-    holding do not, so the vehicle takes all of it."""
-    return track.source is TrafficSource.UAV and math.hypot(*track.vel_ned_m_s[:2]) >= COLUMN_SPEED_M_S
 
 
 def uncertainty_m(track: TrafficTrack) -> tuple[float, float]:
@@ -188,7 +173,7 @@ class ReactiveLayer:
             return None
         pos, vel, pref = self._pos, self._vel, self._pref
         pos[:], vel[:], pref[:] = pos_home_ned_m, vel_ned_m_s, pref_ned_m_s
-        self._own_limits(pos, vel, pref, limits, phase)
+        self._own_limits(pos, pref, limits, phase)
         m = self._m_hard = OWN_ROWS + self._fence_rows(pos, limits)
         closest_admissible(self._normals, self._offsets, m, pref, self._limits_out)
         speed2 = vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2]
@@ -218,7 +203,7 @@ class ReactiveLayer:
         rows: list[TrafficTrack] = []
         table = self._tracks
         for track in tracks:
-            if len(rows) == MAX_TRACKS or is_parked(track, t_us):
+            if len(rows) == MAX_TRACKS or parked(track, t_us):
                 continue
             is_manned = track.source is TrafficSource.MANNED
             base = manned if is_manned else uav
@@ -232,7 +217,7 @@ class ReactiveLayer:
             rows.append(track)
         self._rows = rows
 
-    def _own_limits(self, pos: np.ndarray, vel: np.ndarray, pref: np.ndarray, limits: ReactiveLimits,
+    def _own_limits(self, pos: np.ndarray, pref: np.ndarray, limits: ReactiveLimits,
                     phase: Phase) -> None:  # fmt: skip
         """The offsets of the vehicle's own half-spaces (rows 0..OWN_ROWS-1, normals set once; always feasible
         together: zero velocity satisfies them); a row not in force has an offset no velocity misses."""
@@ -295,9 +280,10 @@ class ReactiveLayer:
         the velocity wanted, and the one flown is the closest to it that keeps the vehicle's limits and violates
         every track's plane least (:func:`least_violating`), so the escape from one never runs into another."""
         worst, ratio = rows[0], math.inf
+        params = self._params or TrafficParams()
         for track in rows:
             p = track.position_at(t_us)
-            volume = TrafficParams().manned if track.source is TrafficSource.MANNED else TrafficParams().uav
+            volume = params.manned if track.source is TrafficSource.MANNED else params.uav  # the volumes in force
             r = max(math.hypot(p[0] - pos[0], p[1] - pos[1]) / volume.hor_m, abs(p[2] - pos[2]) / volume.ver_m)
             if r < ratio:
                 worst, ratio = track, r

@@ -34,6 +34,9 @@ HEAD_ON_CONE_DEG = 30.0
 MIN_SPEED_M_S = 0.5
 #: A UAV slower than this horizontally (m/s) hovers, stops or lands: it owns the column below it.
 COLUMN_SPEED_M_S = 1.0
+#: A track lower than this above home (m) and slower than PARKED_SPEED_M_S (m/s) stands on the ground.
+PARKED_AGL_M = 1.5
+PARKED_SPEED_M_S = 0.5
 #: A predicted miss smaller than this has no side: horizontal (m) and vertical (m).
 MISS_DEADBAND_M = 2.0
 VER_DEADBAND_M = 1.0
@@ -62,6 +65,19 @@ def owns_column(track: TrafficTrack) -> bool:
     """A UAV hovering, stopping or landing (horizontal speed below ``COLUMN_SPEED_M_S``): it may descend to land
     at any moment, so its separation volume reaches down to the ground and it has right of way over moving UAVs."""
     return track.source is TrafficSource.UAV and math.hypot(*track.vel_ned_m_s[:2]) < COLUMN_SPEED_M_S
+
+
+def parked(track: TrafficTrack, t_us: int) -> bool:
+    """Standing still at home level (a vehicle on its pad): surface traffic, not avoided in the air and never a
+    conflict (the operator's business; it still counts for the simulator's contacts)."""
+    n, e, d = track.vel_ned_m_s
+    return -track.position_at(t_us)[2] < PARKED_AGL_M and math.hypot(n, e) < PARKED_SPEED_M_S and abs(d) < 0.5
+
+
+def reciprocates(track: TrafficTrack) -> bool:
+    """A quadsitl vehicle flying on: it takes half of every change. Manned traffic and a UAV that owns its column
+    (taking off, landing, holding: :func:`owns_column`) do not, so the vehicle takes all of it."""
+    return track.source is TrafficSource.UAV and not owns_column(track)
 
 
 def role(own_system_id: int, track: TrafficTrack, own_vel_ned_m_s: Vec3, rel_pos_ned_m: Vec3) -> Role:
