@@ -10,7 +10,9 @@ column above the pad:
 
 - the departure hold: on the pad (below ``GROUND_LOCK_AGL_M``) in a take-off, no climb while a track is predicted
   through the climb-out column before the vehicle would be up;
-- the landing clearance: in a landing, no descent while a track is predicted through the column below.
+- the landing clearance: in a landing, no descent while a track is predicted through the column below. Below
+  ``GROUND_LOCK_AGL_M`` a landing is committed: the layer lets it touch down (a vehicle landing has right of way;
+  holding or moving a metre above the pad only delays the touchdown and skids across the pads).
 
 Texts: one when avoidance starts (naming the track and the phase), one when the fallback starts, one when it ends.
 """
@@ -100,7 +102,7 @@ class TrafficGuard:
         self.command: ReactiveCommand | None = None
         self.texts: list[StatusText] = []
         self._engaged_us = -1
-        self._solved_us = -SOLVE_PERIOD_US
+        self._solved_us = -CLEAR_PERIOD_US  # the first call solves
         self._vel: list[float] = [0.0, 0.0, 0.0]
         self._limits_version: object = None
         self.fences: tuple[object, ...] = ()  # the geofence's zones about home (the navigator's link sets them)
@@ -166,8 +168,8 @@ class TrafficGuard:
             pref[k] = ref_vel_ned_m_s[k] + pull
         pos = frame.home_from_origin(pos_ned_m)
         phase = phase_of(mode, landing, pos, (pref[0], pref[1], pref[2]))
-        if phase is Phase.MANUAL:
-            self.release()
+        if phase is Phase.MANUAL or (phase is Phase.LAND and -pos[2] < GROUND_LOCK_AGL_M):
+            self.release()  # manual: warn only; a landing this low is committed (the others give way to it)
             return
         limits = self.limits()
         held = self._column_threat(t_us, pos, pref, phase, tracks, params)

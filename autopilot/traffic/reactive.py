@@ -173,7 +173,7 @@ class ReactiveLayer:
             return None
         pos, vel, pref = self._pos, self._vel, self._pref
         pos[:], vel[:], pref[:] = pos_home_ned_m, vel_ned_m_s, pref_ned_m_s
-        self._own_limits(pos, pref, limits, phase)
+        self._own_limits(pos, limits, phase)
         m = self._m_hard = OWN_ROWS + self._fence_rows(pos, limits)
         closest_admissible(self._normals, self._offsets, m, pref, self._limits_out)
         speed2 = vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2]
@@ -217,8 +217,7 @@ class ReactiveLayer:
             rows.append(track)
         self._rows = rows
 
-    def _own_limits(self, pos: np.ndarray, pref: np.ndarray, limits: ReactiveLimits,
-                    phase: Phase) -> None:  # fmt: skip
+    def _own_limits(self, pos: np.ndarray, limits: ReactiveLimits, phase: Phase) -> None:
         """The offsets of the vehicle's own half-spaces (rows 0..OWN_ROWS-1, normals set once; always feasible
         together: zero velocity satisfies them); a row not in force has an offset no velocity misses."""
         offsets = self._offsets
@@ -232,11 +231,10 @@ class ReactiveLayer:
         floor = -max((limits.floor_down_m - pos[2]) / FLOOR_TIME_S, 0.0)
         offsets[k + 2] = floor if phase is not Phase.LAND else OFF
         offsets[k + 3] = min((limits.ceiling_down_m - pos[2]) / FLOOR_TIME_S, 0.0)
-        near_ground = -pos[2] < GROUND_LOCK_AGL_M  # up or down only (never skid across the pads)
-        offsets[k + 4] = min(pref[0], 0.0) if near_ground else OFF  # vn >= min(pref, 0)
-        offsets[k + 5] = min(-pref[0], 0.0) if near_ground else OFF
-        offsets[k + 6] = min(pref[1], 0.0) if near_ground else OFF
-        offsets[k + 7] = min(-pref[1], 0.0) if near_ground else OFF
+        # up or down only near the ground (never skid across the pads): no horizontal velocity at all. Not "toward
+        # the preferred one": while the layer flies, that is its own velocity, and a bound from it would ratchet.
+        lock = 0.0 if -pos[2] < GROUND_LOCK_AGL_M else OFF
+        offsets[k + 4 : k + 8] = lock  # vn >= 0, -vn >= 0, ve >= 0, -ve >= 0
 
     def _fence_rows(self, pos: np.ndarray, limits: ReactiveLimits) -> int:
         """Half-spaces after the own limits for each fence zone within ``FENCE_LOOK_M``: no velocity toward its

@@ -10,11 +10,15 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
-from autopilot.navigation.traffic_guard import column_conflict, phase_of
+from autopilot.navigation.home_frame import HomeFrame
+from autopilot.navigation.traffic_guard import TrafficGuard, column_conflict, phase_of
+from autopilot.param_schema import all_param_specs
+from autopilot.parameters.store import ParamStore
 from autopilot.traffic.orca_kernel import closest_admissible
 from autopilot.traffic.param_decls import SeparationVolume, TrafficParams
 from autopilot.traffic.reactive import Phase, ReactiveLayer, ReactiveLimits, covering_sphere
 from autopilot.traffic.tracks import TrafficTrack
+from mavlink_bridge.contract.frames import GeoPoint
 from mavlink_bridge.contract.traffic import TrafficSource
 from mavlink_bridge.contract.vehicle_api import FlightMode
 
@@ -218,3 +222,31 @@ def test_the_escape_stays_inside_the_fence() -> None:
     assert c.vel_ned_m_s[0] <= (300.0 - 290.0 - 3.0) / 2.0 + 0.05  # the room beyond the margin, over 2 s
     free = layer.solve(0, own, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), [heli], PARAMS, LIMITS, Phase.MISSION)
     assert free is not None and free.vel_ned_m_s[0] > c.vel_ned_m_s[0] + 0.5  # without the fence it would go on
+
+
+def test_no_sideways_motion_near_the_ground_even_at_the_layers_own_velocity() -> None:
+    """Low over the pads the layer moves the vehicle only vertically, whatever velocity it prefers: while it flies,
+    the preferred velocity is its own, and a bound "toward the preferred one" let a landing vehicle skid off."""
+    layer = ReactiveLayer(1)
+    landing = uav(2, (0.0, 12.0, -4.0), (0.0, 0.0, 0.5))  # beside it, inside its volume, descending to its pad
+    c = layer.solve(0, (0.0, 0.0, -1.0), (0.0, -2.0, 0.0), (0.0, -2.0, 0.0), [landing], PARAMS, LIMITS, Phase.HOLD)
+    assert c is not None
+    assert c.vel_ned_m_s[0] == pytest.approx(0.0, abs=1e-9) and c.vel_ned_m_s[1] == pytest.approx(0.0, abs=1e-9)
+
+
+class _Table:
+    """The two things the guard reads of a track table."""
+
+    def __init__(self, tracks: list[TrafficTrack]) -> None:
+        self.tracks, self.has_tracks, self.version = tuple(tracks), bool(tracks), 1
+
+
+@pytest.mark.parametrize(("agl_m", "engaged"), [(8.0, True), (1.0, False)])
+def test_a_landing_below_the_ground_lock_is_committed(agl_m: float, engaged: bool) -> None:
+    """A vehicle landing beside another landing one: avoided up high; below the ground lock it touches down."""
+    guard = TrafficGuard(ParamStore(all_param_specs()), 1)
+    other = uav(2, (0.0, 11.0, -agl_m), (0.0, 0.0, 0.8))
+    frame = HomeFrame(GeoPoint(47.3977, 8.5456, 488.0))
+    out = guard.step(0, 0.004, frame, (0.0, 0.0, -agl_m), (0.0, 0.0, 0.8), (0.0, 0.0, -agl_m), (0.0, 0.0, 0.8),
+                     FlightMode.AUTO_MISSION, True, _Table([other]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
+    assert (out is not None) is engaged and guard.engaged is engaged
