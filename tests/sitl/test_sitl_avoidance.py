@@ -1,8 +1,11 @@
-"""Loopback SITL flights through obstacles (issue 6 "Must show", SPEC §7): sim + autopilot processes over UDP.
+"""Flights through obstacles (issue 6 "Must show", SPEC §7): the city block over loopback SITL (sim + autopilot
+processes over UDP, the ground station flying it), the storm and Lissajous worlds in one process (the simulator's
+and the autopilot's own modules and wire format, ``tools.campaign.inproc_flight``: the same truth as the lockstep,
+``tests/tools/test_campaign_modes_agree.py``) at a quarter of the cost.
 
 The autopilot knows only what the simulated stereo camera and ultrasonic range tell it. Each mission must
 be flown to the end with zero collisions and a minimum clearance (sim ground truth) of at least
-CA_RSAFE_M - CA_TRACK_TOL_M, the values read back from the autopilot, every item reached in order
+CA_RSAFE_M - CA_TRACK_TOL_M (over SITL the values read back from the autopilot), every item reached in order
 (waypoints a detour bypassed or inside an obstacle are skipped and reported *bypassed*, never reached),
 landed and disarmed.
 """
@@ -18,7 +21,10 @@ from sitl_procs import connect_gcs, landed_disarmed, logs, read_json, sitl_pair,
 
 from autopilot.mission.files import load_mission_file
 from autopilot.mission.plan import MissionPlan
+from autopilot.planner.param_decls import planner_param_specs
+from mavlink_bridge.contract.status_texts import is_bypassed
 from mavlink_bridge.gcs_client.client import GcsClient, VehicleStatus
+from tools.campaign.inproc_flight import fly_world, vehicle_script
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 
@@ -55,33 +61,49 @@ def _fly(client: GcsClient, plan: MissionPlan, sim: subprocess.Popen[bytes]) -> 
             return status, texts
 
 
+def _check(n: int, reached: list[int], bypassed_texts: list[str], texts: list[str], sim: dict, ap: dict,
+           r_safe_m: float, tol_m: float) -> None:  # fmt: skip
+    progress = f"reached {reached} of {n}, sim summary {sim}"
+    assert sim["collisions"] == 0, progress
+    clearance_m = sim["min_clearance_m"]
+    assert isinstance(clearance_m, float) and clearance_m >= r_safe_m - tol_m, progress
+    bypassed = {int(t.split()[2].rstrip(":")) for t in bypassed_texts}
+    assert not bypassed & set(reached), progress  # never both
+    assert sorted(set(reached) | bypassed) == list(range(n)), progress
+    assert reached == sorted(reached), progress  # in order
+    decisions = [t for t in texts if t.startswith("avoid: ")]
+    assert decisions, texts  # the obstacles were in the way: the planner had to go around them
+    assert ap["reached_seqs"] == reached and ap["bypassed_seqs"] == sorted(bypassed), ap
+    assert ap["items_bypassed"] == len(bypassed) and ap["landed"] and ap["disarmed"]
+
+
+def test_city_block_through_unknown_obstacles_over_sitl(tmp_path: Path) -> None:
+    mission = MISSIONS / "city_block_delivery.yaml"
+    plan = load_mission_file(mission)
+    with sitl_pair(tmp_path, mission, seed=1) as s, connect_gcs(s.gcs_url) as client:
+        r_safe_m, tol_m = client.get_param("CA_RSAFE_M"), client.get_param("CA_TRACK_TOL_M")
+        status, texts = _fly(client, plan, s.sim)
+    assert landed_disarmed(status), logs(tmp_path)
+    sim, ap = read_json(tmp_path / "sim_summary.json"), read_json(tmp_path / "autopilot_summary.json")
+    bypassed_texts = [t for t in texts if t.startswith("Bypassed item ")]
+    _check(len(plan.items), list(status.items_reached), bypassed_texts, texts, sim, ap, r_safe_m, tol_m)  # type: ignore[arg-type]
+
+
 @pytest.mark.parametrize(
     "name",
     [
-        pytest.param("city_block_delivery.yaml", id="city_block"),
         pytest.param("storm_obstacles.yaml", id="storm"),  # waypoints 36 and 54 lie inside the spheres
         pytest.param("lissajous_obstacles.yaml", id="lissajous"),  # waypoints 14 and 38 lie inside the spheres
     ],
 )
-def test_mission_through_unknown_obstacles(tmp_path: Path, name: str) -> None:
+def test_mission_through_unknown_obstacles_in_process(name: str) -> None:
     mission = MISSIONS / name
-    plan = load_mission_file(mission)
-    n = len(plan.items)
-    with sitl_pair(tmp_path, mission, seed=1) as s, connect_gcs(s.gcs_url) as client:
-        r_safe_m, tol_m = client.get_param("CA_RSAFE_M"), client.get_param("CA_TRACK_TOL_M")
-        status, texts = _fly(client, plan, s.sim)
-    sim = read_json(tmp_path / "sim_summary.json")
-    progress = f"reached {status.items_reached} of {n}, sim {status.sim_time_s} s, sim summary {sim}"
-    assert sim["collisions"] == 0, progress
-    clearance_m = sim["min_clearance_m"]
-    assert isinstance(clearance_m, float) and clearance_m >= r_safe_m - tol_m, progress
-    bypassed = {int(t.split()[2].rstrip(":")) for t in texts if t.startswith("Bypassed item ")}
-    assert not bypassed & set(status.items_reached), progress  # never both
-    assert sorted(set(status.items_reached) | bypassed) == list(range(n)), progress + logs(tmp_path)
-    assert list(status.items_reached) == sorted(status.items_reached), progress  # in order
-    assert landed_disarmed(status)
-    decisions = [t for t in texts if t.startswith("avoid: ")]
-    assert decisions, texts  # the obstacles were in the way: the planner had to go around them
-    ap = read_json(tmp_path / "autopilot_summary.json")
-    assert ap["reached_seqs"] == list(status.items_reached) and ap["bypassed_seqs"] == sorted(bypassed), ap
-    assert ap["items_bypassed"] == len(bypassed) and ap["landed"] and ap["disarmed"]
+    record = fly_world(mission, seed=1, script=vehicle_script(0, 10.0, 0.0), stall_s=None, end_when_landed=True,
+                       sim_time_s=600.0)  # fmt: skip
+    assert not record["error"] and not record["timed_out"], record["error"]
+    defaults = {spec.name: spec.default for spec in planner_param_specs()}
+    texts, ap = record["texts"], record["autopilot"]
+    bypassed_texts = [t for t in texts if is_bypassed(t)]
+    n = len(load_mission_file(mission).items)
+    _check(n, list(ap["reached_seqs"]), bypassed_texts, texts, record["sim"], ap, defaults["CA_RSAFE_M"],
+           defaults["CA_TRACK_TOL_M"])  # fmt: skip

@@ -53,7 +53,7 @@ ALT_M = 10.0
 POS_FS_DELAY_S = 3.0  # shorter than the EKF's own no-aid validity (5 s), so this delay decides
 ARM_S = 30.0  # the mission is uploaded before this sim time
 INJECT_S = 42.0  # on the first leg (takeoff done at ~38 s, the leg takes ~14 s)
-SPEED = "6"  # sim seconds per wall second: ARM_S leaves the ground station ~5 wall seconds to upload
+SPEED = "10"  # sim seconds per wall second: ARM_S leaves the ground station ~3 wall seconds to upload
 FLIGHT_TIMEOUT_S = 240.0  # wall
 
 

@@ -25,7 +25,7 @@ from sim.vehicle_config import VehicleConfigError, load_vehicle
 from sim.world import WorldConfigError, load_world
 
 #: Wall seconds the ground station gets to notice a finished flight after ``quadsitl up`` exits.
-_GCS_GRACE_S = 5.0
+_GCS_GRACE_S = 2.0
 _POLL_S = 0.2
 
 
