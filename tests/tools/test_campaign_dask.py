@@ -53,19 +53,21 @@ def _wait_for(path: Path, proc: subprocess.Popen[bytes], timeout_s: float = 180.
         time.sleep(0.1)
 
 
-#: Cases of the inproc campaign: two per worker of the two-worker runs (every worker flies one, a resume has some).
-CASES = 4
+#: Cases of the inproc campaign (each about 0.5 s of wall): every worker of the two-worker runs flies some, and after
+#: the Ctrl-C (once the second case started) four are left, so the signal lands before the campaign ends even on a
+#: loaded machine (with four cases and the Ctrl-C after the third, the campaign sometimes finished first).
+CASES = 6
 
 
 @pytest.fixture(scope="module")
 def resumed(tmp_path_factory: pytest.TempPathFactory) -> tuple[list[dict], list[dict]]:
-    """The reference rows: an inproc campaign on the embedded LocalCluster, stopped by Ctrl-C after its third case
+    """The reference rows: an inproc campaign on the embedded LocalCluster, stopped by Ctrl-C after its second case
     started, then resumed; (the rows written before the Ctrl-C, every row after the resume)."""
     folder = tmp_path_factory.mktemp("resumed")
     path = write_campaign(folder, cases=CASES)
     out = folder / "out"
     proc = _cli(str(path), "--out", str(out), "--workers", "1")
-    _wait_for(out / "cases" / "case-000002", proc)  # a third case started on the one worker
+    _wait_for(out / "cases" / "case-000001", proc)  # a second case started on the one worker
     proc.send_signal(signal.SIGINT)
     output, _ = proc.communicate(timeout=120)
     assert proc.returncode == 130, output.decode()
