@@ -42,7 +42,10 @@ def _same(a: list[dict], b: list[dict]) -> None:
 def _cli(*args: str) -> subprocess.Popen[bytes]:
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(REPO_ROOT), os.environ.get("PYTHONPATH")])))
     cmd = [sys.executable, "-m", "quadsitl_cli", "campaign", *args, "--no-progress"]
-    return subprocess.Popen(cmd, cwd=REPO_ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    # SIGINT at its default, so Python turns it into KeyboardInterrupt: a test run started in the background of a
+    # shell without job control (nohup, `cmd &` in a script) inherits it ignored, and the Ctrl-C would be lost
+    return subprocess.Popen(cmd, cwd=REPO_ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # fmt: skip
 
 
 def _wait_for(path: Path, proc: subprocess.Popen[bytes], timeout_s: float = 180.0) -> None:
@@ -53,21 +56,20 @@ def _wait_for(path: Path, proc: subprocess.Popen[bytes], timeout_s: float = 180.
         time.sleep(0.1)
 
 
-#: Cases of the inproc campaign (each about 0.5 s of wall): every worker of the two-worker runs flies some, and after
-#: the Ctrl-C (once the second case started) four are left, so the signal lands before the campaign ends even on a
-#: loaded machine (with four cases and the Ctrl-C after the third, the campaign sometimes finished first).
+#: Cases of the inproc campaign (each about 0.5 s of wall): every worker of the two-worker runs flies some, and the
+#: Ctrl-C (sent once the case folders are written, before the flights) lands while most are still to fly.
 CASES = 6
 
 
 @pytest.fixture(scope="module")
 def resumed(tmp_path_factory: pytest.TempPathFactory) -> tuple[list[dict], list[dict]]:
-    """The reference rows: an inproc campaign on the embedded LocalCluster, stopped by Ctrl-C after its second case
-    started, then resumed; (the rows written before the Ctrl-C, every row after the resume)."""
+    """The reference rows: an inproc campaign on the embedded LocalCluster, stopped by Ctrl-C as its flights begin,
+    then resumed; (the rows written before the Ctrl-C, every row after the resume)."""
     folder = tmp_path_factory.mktemp("resumed")
     path = write_campaign(folder, cases=CASES)
     out = folder / "out"
     proc = _cli(str(path), "--out", str(out), "--workers", "1")
-    _wait_for(out / "cases" / "case-000001", proc)  # a second case started on the one worker
+    _wait_for(out / "cases" / "case-000001", proc)  # the case folders are written: the flights come next
     proc.send_signal(signal.SIGINT)
     output, _ = proc.communicate(timeout=120)
     assert proc.returncode == 130, output.decode()
