@@ -19,8 +19,6 @@ Texts: one when avoidance starts (naming the track and the phase), one when the 
 
 from __future__ import annotations
 
-import math
-
 from autopilot.navigation.home_frame import HomeFrame
 from autopilot.navigation.outputs import ReferenceOverride
 from autopilot.parameters.store import ParamStore
@@ -52,8 +50,6 @@ QUIET_US = 5_000_000
 #: The preferred velocity pulls toward the reference position with this gain (1/s), at most this fast (m/s).
 PULL_GAIN_1_S = 1.0
 PULL_MAX_M_S = 3.0
-#: Within this distance (m) of the goal horizontally the preferred velocity is a hover.
-GOAL_REACHED_M = 0.5
 #: The column checks look this far past the time to climb or descend through the column (s).
 COLUMN_MARGIN_S = 5.0
 #: A landing waits while a track is predicted through the column below within this time (s): one that would cross
@@ -141,10 +137,9 @@ class TrafficGuard:
 
     def step(self, t_us: int, dt_s: float, frame: HomeFrame, pos_ned_m: Vec3, vel_ned_m_s: Vec3,
              ref_pos_ned_m: Vec3, ref_vel_ned_m_s: Vec3, mode: FlightMode, landing: bool, table: TrackTable,
-             params: TrafficParams, goal: tuple[Vec3, float] | None = None) -> ReferenceOverride | None:  # fmt: skip
+             params: TrafficParams) -> ReferenceOverride | None:  # fmt: skip
         """This control step's reference (about the origin), or None to fly the one given; ``table``'s tracks are
-        read at the navigator's rate. ``goal``: the mission's position target (about home) and its cruise speed,
-        which the preferred velocity heads for while the layer flies (:meth:`_preferred`)."""
+        read at the navigator's rate."""
         if params.action is not TrafficAction.AVOID or not table.has_tracks:
             self.release()
             return None
@@ -152,7 +147,7 @@ class TrafficGuard:
         if t_us - self._solved_us >= period:
             self._solved_us = t_us
             self._solve(t_us, frame, pos_ned_m, vel_ned_m_s, ref_pos_ned_m, ref_vel_ned_m_s, mode, landing,
-                        table.tracks, params, table.version, goal)  # fmt: skip
+                        table.tracks, params, table.version)  # fmt: skip
         command = self.command
         if command is None:
             return None
@@ -164,31 +159,14 @@ class TrafficGuard:
             acc[k] = dv / dt_s if dt_s > 0.0 else 0.0
         return ReferenceOverride(pos_ned_m, (self._vel[0], self._vel[1], self._vel[2]), (acc[0], acc[1], acc[2]))
 
-    def _preferred(self, pos_ned_m: Vec3, ref_pos_ned_m: Vec3, ref_vel_ned_m_s: Vec3, pos_home: Vec3,
-                   goal: tuple[Vec3, float] | None) -> list[float]:  # fmt: skip
-        """The velocity the vehicle would fly: its reference's plus a pull toward it. While the layer flies, the
-        reference goes on from the layer's own velocity, so a vehicle pushed along (overtaken in a convoy) would
-        keep going: then, with a mission ``goal``, it is the velocity toward the goal at its cruise speed (at most
-        what stops on it at ``MPC_ACC_HOR``) and back to its height."""
-        if self.engaged and goal is not None:
-            (gn, ge, gd), speed = goal
-            dn, de = gn - pos_home[0], ge - pos_home[1]
-            dist = math.hypot(dn, de)
-            limits = self.limits()
-            v = min(speed, math.sqrt(2.0 * limits.acc_m_s2 * dist)) / dist if dist > GOAL_REACHED_M else 0.0
-            vd = min(max(PULL_GAIN_1_S * (gd - pos_home[2]), -limits.up_m_s), limits.down_m_s)
-            return [dn * v, de * v, vd]
+    def _solve(self, t_us: int, frame: HomeFrame, pos_ned_m: Vec3, vel_ned_m_s: Vec3, ref_pos_ned_m: Vec3,
+               ref_vel_ned_m_s: Vec3, mode: FlightMode, landing: bool, tracks: tuple[TrafficTrack, ...],
+               params: TrafficParams, version: int) -> None:  # fmt: skip
         pref = [0.0, 0.0, 0.0]
         for k in range(3):
             pull = min(max(PULL_GAIN_1_S * (ref_pos_ned_m[k] - pos_ned_m[k]), -PULL_MAX_M_S), PULL_MAX_M_S)
             pref[k] = ref_vel_ned_m_s[k] + pull
-        return pref
-
-    def _solve(self, t_us: int, frame: HomeFrame, pos_ned_m: Vec3, vel_ned_m_s: Vec3, ref_pos_ned_m: Vec3,
-               ref_vel_ned_m_s: Vec3, mode: FlightMode, landing: bool, tracks: tuple[TrafficTrack, ...],
-               params: TrafficParams, version: int, goal: tuple[Vec3, float] | None) -> None:  # fmt: skip
         pos = frame.home_from_origin(pos_ned_m)
-        pref = self._preferred(pos_ned_m, ref_pos_ned_m, ref_vel_ned_m_s, pos, goal if not landing else None)
         phase = phase_of(mode, landing, pos, (pref[0], pref[1], pref[2]))
         if phase is Phase.MANUAL or (phase is Phase.LAND and -pos[2] < GROUND_LOCK_AGL_M):
             self.release()  # manual: warn only; a landing this low is committed (the others give way to it)

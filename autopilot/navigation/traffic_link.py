@@ -76,7 +76,6 @@ class TrafficLink:
         self.say = say or (lambda _text: None)
         self.avoidance = TrafficAvoidance(TrafficParams.from_store(params), system_id)
         self.decision: TrafficDecision | None = None
-        self._obstacle_detour = False  # the obstacle planner flies a detour (its setpoint is the reference)
         self._pending: list[object] = []
         self._param_version = params.version
         self._frame: HomeFrame | None = None
@@ -101,7 +100,6 @@ class TrafficLink:
         target = out.mission_target
         after = nav.route_after_target() if target is not None else None
         obstacles = getattr(nav.planner_output, "obstacles", ())
-        self._obstacle_detour = getattr(nav.planner_output, "setpoint", None) is not None
         failsafe = self.update(state, mode, landed, nav.frame, target, after, nav.geofence, obstacles)
         return out if failsafe is None or out.failsafe is not None else replace(out, failsafe=failsafe)
 
@@ -151,24 +149,19 @@ class TrafficLink:
             self.say(text)
         return decision.failsafe
 
-    def bound(self, state: VehicleState, control: ControlLike, mode: FlightMode, target: NavTarget,
+    def bound(self, state: VehicleState, control: ControlLike, mode: FlightMode, kind: TargetKind,
               dt_s: float) -> ReferenceOverride | None:  # fmt: skip
         """The reactive layer's reference for this control step (about the origin), given to ``control`` (which
         holds this step's reference: the mission's, the landing's or the detour's) when it bounds it; None when
         the reference stays. Position and landing targets only (an idle or velocity target is not the autopilot's
-        own flight). A mission's position target, with no obstacle detour flown, is the guard's goal
-        (:meth:`TrafficGuard.step`)."""
-        frame, kind = self._frame, target.kind
+        own flight)."""
+        frame = self._frame
         if not self.busy or frame is None or (kind is not TargetKind.POSITION and kind is not TargetKind.LAND):
             return None
         ref = control.reference
-        goal = None
-        if mode is FlightMode.AUTO_MISSION and kind is TargetKind.POSITION and not self._obstacle_detour:
-            speed = target.speed_xy_m_s if math.isfinite(target.speed_xy_m_s) else self.params.get("MIS_CRUISE_SPD")
-            goal = (frame.home_from_origin(target.pos_ned_m), speed)
         out = self.guard.step(state.time_us, dt_s, frame, state.pos_ned_m, state.vel_ned_m_s, ref.pos_ned_m,
                               ref.vel_ned_m_s, mode, kind is TargetKind.LAND, self.avoidance.table,
-                              self.avoidance.params, goal)  # fmt: skip
+                              self.avoidance.params)  # fmt: skip
         if self.guard.texts:
             for text in self.guard.texts:
                 self.say(text)

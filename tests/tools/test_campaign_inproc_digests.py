@@ -64,8 +64,8 @@ def test_a_fleet_world_keeps_its_per_vehicle_digests(tmp_path: Path) -> None:
     world.write_text(PAIR)
     out = fly_world(world, seed=9, stagger_s=2.0, sim_time_s=30.0)
     assert [v["truth_sha256"] for v in out["sim"]["vehicles"]] == [
-        "7ee87347b57b580d410c6fae369bb8dc24f4c9aa39acb55e4d4fa2d037b25c07",
-        "45c1cbaa13b73cea88d0a53a55774a9d5239eb8dacc6f5f83d51dcd8350ee7ad",
+        "4f2f12a05e77d817d6cb86669c437c1384b13f8936cd88b020b0c1feb21e2161",
+        "5691ca00b5cf11cdf00478174c1162c97dbd2b43b273cdfa5ff29e58474db0a0",
     ]
     # each hears the other's own reports (1 Hz, 1 s late) and the helicopter's ADS-B (1 Hz, 0.6 s late, 95 %)
     assert [v["traffic_reports"] for v in out["sim"]["vehicles"]] == [56, 57]

@@ -250,19 +250,3 @@ def test_a_landing_below_the_ground_lock_is_committed(agl_m: float, engaged: boo
     out = guard.step(0, 0.004, frame, (0.0, 0.0, -agl_m), (0.0, 0.0, 0.8), (0.0, 0.0, -agl_m), (0.0, 0.0, 0.8),
                      FlightMode.AUTO_MISSION, True, _Table([other]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
     assert (out is not None) is engaged and guard.engaged is engaged
-
-
-@pytest.mark.parametrize("goal_behind", [False, True])
-def test_while_the_layer_flies_a_mission_vehicle_heads_for_its_goal(goal_behind: bool) -> None:
-    """While the layer flies, the reference goes on from the layer's own velocity (a vehicle pushed along a convoy
-    kept going); with its mission target as the goal, the vehicle turns back for it instead of flying past it."""
-    guard = TrafficGuard(ParamStore(all_param_specs()), 2)
-    beside = uav(1, (0.0, 9.0, -15.0), (0.0, 0.0, 0.0))  # holding beside it, inside the volume
-    frame = HomeFrame(GeoPoint(47.3977, 8.5456, 488.0))
-    goal = ((-30.0, 0.0, -15.0), 3.0) if goal_behind else None
-    pos, vel = (0.0, 0.0, -15.0), (4.0, 0.0, 0.0)
-    outs = [guard.step(t_us, 0.004, frame, pos, vel, pos, vel, FlightMode.AUTO_MISSION, False, _Table([beside]), PARAMS,
-                       goal) for t_us in (100_000, 120_000, 140_000)]  # type: ignore[arg-type]  # fmt: skip
-    assert outs[-1] is not None and guard.engaged and guard.command is not None
-    north = guard.command.vel_ned_m_s[0]
-    assert (north < 4.0) if goal_behind else (north >= 4.0), guard.command
