@@ -38,7 +38,9 @@ def test_run_delivery_flies_the_default_mission_and_writes_everything(tmp_path: 
     assert gcs["landed"] and gcs["disarmed"]
     assert sim["collisions"] == 0 and sim["end_reason"] == "STOPPED"
     assert sim["payload_released_at_s"] is not None and ap["payload_released"] is True
-    assert ap["frames"] == sim["frames"]
+    # every frame the simulator stepped reached the autopilot; the stop (SIGTERM once the ground station is done)
+    # can land while the simulator waits for the answer to one more frame, which the autopilot has then handled
+    assert ap["frames"] - sim["frames"] in (0, 1), (ap["frames"], sim["frames"])
 
     rrd = out_dir / "flight.rrd"
     assert summary["recording"] == str(rrd) and rrd.stat().st_size > 0
