@@ -113,6 +113,12 @@ class CircleZone:
         d = math.hypot(pos_ned[0] - self.center_ne_m[0], pos_ned[1] - self.center_ne_m[1])
         return abs(d - self.radius_m)
 
+    def allowed_distance_m(self, pos_ned: Sequence[float]) -> float:
+        """How far (m) the horizontal position is on the allowed side of the circle (inside an inclusion, outside an
+        exclusion); negative on the wrong side."""
+        inside_m = self.radius_m - math.hypot(pos_ned[0] - self.center_ne_m[0], pos_ned[1] - self.center_ne_m[1])
+        return inside_m if self.inclusion else -inside_m
+
     def segment_clear(self, a_ned: Sequence[float], b_ned: Sequence[float], margin_m: float = 0.0) -> bool:
         """Exclusion: the segment stays more than ``margin_m`` outside. Inclusion: it stays ``margin_m`` inside."""
         c = np.asarray(self.center_ne_m)
@@ -144,15 +150,18 @@ class PolygonZone:
     inclusion: bool
     group: int = 0
     _box: tuple[float, float, float, float] = field(init=False, repr=False, compare=False)  # n/e min, max
+    #: The edges' start and end points (n, 2), built once: the failsafe's fence check runs every control step.
+    _edge_points: tuple[np.ndarray, np.ndarray] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         ns = [v[0] for v in self.vertices_ne_m]
         es = [v[1] for v in self.vertices_ne_m]
         object.__setattr__(self, "_box", (min(ns), min(es), max(ns), max(es)) if ns else (0.0, 0.0, 0.0, 0.0))
+        v = np.asarray(self.vertices_ne_m, dtype=float).reshape(-1, 2)
+        object.__setattr__(self, "_edge_points", (v, np.roll(v, -1, axis=0)))
 
     def _edges(self) -> tuple[np.ndarray, np.ndarray]:
-        v = np.asarray(self.vertices_ne_m, dtype=float)
-        return v, np.roll(v, -1, axis=0)
+        return self._edge_points
 
     def contains(self, pos_ned: Sequence[float]) -> bool:
         """Even-odd ray casting on the horizontal position."""
@@ -172,6 +181,12 @@ class PolygonZone:
         """Horizontal distance to the nearest edge."""
         starts, ends = self._edges()
         return float(np.min(_point_segment_distance(np.asarray(pos_ned[:2], dtype=float), starts, ends)))
+
+    def allowed_distance_m(self, pos_ned: Sequence[float]) -> float:
+        """How far (m) the horizontal position is on the allowed side of the edge (inside an inclusion, outside an
+        exclusion); negative on the wrong side."""
+        d = self.boundary_distance_m(pos_ned)
+        return d if self.contains(pos_ned) == self.inclusion else -d
 
     def segment_clear(self, a_ned: Sequence[float], b_ned: Sequence[float], margin_m: float = 0.0) -> bool:
         """Exclusion: the segment stays more than ``margin_m`` outside. Inclusion: it stays ``margin_m`` inside."""

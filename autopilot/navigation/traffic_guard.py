@@ -26,6 +26,7 @@ from autopilot.traffic.cpa import predict_approach
 from autopilot.traffic.param_decls import SeparationVolume, TrafficAction, TrafficParams
 from autopilot.traffic.reactive import (
     GROUND_LOCK_AGL_M,
+    FenceZoneLike,
     Phase,
     ReactiveCommand,
     ReactiveLayer,
@@ -105,7 +106,7 @@ class TrafficGuard:
         self._solved_us = -CLEAR_PERIOD_US  # the first call solves
         self._vel: list[float] = [0.0, 0.0, 0.0]
         self._limits_version: object = None
-        self.fences: tuple[object, ...] = ()  # the geofence's zones about home (the navigator's link sets them)
+        self.fences: tuple[FenceZoneLike, ...] = ()  # the geofence's zones about home (the navigator's link sets them)
         self._limits: ReactiveLimits | None = None
         self._said: tuple[str, bool] | None = None
 

@@ -28,6 +28,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import Enum
+from typing import Protocol
 
 import numpy as np
 
@@ -92,6 +93,12 @@ class Phase(Enum):
     MANUAL = "manual"
 
 
+class FenceZoneLike(Protocol):
+    """What the layer reads of a geofence zone (``autopilot.geofence.fence.CircleZone``, ``PolygonZone``)."""
+
+    def allowed_distance_m(self, pos_ned: Sequence[float]) -> float: ...
+
+
 @dataclass(frozen=True, slots=True)
 class ReactiveLimits:
     """What the vehicle can fly (m/s, m/s^2) and where (NED down about home, m: floor > ceiling numerically)."""
@@ -102,7 +109,7 @@ class ReactiveLimits:
     acc_m_s2: float
     floor_down_m: float
     ceiling_down_m: float
-    fences: tuple[object, ...] = ()  # the fence's zones (``contains``, ``boundary_distance_m``, ``inclusion``)
+    fences: tuple[FenceZoneLike, ...] = ()  # the geofence's zones about home
     fence_margin_m: float = 3.0
 
 
@@ -245,11 +252,12 @@ class ReactiveLayer:
         for zone in limits.fences:
             if k == MAX_FENCE_ROWS:
                 break
-            room = _allowed_distance(zone, pos[0], pos[1])
+            n, e = float(pos[0]), float(pos[1])
+            room = zone.allowed_distance_m((n, e))
             if room > FENCE_LOOK_M:
                 continue
-            gn = (_allowed_distance(zone, pos[0] + FENCE_STEP_M, pos[1]) - room) / FENCE_STEP_M
-            ge = (_allowed_distance(zone, pos[0], pos[1] + FENCE_STEP_M) - room) / FENCE_STEP_M
+            gn = (zone.allowed_distance_m((n + FENCE_STEP_M, e)) - room) / FENCE_STEP_M
+            ge = (zone.allowed_distance_m((n, e + FENCE_STEP_M)) - room) / FENCE_STEP_M
             norm = math.hypot(gn, ge)
             if norm < 1e-6:
                 continue
@@ -309,12 +317,3 @@ class ReactiveLayer:
         want[0], want[1], want[2] = 0.0, 0.0, vd
         least_violating(self._normals, self._offsets, self._m_hard, total, want, self._scratch, out)
         return ReactiveCommand((float(out[0]), float(out[1]), float(out[2])), worst.name, True, escape)
-
-
-def _allowed_distance(zone: object, north_m: float, east_m: float) -> float:
-    """How far (m) the point is inside the allowed side of a fence zone (inside an inclusion, outside an exclusion);
-    negative on the wrong side."""
-    p = (north_m, east_m, 0.0)
-    d = zone.boundary_distance_m(p)  # type: ignore[attr-defined]
-    inside = zone.contains(p)  # type: ignore[attr-defined]
-    return d if inside == zone.inclusion else -d  # type: ignore[attr-defined]

@@ -107,3 +107,17 @@ def test_zones_from_fence_items_round_trip_geometry() -> None:
     bad = [*items[:3], replace(items[3], param1=3.0), items[4]]
     with pytest.raises(FenceError, match="fence item 3: polygon vertex 3 of 4"):
         geofence_from_items(bad, HOME)
+
+
+@pytest.mark.parametrize("inclusion", [True, False])
+def test_allowed_distance_is_the_boundary_distance_signed_by_the_allowed_side(inclusion: bool) -> None:
+    """Positive on the allowed side (inside an inclusion, outside an exclusion), negative on the other, for a circle
+    and the same square as a polygon; the polygon's edges are built once and reused."""
+    circle = CircleZone((0.0, 0.0), 10.0, inclusion)
+    square = PolygonZone(((-10.0, -10.0), (-10.0, 10.0), (10.0, 10.0), (10.0, -10.0)), inclusion)
+    sign = 1.0 if inclusion else -1.0
+    assert circle.allowed_distance_m((3.0, 4.0, -5.0)) == pytest.approx(sign * 5.0)
+    assert circle.allowed_distance_m((30.0, 40.0)) == pytest.approx(-sign * 40.0)
+    assert square.allowed_distance_m((0.0, 7.0)) == pytest.approx(sign * 3.0)
+    assert square.allowed_distance_m((0.0, 14.0)) == pytest.approx(-sign * 4.0)
+    assert square._edges()[0] is square._edges()[0]
