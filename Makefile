@@ -6,10 +6,8 @@ STAMP  := $(VENV)/.installed
 
 .PHONY: venv run run-fleet test bench lint paper interop screenshot clean
 
-# The first setup takes about 1.5 min (pip ~1 min, then the kernel compile ~25 s in two processes); it says what it does.
+# The first setup takes about 1.5 min (pip ~1 min, then the kernel compile ~35 s in two processes); it says what it does.
 # MAVProxy (interop tests) comes without its GUI dependencies: --no-deps, its console's needs listed with it.
-#: pip would byte-compile every module of every package (50 s against 24 s, measured on the 2-core
-# VM); Python compiles the ones a program imports on first use, once.
 INTEROP_REQUIREMENTS := tests/interop_clients/requirements.txt
 $(STAMP): pyproject.toml $(INTEROP_REQUIREMENTS)
 	@echo "[setup] creating $(VENV) and installing quadsitl with its dependencies (pip, about 1 min the first time)..."
@@ -21,12 +19,11 @@ $(STAMP): pyproject.toml $(INTEROP_REQUIREMENTS)
 	@echo "[setup] packages installed"
 
 # numba caches compiled kernels on disk, in a directory keyed by every kernel source (docs/performance.md);
-# compiling them here (~25 s the first time or after an edit to a kernel source, ~2 s when cached) keeps the first
-# compile out of the lockstep loop.
-# The project's own modules are byte-compiled here too (under a second): where PYTHONDONTWRITEBYTECODE is set (as on the CI
-# machine) Python never writes them itself, and every process started (a test run starts hundreds) would compile
-# them again (0.5 s of CPU each, measured on the 2-core VM). Python still reads the files, and a stale one (an
-# edited source) is ignored.
+# compiling them here (~35 s the first time or after an edit to a kernel source, ~2 s when cached) keeps the first
+# compile out of the lockstep loop. The project's own modules are byte-compiled here too (under a second): where
+# PYTHONDONTWRITEBYTECODE is set (as on the CI machine) Python never writes them itself, and every process a test
+# run starts (hundreds) would compile them again, 0.5 s of CPU each. Python still reads the files, and ignores a
+# stale one (an edited source).
 venv: $(STAMP)
 	@PYTHONDONTWRITEBYTECODE= $(BIN)/python -m compileall -q autopilot sim mavlink_bridge tools quadsitl_cli.py
 	@$(BIN)/python -m tools.warm_jit

@@ -107,7 +107,7 @@ def _warm_bridge() -> dict[str, float]:
 
 def main() -> int:
     print(
-        "[setup] compiling the numba kernels (physics, controller, codec): about 25 s the first time, "
+        "[setup] compiling the numba kernels (physics, controller, codec): about 35 s the first time, "
         "a few seconds once cached...",
         flush=True,
     )
