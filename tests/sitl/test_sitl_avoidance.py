@@ -22,7 +22,7 @@ from sitl_procs import connect_gcs, landed_disarmed, logs, read_json, sitl_pair,
 from autopilot.mission.files import load_mission_file
 from autopilot.mission.plan import MissionPlan
 from autopilot.planner.param_decls import planner_param_specs
-from mavlink_bridge.contract.status_texts import is_bypassed
+from mavlink_bridge.contract.status_texts import bypassed_seq, is_bypassed
 from mavlink_bridge.gcs_client.client import GcsClient, VehicleStatus
 from tools.campaign.inproc_flight import fly_world, vehicle_script
 
@@ -61,13 +61,12 @@ def _fly(client: GcsClient, plan: MissionPlan, sim: subprocess.Popen[bytes]) -> 
             return status, texts
 
 
-def _check(n: int, reached: list[int], bypassed_texts: list[str], texts: list[str], sim: dict, ap: dict,
-           r_safe_m: float, tol_m: float) -> None:  # fmt: skip
+def _check(n: int, reached: list[int], texts: list[str], sim: dict, ap: dict, r_safe_m: float, tol_m: float) -> None:
     progress = f"reached {reached} of {n}, sim summary {sim}"
     assert sim["collisions"] == 0, progress
     clearance_m = sim["min_clearance_m"]
     assert isinstance(clearance_m, float) and clearance_m >= r_safe_m - tol_m, progress
-    bypassed = {int(t.split()[2].rstrip(":")) for t in bypassed_texts}
+    bypassed = {bypassed_seq(t) for t in texts if is_bypassed(t)}
     assert not bypassed & set(reached), progress  # never both
     assert sorted(set(reached) | bypassed) == list(range(n)), progress
     assert reached == sorted(reached), progress  # in order
@@ -85,8 +84,7 @@ def test_city_block_through_unknown_obstacles_over_sitl(tmp_path: Path) -> None:
         status, texts = _fly(client, plan, s.sim)
     assert landed_disarmed(status), logs(tmp_path)
     sim, ap = read_json(tmp_path / "sim_summary.json"), read_json(tmp_path / "autopilot_summary.json")
-    bypassed_texts = [t for t in texts if t.startswith("Bypassed item ")]
-    _check(len(plan.items), list(status.items_reached), bypassed_texts, texts, sim, ap, r_safe_m, tol_m)  # type: ignore[arg-type]
+    _check(len(plan.items), list(status.items_reached), texts, sim, ap, r_safe_m, tol_m)  # type: ignore[arg-type]
 
 
 @pytest.mark.parametrize(
@@ -103,7 +101,5 @@ def test_mission_through_unknown_obstacles_in_process(name: str) -> None:
     assert not record["error"] and not record["timed_out"], record["error"]
     defaults = {spec.name: spec.default for spec in planner_param_specs()}
     texts, ap = record["texts"], record["autopilot"]
-    bypassed_texts = [t for t in texts if is_bypassed(t)]
     n = len(load_mission_file(mission).items)
-    _check(n, list(ap["reached_seqs"]), bypassed_texts, texts, record["sim"], ap, defaults["CA_RSAFE_M"],
-           defaults["CA_TRACK_TOL_M"])  # fmt: skip
+    _check(n, list(ap["reached_seqs"]), texts, record["sim"], ap, defaults["CA_RSAFE_M"], defaults["CA_TRACK_TOL_M"])
