@@ -20,7 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tools.campaign.estimate import Evaluate, Proposal, ranked, refit
+from tools.campaign.estimate import Evaluate, ranked
+from tools.campaign.proposal import Proposal, refit
 from tools.campaign.search_space import Point, SearchSpace
 
 METHODS = ("cmaes", "cem")

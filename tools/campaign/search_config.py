@@ -13,6 +13,7 @@
       level_batch: 100                            # flights per level
       final: 200                                  # flights of the final importance-sampling batch
       max_levels: 8
+      components: 3                               # the proposal's most mixture components (failure modes)
 
 A search flies at most ``cases`` flights (``--budget`` overrides).
 """
@@ -30,7 +31,7 @@ from tools.campaign.objectives import Objective, parse_objective
 Fail = Callable[[tuple[str, ...], str, str], Exception]
 METHODS = ("cmaes", "cem")
 SEARCH_KEYS = ("objective", "method", "inputs", "popsize", "sigma0", "batch", "elite_frac")
-ESTIMATE_KEYS = ("rho", "level_batch", "final", "max_levels")
+ESTIMATE_KEYS = ("rho", "level_batch", "final", "max_levels", "components")
 
 
 @dataclass(frozen=True)
@@ -54,6 +55,7 @@ class EstimateConfig:
     level_batch: int = 100
     final: int = 200
     max_levels: int = 8
+    components: int = 3
 
 
 def parse_search(raw: Any, vary: tuple[tuple[str, Any], ...], fail: Fail) -> SearchConfig:
@@ -113,6 +115,7 @@ def parse_estimate(raw: Any, fail: Fail) -> EstimateConfig:
         level_batch=_int(raw, "level_batch", 100, 10, fail, where="estimate") or 100,
         final=_int(raw, "final", 200, 10, fail, where="estimate") or 200,
         max_levels=_int(raw, "max_levels", 8, 1, fail, where="estimate") or 8,
+        components=_int(raw, "components", 3, 1, fail, where="estimate") or 3,
     )
 
 

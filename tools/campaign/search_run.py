@@ -245,7 +245,8 @@ def run_estimate(
 
         try:
             result = ce_is(space, evaluator, evaluate_final=final, seed=spec.seed, rho=cfg.rho,
-                           level_batch=cfg.level_batch, final=cfg.final, max_levels=cfg.max_levels)  # fmt: skip
+                           level_batch=cfg.level_batch, final=cfg.final, max_levels=cfg.max_levels,
+                           components=cfg.components)  # fmt: skip
             for j, w in enumerate(result.final_log_w):
                 evaluator.log_w[result.final_first_case + j] = w
         finally:
