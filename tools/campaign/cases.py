@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from mavlink_bridge.contract.source_lines import parse_yaml
 from tools.campaign.inputs import base_doc, resolve_path, resolved_params, set_path
 from tools.campaign.spec import ENCOUNTER_BASE, CampaignSpec, Distribution
 from tools.encounters import encounter_world
@@ -59,7 +60,7 @@ class CaseFiles:
     @property
     def fleet(self) -> bool:
         """True when the world lists ``vehicles:`` (one simulator, one autopilot per vehicle; else one vehicle)."""
-        doc = yaml.safe_load(self.world_yaml)
+        doc = parse_yaml(self.world_yaml, "world.yaml").data  # parsed once per process (libyaml), not per call
         return isinstance(doc, dict) and bool(doc.get("vehicles"))
 
 
