@@ -78,6 +78,10 @@ _ROWS = MAX_TRACKS + OWN_ROWS + 8
 FENCE_LOOK_M = 40.0
 MAX_FENCE_ROWS = 8
 FENCE_STEP_M = 0.5
+#: A fence row counts the room from where the vehicle will be once it answers (s): its speed toward the edge times
+#: this is taken off the room (a vehicle at 6-8 m/s with the room counted from where it was crossed a 300 m circle
+#: by 2 m past a 3 m margin: encounter case 41).
+FENCE_RESPONSE_S = 1.0
 #: The offset of a half-space not in force (every velocity is on its side).
 OFF = -1e9
 
@@ -246,7 +250,8 @@ class ReactiveLayer:
     def _fence_rows(self, pos: np.ndarray, limits: ReactiveLimits) -> int:
         """Half-spaces after the own limits for each fence zone within ``FENCE_LOOK_M``: no velocity toward its
         edge faster than crosses the room left beyond ``limits.fence_margin_m`` in ``FLOOR_TIME_S`` or than brakes
-        to a stop in it at ``limits.acc_m_s2`` (none once there);
+        to a stop in it at ``limits.acc_m_s2`` (none once there), the room counted from where the vehicle's own
+        velocity takes it in ``FENCE_RESPONSE_S``;
         the edge's normal from the zone's distance, numerically. Zero velocity meets them all. Their count."""
         k = 0
         for zone in limits.fences:
@@ -262,7 +267,8 @@ class ReactiveLayer:
             if norm < 1e-6:
                 continue
             row = OWN_ROWS + k  # g . v >= -speed: toward the edge only as fast as stops before it
-            left = max(room - limits.fence_margin_m, 0.0)
+            toward = max(-(gn * float(self._vel[0]) + ge * float(self._vel[1])) / norm, 0.0)  # m/s, to the edge
+            left = max(room - limits.fence_margin_m - toward * FENCE_RESPONSE_S, 0.0)
             self._normals[row] = (gn / norm, ge / norm, 0.0)
             self._offsets[row] = -min(left / FLOOR_TIME_S, math.sqrt(2.0 * limits.acc_m_s2 * left))
             k += 1

@@ -224,6 +224,23 @@ def test_the_escape_stays_inside_the_fence() -> None:
     assert free is not None and free.vel_ned_m_s[0] > c.vel_ned_m_s[0] + 0.5  # without the fence it would go on
 
 
+def test_the_fence_room_is_counted_from_where_the_vehicle_will_be() -> None:
+    """Flying at the edge at 8 m/s, the room is what is left once the vehicle answers (FENCE_RESPONSE_S later): a
+    bound from where it is let two vehicles fleeing a light aircraft cross a 300 m circle by 2 m (case 41)."""
+    from autopilot.geofence.fence import CircleZone
+    from autopilot.traffic.reactive import FENCE_RESPONSE_S
+
+    fence = (CircleZone((0.0, 0.0), 300.0, True),)
+    limits = ReactiveLimits(12.0, 3.0, 1.5, 3.0, -2.0, -120.0, fence, 3.0)
+    heli = TrafficTrack(TrafficSource.MANNED, 0xA1B2C3, "HELI1", (-400.0, 0.0, -20.0), (40.0, 0.0, 0.0), 0)
+    own, room = (280.0, 0.0, -15.0), 20.0 - 3.0
+    still = ReactiveLayer(1).solve(0, own, (0.0, 0.0, 0.0), (8.0, 0.0, 0.0), [heli], PARAMS, limits, Phase.MISSION)
+    moving = ReactiveLayer(1).solve(0, own, (8.0, 0.0, 0.0), (8.0, 0.0, 0.0), [heli], PARAMS, limits, Phase.MISSION)
+    assert still is not None and moving is not None
+    assert still.vel_ned_m_s[0] == pytest.approx(room / 2.0, abs=0.05)
+    assert moving.vel_ned_m_s[0] == pytest.approx((room - 8.0 * FENCE_RESPONSE_S) / 2.0, abs=0.05)
+
+
 def test_no_sideways_motion_near_the_ground_even_at_the_layers_own_velocity() -> None:
     """Low over the pads the layer moves the vehicle only vertically, whatever velocity it prefers: while it flies,
     the preferred velocity is its own, and a bound "toward the preferred one" let a landing vehicle skid off."""
