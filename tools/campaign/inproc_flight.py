@@ -73,11 +73,11 @@ from sim.world import load_world
 from tools.campaign.cases import MISSION_START_DELAY_S
 from tools.campaign.fleet_record import record
 from tools.gcs import failsafe_reason
-from tools.gcs.summary import stuck_reason
+from tools.gcs.summary import FLEET_STALL_S, stuck_reason
 
 CONTROL_HZ = 250
 DEFAULT_ARM_AT_S = 3.0
-DEFAULT_STALL_S = 120.0  # as the fleet ground station's --stall-s
+DEFAULT_STALL_S = FLEET_STALL_S  # as the fleet ground station's --stall-s
 DEFAULT_STUCK_S = 60.0  # no progress and no motion for this long: stuck
 STUCK_MOVE_M = 2.0  # a vehicle that stays within this of where it was is not moving
 DEFAULT_SIM_TIME_S = 900.0

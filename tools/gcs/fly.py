@@ -8,7 +8,7 @@ together), shows one progress bar per vehicle and waits until each has landed an
 own: done (mission complete, landed, disarmed, no failsafe during it), failed (landed early, a failsafe, a refused
 upload or arming, the wall-clock limit), telemetry lost (silent for ``LOST_AFTER_S`` of wall time: its autopilot
 died) or stalled (no item reached, no change of landed state or arming for ``--stall-s`` of sim time: a crashed
-vehicle, which a fleet's simulator freezes while the others fly on; default 120 s for a fleet world, off for a
+vehicle, which a fleet's simulator freezes while the others fly on; default 300 s for a fleet world, off for a
 single-vehicle mission, whose simulator ends the run on a crash). The others fly on.
 
 ``--summary PATH``: a single-vehicle mission's :class:`~tools.gcs.summary.FlySummary`, a fleet world's
@@ -42,12 +42,10 @@ from mavlink_bridge.gcs_client.client import (
 from mavlink_bridge.gcs_client.fleet_link import FleetLink
 from tools.gcs.link import GcsScriptError, say, vehicle_clients
 from tools.gcs.progress import MissionBars, flight_state_text, sim_time_text
-from tools.gcs.summary import FleetFlight, VehicleFlight, fly_summary, mission_done, stuck_reason
+from tools.gcs.summary import FLEET_STALL_S, FleetFlight, VehicleFlight, fly_summary, mission_done, stuck_reason
 
 #: Wall seconds without any message from a flying vehicle before the ground station gives it up.
 LOST_AFTER_S = 10.0
-#: Sim seconds without progress that fail a vehicle of a fleet world unless ``--stall-s`` says otherwise.
-FLEET_STALL_S = 120.0
 _SETUP_TIMEOUT_S = 60.0
 _PUMP_S = 0.01  # each vehicle's turn in the follow loop
 

@@ -17,6 +17,12 @@ MISSION_STATE_COMPLETE = 5
 #: How the reason of a vehicle given up as stuck (no mission progress for too long) begins: a campaign row whose
 #: vehicle was stuck ends ``STUCK`` (tools.campaign.fleet_record).
 STUCK_PREFIX = "stuck:"
+#: Sim seconds without mission progress (an item reached, a change of landed state or arming) that give a moving
+#: vehicle of a fleet world up as stuck, in the ground station (``--stall-s``) and in a campaign's in-process judge.
+#: Time enough to give way and come back: a vehicle that fled a light aircraft 250-300 m out and back, or a slow
+#: one on a 300 m leg, reaches its next item well after 120 s (7 of the 8 encounter cases judged STUCK at 120 s
+#: completed every vehicle when given 400 s, the last at 333 s of sim; 2026-12-02).
+FLEET_STALL_S = 300.0
 
 
 def stuck_reason(why: str) -> str:
