@@ -185,7 +185,7 @@ class ReactiveLayer:
         pos, vel, pref = self._pos, self._vel, self._pref
         pos[:], vel[:], pref[:] = pos_home_ned_m, vel_ned_m_s, pref_ned_m_s
         self._own_limits(pos, limits, phase)
-        m = self._m_hard = OWN_ROWS + self._fence_rows(pos, limits)
+        m = self._m_hard = OWN_ROWS + self._fence_rows(pos, vel, limits)
         closest_admissible(self._normals, self._offsets, m, pref, self._limits_out)
         speed2 = vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2]
         brake_m = min(speed2 / (2.0 * limits.acc_m_s2), MAX_BRAKE_GROW_M)
@@ -247,7 +247,7 @@ class ReactiveLayer:
         lock = 0.0 if -pos[2] < GROUND_LOCK_AGL_M else OFF
         offsets[k + 4 : k + 8] = lock  # vn >= 0, -vn >= 0, ve >= 0, -ve >= 0
 
-    def _fence_rows(self, pos: np.ndarray, limits: ReactiveLimits) -> int:
+    def _fence_rows(self, pos: np.ndarray, vel: np.ndarray, limits: ReactiveLimits) -> int:
         """Half-spaces after the own limits for each fence zone within ``FENCE_LOOK_M``: no velocity toward its
         edge faster than crosses the room left beyond ``limits.fence_margin_m`` in ``FLOOR_TIME_S`` or than brakes
         to a stop in it at ``limits.acc_m_s2`` (none once there), the room counted from where the vehicle's own
@@ -267,7 +267,7 @@ class ReactiveLayer:
             if norm < 1e-6:
                 continue
             row = OWN_ROWS + k  # g . v >= -speed: toward the edge only as fast as stops before it
-            toward = max(-(gn * float(self._vel[0]) + ge * float(self._vel[1])) / norm, 0.0)  # m/s, to the edge
+            toward = max(-(gn * float(vel[0]) + ge * float(vel[1])) / norm, 0.0)  # m/s, to the edge
             left = max(room - limits.fence_margin_m - toward * FENCE_RESPONSE_S, 0.0)
             self._normals[row] = (gn / norm, ge / norm, 0.0)
             self._offsets[row] = -min(left / FLOOR_TIME_S, math.sqrt(2.0 * limits.acc_m_s2 * left))

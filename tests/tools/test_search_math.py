@@ -82,7 +82,7 @@ def test_a_mixture_proposal_holds_both_sides_of_a_two_sided_failure_region() -> 
 
     mixture, mixture_covered = ratios(3)
     single, single_covered = ratios(1)
-    assert 0.85 < float(np.mean(mixture)) < 1.15 and float(mixture.min()) > 0.5  # measured: mean 0.97, min 0.65
+    assert 0.85 < float(np.mean(mixture)) < 1.15 and float(mixture.min()) > 0.5  # measured: mean 0.99, min 0.65
     assert mixture_covered >= 11  # measured: 12 of 12
     assert (
         float(single.min()) < 0.5 and single_covered < mixture_covered

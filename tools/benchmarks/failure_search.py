@@ -88,8 +88,7 @@ def _estimate(spec: Any, engine: Any, out_dir: Path) -> Any:
     cfg = spec.estimate or EstimateConfig()
     prepare_dir(spec, out_dir, False)
     evaluator = FlightEvaluator(spec, space_of(spec, spec.search.inputs), spec.search.objective, out_dir, engine, False)
-    return ce_is(evaluator.space, evaluator, seed=spec.seed, rho=cfg.rho, level_batch=cfg.level_batch,
-                 final=cfg.final, max_levels=cfg.max_levels, components=cfg.components)  # fmt: skip
+    return ce_is(evaluator.space, evaluator, seed=spec.seed, **dataclasses.asdict(cfg))
 
 
 def _plain_margins(spec: Any, cases: int, engine: Any, out_dir: Path) -> list[float]:

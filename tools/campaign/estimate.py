@@ -5,8 +5,9 @@ proposal q a mixture of truncated normals with choice masses (:mod:`tools.campai
 q by the cross-entropy method (Rubinstein): each level flies ``level_batch`` points from q, the level gamma is the
 rho-quantile of their margins (ties broken by a seeded draw), and q is refitted to the points at or below gamma,
 weighted by p/q, with up to ``components`` mixture components (one per failure mode the elite shows); once gamma
-reaches 0
-(the failure level) a final batch is flown from the defensive mixture m = 0.9 q + 0.1 p and
+reaches 0 (the failure level), or half the elite already fail (the widened proposal otherwise stalls a little
+above it), q is refitted to the failing points and a final batch is flown from the defensive mixture
+m = 0.9 q + 0.1 p and
 
     P = mean(1{margin < 0} p/m),   95 % interval P +- 1.96 sd/sqrt(n),   Kish ESS = (sum w)^2 / sum w^2,
 
@@ -124,8 +125,9 @@ def ce_is(
         margins = np.array(evaluate(next_case, points), dtype=float)
         order = ranked(margins, rng)
         gamma = float(margins[order[n_elite - 1]]) if np.isfinite(margins[order[n_elite - 1]]) else math.inf
-        reached = gamma <= 0.0 or int((margins < 0.0).sum()) * 2 >= n_elite
-        elite = order[:n_elite] if not reached else np.flatnonzero(margins < 0.0)
+        failing = np.flatnonzero(margins < 0.0)
+        reached = gamma <= 0.0 or 2 * len(failing) >= n_elite
+        elite = failing if reached else order[:n_elite]
         if len(elite) < 2:  # one failure at the last level: keep the rho elite so the fit stays a distribution
             elite = order[:n_elite]
         levels.append(Level(index, next_case, tuple(points), tuple(map(float, margins)), gamma, q))

@@ -11,8 +11,9 @@ between them or follows one, and an importance-sampling estimate drawn from it m
 
 :func:`refit` is the weighted maximum-likelihood fit to the elite points: moments for one component; for up to
 ``components`` it runs a weighted EM from a farthest-point start for each count and keeps the count of the lowest
-BIC (a count needs ``MIN_POINTS_PER_COMPONENT`` elite points a component). Every normal is widened by
-``SD_INFLATE`` and never narrower than ``SD_FLOOR``; a choice's mass never below ``MASS_FLOOR / K``.
+BIC (a count needs ``MIN_POINTS_PER_COMPONENT`` elite points a component; the components share one spread per
+input). One component's normals are widened by ``SD_INFLATE``, a mixture's by ``MIXTURE_SD_INFLATE``, none narrower
+than ``SD_FLOOR``; a choice's mass never below ``MASS_FLOOR / K``.
 """
 
 from __future__ import annotations
@@ -141,31 +142,32 @@ def _best_mixture(u: np.ndarray, w: np.ndarray, most: int) -> tuple[Component, .
         pi, mean, sd, loglik = _weighted_em(u, w, k)
         bic = -2.0 * n_eff * loglik + ((k + 1) * u.shape[1] + k - 1) * math.log(n_eff)
         if best is None or bic < best[0]:
-            comps = tuple(
-                Component(float(pi[c]), tuple((float(m), max(SD_FLOOR, MIXTURE_SD_INFLATE * float(s)))
-                                              for m, s in zip(mean[c], sd[c], strict=True)))
-                for c in range(k) if pi[c] > 0.0
-            )  # fmt: skip
+            spread = tuple(max(SD_FLOOR, MIXTURE_SD_INFLATE * float(s)) for s in sd)
+            comps = tuple(Component(float(pi[c]), tuple(zip(map(float, mean[c]), spread, strict=True)))
+                          for c in range(k) if pi[c] > 0.0)  # fmt: skip
             best = (bic, comps)
     assert best is not None
     return best[1]
 
 
 def _weighted_em(u: np.ndarray, w: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """Weighted EM of a k-component diagonal normal mixture (untruncated; sds floored at ``SD_FLOOR``) from a
-    farthest-point start: the heaviest point, then each next the point of the largest weight x squared distance to
-    the chosen. Returns (weights, means, sds, mean log-likelihood per unit weight)."""
+    """Weighted EM of a k-component diagonal normal mixture with one spread per input shared by the components
+    (untruncated; floored at ``SD_FLOOR``), from a farthest-point start: the heaviest point, then each next the
+    point of the largest weight x squared distance to the chosen. Returns (weights (k), means (k x dims), the
+    spread (dims), mean log-likelihood per unit weight)."""
     centres = [int(np.argmax(w))]
     for _ in range(1, k):
         d2 = np.min(((u[:, None, :] - u[centres][None, :, :]) ** 2).sum(axis=2), axis=1)
         centres.append(int(np.argmax(w * d2)))
     mean = u[centres].copy()
-    sd = np.full_like(mean, max(SD_FLOOR, float(np.sqrt(w @ (u - w @ u) ** 2).mean()) / k))
+    sd = np.full(u.shape[1], max(SD_FLOOR, float(np.sqrt(w @ (u - w @ u) ** 2).mean()) / k))
     pi = np.full(k, 1.0 / k)
     loglik = -math.inf
     for _ in range(EM_ITERATIONS):
-        log_r = np.log(pi)[None, :] + np.stack(
-            [(norm.logpdf((u - mean[c]) / sd[c]) - np.log(sd[c])).sum(axis=1) for c in range(k)], axis=1
+        with np.errstate(divide="ignore"):  # a component that lost every point: log 0, no responsibility
+            log_pi = np.log(pi)
+        log_r = log_pi[None, :] + np.stack(
+            [(norm.logpdf((u - mean[c]) / sd) - np.log(sd)).sum(axis=1) for c in range(k)], axis=1
         )
         log_norm = logsumexp(log_r, axis=1)
         loglik = float(w @ log_norm)
@@ -173,8 +175,7 @@ def _weighted_em(u: np.ndarray, w: np.ndarray, k: int) -> tuple[np.ndarray, np.n
         mass = r.sum(axis=0)
         live = mass > 1e-12
         pi = mass / mass.sum()
-        safe = np.where(live, mass, 1.0)[:, None]
-        mean = np.where(live[:, None], (r.T @ u) / safe, mean)
+        mean = np.where(live[:, None], (r.T @ u) / np.where(live, mass, 1.0)[:, None], mean)
         pooled = sum(r[:, c] @ (u - mean[c]) ** 2 for c in range(k)) / float(w.sum())
-        sd = np.tile(np.maximum(np.sqrt(np.maximum(pooled, 0.0)), SD_FLOOR), (k, 1))
+        sd = np.maximum(np.sqrt(np.maximum(pooled, 0.0)), SD_FLOOR)
     return pi, mean, sd, loglik

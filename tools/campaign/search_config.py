@@ -49,7 +49,8 @@ class SearchConfig:
 
 @dataclass(frozen=True)
 class EstimateConfig:
-    """``estimate:``: the cross-entropy levels and the final importance-sampling batch."""
+    """``estimate:``: the cross-entropy levels and the final importance-sampling batch (the fields are
+    :func:`~tools.campaign.estimate.ce_is`'s keyword arguments)."""
 
     rho: float = 0.1
     level_batch: int = 100

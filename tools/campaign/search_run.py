@@ -244,9 +244,7 @@ def run_estimate(
             return evaluator(first_case, points)
 
         try:
-            result = ce_is(space, evaluator, evaluate_final=final, seed=spec.seed, rho=cfg.rho,
-                           level_batch=cfg.level_batch, final=cfg.final, max_levels=cfg.max_levels,
-                           components=cfg.components)  # fmt: skip
+            result = ce_is(space, evaluator, evaluate_final=final, seed=spec.seed, **dataclasses.asdict(cfg))
             for j, w in enumerate(result.final_log_w):
                 evaluator.log_w[result.final_first_case + j] = w
         finally:
