@@ -8,8 +8,10 @@ control: the position error is zero, the velocity is the command). When the pref
 (after ``MIN_ENGAGED_US``), the setpoint generator goes on from that reference. Also here, because they concern the
 column above the pad:
 
-- the departure hold: on the pad (below ``GROUND_LOCK_AGL_M``) in a take-off, no climb while a track is predicted
-  through the climb-out column before the vehicle would be up;
+- the departure hold: on the pad (below ``GROUND_LOCK_AGL_M``) in a take-off, no climb (and no other motion)
+  while a UAV is predicted through the climb-out column before the vehicle would be up, or a manned aircraft
+  within the look-ahead (``NAV_TRAFF_COLL_T``): once up, a multirotor cannot leave an NMAC volume 150 m wide in
+  the warning a pass gives, so it waits on the pad, where it is no hazard, for the aircraft to pass;
 - the landing clearance: in a landing, no descent while a track is predicted through the column below. Below
   ``GROUND_LOCK_AGL_M`` a landing is committed: the layer lets it touch down (a vehicle landing has right of way;
   holding or moving a metre above the pad only delays the touchdown and skids across the pads).
@@ -178,9 +180,10 @@ class TrafficGuard:
             pref[2] = 0.0  # hold the height: no climb out of the pad, no descent into the column
         command = self.layer.solve(t_us, pos, vel_ned_m_s, (pref[0], pref[1], pref[2]), tracks, params, limits,
                                    phase, version)  # fmt: skip
-        if command is None and held is not None:
-            verb = "take-off" if phase is Phase.TAKEOFF else "landing"
-            command = ReactiveCommand((pref[0], pref[1], 0.0), held, False, f"{verb} held")
+        if held is not None and phase is Phase.TAKEOFF:  # on the pad: stay (no escape climbs out of it)
+            command = ReactiveCommand((0.0, 0.0, 0.0), held, False, "take-off held")
+        elif command is None and held is not None:
+            command = ReactiveCommand((pref[0], pref[1], 0.0), held, False, "landing held")
         if command is None:
             if self.engaged and t_us - self._engaged_us >= MIN_ENGAGED_US:
                 self.release(t_us)
@@ -210,15 +213,19 @@ class TrafficGuard:
     def _column_threat(self, t_us: int, pos: Vec3, pref: list[float], phase: Phase,
                        tracks: tuple[TrafficTrack, ...], params: TrafficParams) -> str | None:  # fmt: skip
         """The departure hold and the landing clearance: the track predicted through the column the vehicle is
-        about to climb out of (from the pad) or descend into, before it would be through; None when clear."""
+        about to climb out of (from the pad) or descend into, before it would be through (a manned aircraft: within
+        the look-ahead, from the pad); None when clear."""
+        manned_window = 0.0
         if phase is Phase.TAKEOFF and pref[2] < 0.0 and -pos[2] < GROUND_LOCK_AGL_M:
             top, speed = -DEPARTURE_COLUMN_M, max(-pref[2], 0.3)
             window = DEPARTURE_COLUMN_M / speed + COLUMN_MARGIN_S
+            manned_window = max(window, params.horizon_s)
         elif phase is Phase.LAND and pref[2] > 0.0 and -pos[2] >= GROUND_LOCK_AGL_M:
             top, window = pos[2], LANDING_WINDOW_S  # the descent itself is the reactive layer's (others avoid it)
         else:
             return None
         for track in tracks:
-            if not parked(track, t_us) and column_conflict(track, t_us, pos, top, window, params) is not None:
+            look_s = manned_window if track.source is TrafficSource.MANNED and manned_window else window
+            if not parked(track, t_us) and column_conflict(track, t_us, pos, top, look_s, params) is not None:
                 return track.name
         return None

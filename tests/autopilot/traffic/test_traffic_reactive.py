@@ -267,3 +267,27 @@ def test_a_landing_below_the_ground_lock_is_committed(agl_m: float, engaged: boo
     out = guard.step(0, 0.004, frame, (0.0, 0.0, -agl_m), (0.0, 0.0, 0.8), (0.0, 0.0, -agl_m), (0.0, 0.0, 0.8),
                      FlightMode.AUTO_MISSION, True, _Table([other]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
     assert (out is not None) is engaged and guard.engaged is engaged
+
+
+def test_a_take_off_waits_on_the_pad_for_a_manned_aircraft_within_the_look_ahead() -> None:
+    """A helicopter 40 s out, crossing over the depot at 22 m: the climb-out column (30 m / 3 m/s + 5 s) is clear
+    of it, but once up no escape leaves its NMAC volume in time; the vehicle stays on the pad, not moving at all
+    (the layer's own escape would climb out of it). A UAV as far out is not waited for."""
+    params = ParamStore(all_param_specs())
+    frame = HomeFrame(GeoPoint(47.3977, 8.5456, 488.0))
+    heli = TrafficTrack(TrafficSource.MANNED, 0xA1, "HELI1", (-1100.0, 40.0, -22.0), (27.0, 0.0, 0.0), 0)
+    far_uav = uav(2, heli.pos_home_ned_m, heli.vel_ned_m_s)
+    for track, held in ((heli, True), (far_uav, False)):
+        guard = TrafficGuard(params, 1)
+        pad, climb = (0.0, 0.0, -0.05), (0.0, 0.0, -3.0)
+        out = guard.step(0, 0.004, frame, pad, (0.0, 0.0, 0.0), pad, climb, FlightMode.AUTO_MISSION, False,
+                         _Table([track]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
+        assert (out is not None) is held
+        if held:
+            assert guard.command is not None and guard.command.vel_ned_m_s == (0.0, 0.0, 0.0)
+            assert [t.text for t in guard.texts] == ["Traffic: take-off held for HELI1"]
+    passed = TrafficTrack(TrafficSource.MANNED, 0xA1, "HELI1", (300.0, 40.0, -22.0), (27.0, 0.0, 0.0), 0)
+    guard = TrafficGuard(params, 1)
+    out = guard.step(0, 0.004, frame, (0.0, 0.0, -0.05), (0.0, 0.0, 0.0), (0.0, 0.0, -0.05), (0.0, 0.0, -3.0),
+                     FlightMode.AUTO_MISSION, False, _Table([passed]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
+    assert out is None  # gone past: the take-off goes on
