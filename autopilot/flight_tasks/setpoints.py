@@ -17,7 +17,10 @@ Per step (horizontal plane and vertical axis shaped separately, as PX4 does):
 3. the acceleration moves toward it by at most ``j_max·dt`` (jerk limit);
 4. ``v_sp`` and ``pos_sp`` integrate it (semi-implicit Euler).
 
-``LAND`` targets descend at a fixed speed instead of stopping; the reference is kept at
+``LAND`` targets descend at a fixed speed instead of stopping, over the spot only: while the reference is more
+than :data:`LAND_ALIGN_M` from the spot horizontally (a landing that was pushed aside, by traffic or a detour),
+it holds its height and goes back first, descending again as it comes within half that (so it never flies
+sideways near the ground, nor touches down moving); the reference is kept at
 most :data:`LAND_MAX_LEAD_M` below the vehicle so that, on the ground, the controller asks
 for less-than-hover thrust (what the land detector looks for) without winding up. ``DESCEND``
 (landing without a horizontal position) descends the same way with no position control: the horizontal
@@ -47,6 +50,8 @@ BRAKE_LAG_S = 0.5
 TAU_VEL_S = 0.3
 #: In LAND, the reference stays at most this far below the vehicle (m).
 LAND_MAX_LEAD_M = 1.0
+#: A LAND reference farther than this from the spot horizontally does not descend (m); full descent within half.
+LAND_ALIGN_M = 2.0
 #: For VELOCITY targets, the position reference stays at most this far from the vehicle (m, horizontal and
 #: vertical separately).
 VELOCITY_MAX_LEAD_M = 2.0
@@ -254,7 +259,10 @@ class SetpointGenerator:
         else:
             an_des = ae_des = 0.0
         # vertical (down positive): a braking profile, or a constant descent when landing
-        if kind is TargetKind.LAND or kind is TargetKind.DESCEND:
+        if kind is TargetKind.LAND:  # over the spot: from LAND_ALIGN_M / 2 (full) to LAND_ALIGN_M (none)
+            off = math.hypot(tn - pos[0], te - pos[1])
+            vd_des = target.speed_down_m_s * min(max(2.0 - 2.0 * off / LAND_ALIGN_M, 0.0), 1.0)
+        elif kind is TargetKind.DESCEND:
             vd_des = target.speed_down_m_s
         elif kind is TargetKind.VELOCITY:
             vd_des = max(-target.speed_up_m_s, min(target.speed_down_m_s, vd_cmd))

@@ -8,6 +8,7 @@ import math
 import pytest
 
 from autopilot.flight_tasks.setpoints import (
+    LAND_ALIGN_M,
     LAND_MAX_LEAD_M,
     VELOCITY_MAX_LEAD_M,
     NavTarget,
@@ -91,6 +92,21 @@ def test_land_descends_at_speed_and_stays_near_a_vehicle_on_the_ground() -> None
         gen.update(land, DT, (0.0, 0.0, -5.0 + 0.0))
     assert gen.vel_ned[2] == pytest.approx(0.7, abs=1e-6)
     assert gen.pos_ned[2] == pytest.approx(-5.0 + LAND_MAX_LEAD_M)  # vehicle held at -5: lead clamped
+
+
+def test_land_pushed_aside_goes_back_over_the_spot_before_it_descends() -> None:
+    """A landing resumed 40 m from its spot (traffic pushed it aside): the reference keeps its height until it is
+    back within LAND_ALIGN_M, then descends there; it never flies sideways low over the ground."""
+    gen = SetpointGenerator(LIMITS)
+    gen.reset((40.0, 0.0, -12.0), (0.0, 0.0, 0.0), 0.0)
+    land = NavTarget(TargetKind.LAND, (0.0, 0.0, -12.0), math.nan, 5.0, 3.0, 1.5)
+    lowest_away = -math.inf
+    for _ in range(round(30.0 / DT)):
+        gen.update(land, DT, (gen.pos_ned[0], gen.pos_ned[1], gen.pos_ned[2]))
+        if math.hypot(gen.pos_ned[0], gen.pos_ned[1]) > LAND_ALIGN_M:
+            lowest_away = max(lowest_away, gen.pos_ned[2])
+    assert lowest_away == pytest.approx(-12.0, abs=0.05)  # held its height while away
+    assert math.hypot(gen.pos_ned[0], gen.pos_ned[1]) < 0.1 and gen.pos_ned[2] > -2.0  # then came down on it
 
 
 def test_idle_follows_the_vehicle() -> None:
