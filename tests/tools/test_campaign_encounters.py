@@ -75,7 +75,8 @@ def test_the_flight_record_of_a_fleet_run() -> None:
         {"ok": True, "items_total": 4, "items_reached": 4, "landed": True, "disarmed": True, "reason": ""},
         {"ok": False, "items_total": 4, "items_reached": 2, "landed": False, "disarmed": False,
          "reason": "failsafe during the mission: Failsafe: geofence breached"},
-        {"ok": True, "items_total": 4, "items_reached": 4, "landed": True, "disarmed": True, "reason": ""},
+        {"ok": True, "items_total": 4, "items_reached": 4, "landed": True, "disarmed": True, "reason": "",
+         "fence_exits": 1},  # out of its fence by the truth, with no text (on the ground)
     ]  # fmt: skip
     sim = {
         "vehicle_contacts": 1, "manned_nmacs": 1, "collisions": 2, "vehicles": truth,
@@ -90,6 +91,7 @@ def test_the_flight_record_of_a_fleet_run() -> None:
     assert flight["sim"]["end_reason"] == "COLLISION" and flight["texts"] == ["Failsafe: geofence breached"]
     assert flight["autopilot"] == {
         "items_total": 12, "items_reached": 10, "items_bypassed": 0, "landed": False, "disarmed": False,
+        "fence_breaches": 2,
     }  # fmt: skip
     assert flight["traffic"] == {
         "traffic_contacts": 1, "traffic_min_sep_m": 9.0, "traffic_volume_entries": 2, "traffic_volume_vehicles": 3,

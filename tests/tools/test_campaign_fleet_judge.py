@@ -10,6 +10,7 @@ from types import SimpleNamespace
 
 import pytest
 
+from autopilot.geofence.fence import CircleZone, Geofence
 from mavlink_bridge.contract.vehicle_api import LandedState
 from tools.campaign.fleet_record import record
 from tools.campaign.inproc_flight import DEFAULT_STALL_S, DEFAULT_STUCK_S, _judge, _row, _Vehicle, fly_world
@@ -22,6 +23,7 @@ class _Flight:
         self.commander = SimpleNamespace(armed=False, landed_state=LandedState.ON_GROUND)
         self.progress = SimpleNamespace(reached_seqs=[])
         self.pos_ned = [0.0, 0.0, 0.0]
+        self.navigator = SimpleNamespace(geofence=Geofence())
 
     def set(self, armed: bool, air: bool, reached: int, pos_ned: list[float]) -> None:
         self.commander.armed = armed
@@ -76,6 +78,23 @@ def test_a_vehicle_still_and_without_progress_for_a_minute_is_stuck_and_its_row_
     assert not row["ok"] and row["items_reached"] == 2 and not row["landed"] and row["reason"].startswith("stuck:")
     truth = [{"name": "uav0", "end_reason": "STOPPED", "truth_sha256": "0"}]
     assert record({"sim": {"vehicles": truth}, "vehicles": [row]})["sim"]["end_reason"] == "STUCK"
+
+
+def test_a_vehicle_out_of_its_fence_is_counted_by_the_truth_on_the_ground_too() -> None:
+    """Its pad 100 m north of the world's origin, a 300 m fence about the pad: a vehicle that lands and slides
+    along the ground out of it (the autopilot reports breaches in the air only) is counted once per exit, armed;
+    the same place disarmed is not a breach."""
+    ap = _Flight()
+    ap.navigator.geofence = Geofence((CircleZone((0.0, 0.0), 300.0, True),))
+    v = _Vehicle("uav0", None, ap, None, None)  # type: ignore[arg-type]
+    v.home_ned = (100.0, 0.0, 0.0)
+    track = [(True, 150.0), (True, 350.0), (True, 450.0), (True, 300.0), (True, 500.0), (False, 500.0)]
+    for t, (armed, north_m) in enumerate(track):
+        ap.set(armed, False, 2, [north_m, 0.0, 0.0])
+        _judge(v, float(t), 0, ap.pos_ned, DEFAULT_STALL_S, DEFAULT_STUCK_S)
+    assert v.fence_exits == 2 and _row(v, 1.0, 6.0)["fence_exits"] == 2
+    truth = [{"name": "uav0", "end_reason": "STOPPED", "truth_sha256": "0"}]
+    assert record({"sim": {"vehicles": truth}, "vehicles": [_row(v, 1.0, 6.0)]})["autopilot"]["fence_breaches"] == 1
 
 
 def test_a_vehicle_moving_without_progress_is_stuck_only_after_the_stall_limit() -> None:

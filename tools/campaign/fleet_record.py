@@ -3,7 +3,9 @@ the fleet run's summaries (the fleet run command's ``summary.json`` in ``sitl`` 
 ``inproc``) folded into the record a results row is built from, and the row's traffic columns.
 
 The row's usual columns become fleet-wide: ``items_*`` summed over the vehicles, ``landed``/``disarmed`` true
-only when every vehicle is, ``collisions`` the simulator's, the truth hash the SHA-256 of the vehicles' hashes.
+only when every vehicle is, ``collisions`` the simulator's, ``fence_breaches`` the vehicles that left their fence
+(a geofence failsafe text, or, flown in process, the simulator's truth sampled every second while armed, on the
+ground too: the autopilot reports breaches only in the air), the truth hash the SHA-256 of the vehicles' hashes.
 ``end_reason`` tells how the flight ended: a vehicle's simulator end when one ended otherwise than stopped (a
 crash: ``COLLISION``, ``GROUND_IMPACT``...), else ``STUCK`` when a vehicle was given up as stuck (its reason
 ``stuck: ...``: no mission progress for too long), else ``UNFINISHED`` when a vehicle was still flying when the
@@ -38,7 +40,7 @@ import hashlib
 import math
 from typing import Any
 
-from mavlink_bridge.contract.status_texts import failsafe_in
+from mavlink_bridge.contract.status_texts import failsafe_in, is_geofence_breach
 from tools.gcs.summary import is_stuck
 
 TRAFFIC_COLUMNS = (
@@ -77,11 +79,12 @@ def record(summary: dict[str, Any]) -> dict[str, Any]:
     if not sim or not truth:
         return {"error": "; ".join(summary.get("errors") or ["the simulator wrote no summary"]), "sim": {}}
     hashes = "".join(str(v.get("truth_sha256", "")) for v in truth)
-    texts = []
+    texts, breaches = [], 0
     for row in rows:
         reason = str(row.get("reason") or "")
         if failsafe_in(reason):
             texts.append(failsafe_in(reason))
+        breaches += is_geofence_breach(failsafe_in(reason)) or int(row.get("fence_exits") or 0) > 0
     manned = [float(v["min_manned_distance_m"]) for v in truth if v.get("min_manned_distance_m") is not None]
     separations = [float(v["min_separation_m"]) for v in truth if v.get("min_separation_m") is not None]
     volume_seps = [float(v["min_volume_sep_m"]) for v in truth if v.get("min_volume_sep_m") is not None]
@@ -101,6 +104,7 @@ def record(summary: dict[str, Any]) -> dict[str, Any]:
             "items_bypassed": sum(int(r.get("items_bypassed", 0)) for r in rows),
             "landed": bool(rows) and all(r.get("landed") for r in rows),
             "disarmed": bool(rows) and all(r.get("disarmed") for r in rows),
+            "fence_breaches": breaches,
         },
         "texts": texts,
         "traffic": {

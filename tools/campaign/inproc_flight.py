@@ -107,6 +107,9 @@ class _Vehicle:
     stuck: bool = False
     reason: str = ""
     upload_error: str = ""
+    home_ned: tuple[float, float, float] = (0.0, 0.0, 0.0)  # its pad in the world's NED (its fence is about it)
+    outside: bool = False  # armed and out of its fence at the last judged second (simulator truth)
+    fence_exits: int = 0  # times it went out, armed, in flight or on the ground
 
 
 def vehicle_script(index: int, arm_at_s: float, stagger_s: float) -> list[ScriptStep]:
@@ -185,6 +188,7 @@ def fly_world(
                 **where,
             )
         v = _Vehicle(spec.name, plan, ap, AnswerWriter(spec.sys_id, 1), Encoder(spec.sys_id, 1))
+        v.home_ned = (spec.home_north_m, spec.home_east_m, 0.0)
         api = VehicleAdapter(ap)
         for mission_type, items in ((MissionType.FENCE, plan.fence), (MissionType.MISSION, plan.items)):
             result, why = api.replace_mission(mission_type, [as_on_the_wire(item) for item in items])
@@ -335,6 +339,11 @@ def _judge(v: _Vehicle, t_s: float, end_code: int, pos_ned: list[float], stall_s
     if active := v.progress_at_s == t_s or math.dist(pos_ned, v.still_ned) > STUCK_MOVE_M:
         v.still_ned, v.still_at_s = (pos_ned[0], pos_ned[1], pos_ned[2]), t_s
     v.seen_armed = v.seen_armed or armed
+    home = v.home_ned  # the fence by the truth, on the ground too (the autopilot reports breaches in the air only)
+    rel = (pos_ned[0] - home[0], pos_ned[1] - home[1], pos_ned[2] - home[2])
+    outside = armed and v.autopilot.navigator.geofence.violates(rel)
+    v.fence_exits += outside and not v.outside
+    v.outside = outside
     if end_code != _RUNNING:
         v.reason, v.done = f"the vehicle ended {EndReason(end_code).name} in the simulator", True
     elif v.seen_armed and not armed and on_ground:
@@ -372,6 +381,7 @@ def _row(v: _Vehicle, wall_s: float, end_s: float) -> dict[str, Any]:
         "disarmed": disarmed,
         "reason": reason,
         "stuck": v.stuck,
+        "fence_exits": v.fence_exits,
         "traffic_texts": [t.text for t in v.texts if t.text.startswith("Traffic")],
     }
 

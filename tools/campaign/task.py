@@ -183,7 +183,7 @@ def row(payload: CasePayload, flight: dict[str, Any], wall_s: float) -> dict[str
         "disarmed": bool(ap.get("disarmed", False)),
         "collisions": int(sim.get("collisions", 0)),
         "min_clearance_m": _num(sim.get("min_clearance_m")),
-        "fence_breaches": sum(is_geofence_breach(t) for t in texts),
+        "fence_breaches": int(ap.get("fence_breaches", sum(is_geofence_breach(t) for t in texts))),
         "tracking_pos_rms_m": _num(ap.get("tracking_pos_err_rms_m")),
         "tracking_pos_max_m": _num(ap.get("tracking_pos_err_max_m")),
         "tracking_att_rms_deg": _num(ap.get("tracking_att_err_rms_deg")),
