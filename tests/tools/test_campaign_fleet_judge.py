@@ -5,15 +5,19 @@ case that reached 28 of 28 items with every vehicle landed yet scored completion
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
 
 from autopilot.geofence.fence import CircleZone, Geofence
+from mavlink_bridge.contract.frames import GeoPoint
 from mavlink_bridge.contract.vehicle_api import LandedState
 from tools.campaign.fleet_record import record
 from tools.campaign.inproc_flight import DEFAULT_STALL_S, DEFAULT_STUCK_S, _judge, _row, _Vehicle, fly_world
+from tools.gcs import fly as gcs_fly
+from tools.gcs.summary import FLEET_STALL_S, FLEET_STILL_S
 
 
 class _Flight:
@@ -57,7 +61,7 @@ def _fly(hold_s: float, moving: bool = False) -> tuple[_Vehicle, _Flight, float]
             ap.set(True, True, 3, [0.0, 30.0, -15.0])
         if t >= 30 + hold_s:
             ap.set(False, False, 4, [0.0, 30.0, 0.0])
-        if _judge(v, float(t), 0, ap.pos_ned, DEFAULT_STALL_S, DEFAULT_STUCK_S):
+        if _judge(v, float(t), 0, ap.pos_ned):
             return v, ap, float(t)
     raise AssertionError("never judged")
 
@@ -91,7 +95,7 @@ def test_a_vehicle_out_of_its_fence_is_counted_by_the_truth_on_the_ground_too() 
     track = [(True, 150.0), (True, 350.0), (True, 450.0), (True, 300.0), (True, 500.0), (False, 500.0)]
     for t, (armed, north_m) in enumerate(track):
         ap.set(armed, False, 2, [north_m, 0.0, 0.0])
-        _judge(v, float(t), 0, ap.pos_ned, DEFAULT_STALL_S, DEFAULT_STUCK_S)
+        _judge(v, float(t), 0, ap.pos_ned)
     assert v.fence_exits == 2 and _row(v, 1.0, 6.0)["fence_exits"] == 2
     truth = [{"name": "uav0", "end_reason": "STOPPED", "truth_sha256": "0"}]
     assert record({"sim": {"vehicles": truth}, "vehicles": [_row(v, 1.0, 6.0)]})["autopilot"]["fence_breaches"] == 1
@@ -121,3 +125,22 @@ def test_a_fleet_case_with_a_vehicle_held_past_the_limit_ends_stuck(tmp_path: Pa
     assert out["sim"]["end_reason"] == "STUCK" and out["sim"]["sim_time_s"] < 45.0
     assert rows["uav0"]["ok"] and rows["uav1"]["stuck"] and not rows["uav1"]["landed"]
     assert out["traffic"]["traffic_completion"] == 0.5
+
+
+def test_the_ground_station_gives_a_still_vehicle_up_by_the_same_rule() -> None:
+    """The fleet ground station judges with the campaign's ProgressWatch: a vehicle hovering still (its reported
+    position) with no mission progress is stuck after a minute, not after the 300 s stall; one moving is not."""
+    for moving in (False, True):
+        status = SimpleNamespace(items_reached=[0, 1], landed_state=LandedState.IN_AIR, armed=True, sim_time_s=0.0)
+        client = SimpleNamespace(target_system=1, telemetry=lambda s=status: s, pump=lambda _s: None)
+        plan = SimpleNamespace(home=GeoPoint(47.3977, 8.5456, 488.0), items=[0, 1, 2, 3])
+        v = gcs_fly._Vehicle(plan, client)  # type: ignore[arg-type]
+        link = SimpleNamespace(last_heard_s={1: math.inf})
+        for t in range(400):
+            status.sim_time_s = float(t)
+            v.geo = (47.3977 + (1e-4 * t if moving else 0.0), 8.5456, 508.0)
+            gcs_fly._judge(v, link, FLEET_STALL_S)  # type: ignore[arg-type]
+            if v.done:
+                break
+        assert v.done and v.reason.startswith("stuck:")
+        assert (t, "no motion" in v.reason) == ((FLEET_STALL_S + 1, False) if moving else (FLEET_STILL_S + 1, True))

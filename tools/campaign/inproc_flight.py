@@ -20,13 +20,13 @@ vehicle's own merged in, as ``autopilot --world-failures [--fleet-vehicle]`` doe
 - a fleet world (an encounter case, ``python -m tools.campaign.inproc_flight``): vehicle i is armed at
   ``arm_at_s + i * stagger_s`` and starts its mission 0.5 s later, and each vehicle is judged as the fleet ground
   station judges it (``tools.gcs.fly``): done when landed and disarmed after flying, or when it crashed; stuck
-  (``stuck: ...``) once armed, after ``stuck_s`` of sim time with no mission progress (item reached, landed
-  state, arming) and no motion (it stayed within ``STUCK_MOVE_M``: time enough to hold and resume), or after
-  ``stall_s`` without progress though moving; ok when its mission was completed, it landed and disarmed, and no
-  failsafe fired. The run ends when every vehicle is done, when one is stuck (the others are then "still
-  flying": a verdict is never taken back by a later recovery), or at ``sim_time_s``; the record has the shape
-  ``fleet_record.record`` reads (``sim``: the fleet ``sim_summary``; ``vehicles``: one row per vehicle, ``stuck``
-  among its keys).
+  (``stuck: ...``) by the ground station's rule (``tools.gcs.summary.ProgressWatch``): once armed, after
+  ``stuck_s`` of sim time with no mission progress (item reached, landed state, arming) and no motion (it stayed
+  within ``STILL_MOVE_M``: time enough to hold and resume), or after ``stall_s`` without progress though moving;
+  ok when its mission was completed, it landed and disarmed, and no failsafe fired. The run ends when every
+  vehicle is done, when one is stuck (the others are then "still flying": a verdict is never taken back by a
+  later recovery), or at ``sim_time_s``; the record has the shape ``fleet_record.record`` reads (``sim``: the
+  fleet ``sim_summary``; ``vehicles``: one row per vehicle, ``stuck`` among its keys).
 
 A case is a function of its world, parameters and seed: re-flying it gives the same truth hashes
 (``quadsitl campaign replay``). The wall-clock deadline is checked every simulated second.
@@ -73,13 +73,12 @@ from sim.world import load_world
 from tools.campaign.cases import MISSION_START_DELAY_S
 from tools.campaign.fleet_record import record
 from tools.gcs import failsafe_reason
-from tools.gcs.summary import FLEET_STALL_S, stuck_reason
+from tools.gcs.summary import FLEET_STALL_S, FLEET_STILL_S, ProgressWatch
 
 CONTROL_HZ = 250
 DEFAULT_ARM_AT_S = 3.0
 DEFAULT_STALL_S = FLEET_STALL_S  # as the fleet ground station's --stall-s
-DEFAULT_STUCK_S = 60.0  # no progress and no motion for this long: stuck
-STUCK_MOVE_M = 2.0  # a vehicle that stays within this of where it was is not moving
+DEFAULT_STUCK_S = FLEET_STILL_S  # no progress and no motion for this long: stuck
 DEFAULT_SIM_TIME_S = 900.0
 #: The world :func:`warm` flies (the shipped delivery mission).
 WARM_WORLD = Path(__file__).resolve().parent.parent.parent / "missions" / "delivery.yaml"
@@ -99,10 +98,7 @@ class _Vehicle:
     assembler: FrameAssembler = field(default_factory=lambda: FrameAssembler())
     texts: list[Any] = field(default_factory=list)
     seen_armed: bool = False
-    progress: tuple[int, bool, bool] = (0, False, False)
-    progress_at_s: float = 0.0
-    still_ned: tuple[float, float, float] = (0.0, 0.0, 0.0)  # where it was when it last moved or progressed
-    still_at_s: float = 0.0
+    watch: ProgressWatch = field(default_factory=ProgressWatch)  # the ground station's stuck rule
     done: bool = False
     stuck: bool = False
     reason: str = ""
@@ -189,6 +185,7 @@ def fly_world(
             )
         v = _Vehicle(spec.name, plan, ap, AnswerWriter(spec.sys_id, 1), Encoder(spec.sys_id, 1))
         v.home_ned = (spec.home_north_m, spec.home_east_m, 0.0)
+        v.watch = ProgressWatch(stall_s, stuck_s)
         api = VehicleAdapter(ap)
         for mission_type, items in ((MissionType.FENCE, plan.fence), (MissionType.MISSION, plan.items)):
             result, why = api.replace_mission(mission_type, [as_on_the_wire(item) for item in items])
@@ -219,9 +216,7 @@ def fly_world(
         if sim.steps % CONTROL_HZ == 0:
             if stall_s is not None:
                 pos = sim.pos_ned.tolist()
-                verdicts = [
-                    _judge(v, sim.t_s, int(sim.end_reason[i]), pos[i], stall_s, stuck_s) for i, v in enumerate(vehicles)
-                ]
+                verdicts = [_judge(v, sim.t_s, int(sim.end_reason[i]), pos[i]) for i, v in enumerate(vehicles)]
                 if all(verdicts):  # every vehicle judged every second (no short-circuit)
                     end = EndReason.COMPLETED
                     break
@@ -324,36 +319,28 @@ def warm() -> None:
     fly_world(WARM_WORLD, script=vehicle_script(0, 1.0, 0.0), sim_time_s=8.0, stall_s=None)
 
 
-def _judge(v: _Vehicle, t_s: float, end_code: int, pos_ned: list[float], stall_s: float, stuck_s: float) -> bool:
+def _judge(v: _Vehicle, t_s: float, end_code: int, pos_ned: list[float]) -> bool:
     """Update vehicle ``v``'s verdict at sim time ``t_s`` (its simulator end code, its true position); True once it
-    is done (``v.stuck`` when given up as stuck)."""
+    is done (``v.stuck`` when given up as stuck, by its :class:`ProgressWatch`)."""
     if v.done:
         return True
     commander = v.autopilot.commander
     armed = commander.armed
     on_ground = commander.landed_state is LandedState.ON_GROUND
-    reached = len(v.autopilot.progress.reached_seqs)
-    progress = (reached, on_ground, armed)
-    if progress != v.progress:
-        v.progress, v.progress_at_s = progress, t_s
-    if active := v.progress_at_s == t_s or math.dist(pos_ned, v.still_ned) > STUCK_MOVE_M:
-        v.still_ned, v.still_at_s = (pos_ned[0], pos_ned[1], pos_ned[2]), t_s
+    progress = (len(v.autopilot.progress.reached_seqs), on_ground, armed)
     v.seen_armed = v.seen_armed or armed
     home = v.home_ned  # the fence by the truth, on the ground too (the autopilot reports breaches in the air only)
     rel = (pos_ned[0] - home[0], pos_ned[1] - home[1], pos_ned[2] - home[2])
     outside = armed and v.autopilot.navigator.geofence.violates(rel)
     v.fence_exits += outside and not v.outside
     v.outside = outside
+    stuck = v.watch.stuck(t_s, progress, pos_ned if v.seen_armed else None)
     if end_code != _RUNNING:
         v.reason, v.done = f"the vehicle ended {EndReason(end_code).name} in the simulator", True
     elif v.seen_armed and not armed and on_ground:
         v.done = True
-    elif v.seen_armed and not active and t_s - v.still_at_s > stuck_s:
-        why = f"no mission progress and no motion (within {STUCK_MOVE_M:g} m) for {stuck_s:g} s of sim time"
-        v.reason, v.done, v.stuck = stuck_reason(why), True, True
-    elif t_s - v.progress_at_s > stall_s:
-        why = f"no mission progress for {stall_s:g} s of sim time (moving, but not along its mission)"
-        v.reason, v.done, v.stuck = stuck_reason(why), True, True
+    elif stuck:
+        v.reason, v.done, v.stuck = stuck, True, True
     return v.done
 
 

@@ -99,7 +99,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--stall-s",
         type=float,
         default=None,
-        help="sim seconds without progress that fail a vehicle (default: 120 for a fleet world, off for one vehicle)",
+        help="sim seconds without mission progress that fail a vehicle, a minute if it is not moving either "
+        "(default: 300 for a fleet world, off for one vehicle)",
     )
     p = sub.add_parser("param", help="get, set or list parameters")
     psub = p.add_subparsers(dest="param_cmd", required=True)

@@ -42,7 +42,14 @@ from mavlink_bridge.gcs_client.client import (
 from mavlink_bridge.gcs_client.fleet_link import FleetLink
 from tools.gcs.link import GcsScriptError, say, vehicle_clients
 from tools.gcs.progress import MissionBars, flight_state_text, sim_time_text
-from tools.gcs.summary import FLEET_STALL_S, FleetFlight, VehicleFlight, fly_summary, mission_done, stuck_reason
+from tools.gcs.summary import (
+    FLEET_STALL_S,
+    FleetFlight,
+    ProgressWatch,
+    VehicleFlight,
+    fly_summary,
+    mission_done,
+)
 
 #: Wall seconds without any message from a flying vehicle before the ground station gives it up.
 LOST_AFTER_S = 10.0
@@ -75,8 +82,8 @@ class _Vehicle:
     done: bool = False
     t_done: float = 0.0
     status: VehicleStatus | None = None
-    progress: tuple[int, int, bool] = (-1, -1, False)  # (items reached, landed state, armed) last seen changing
-    progress_at_sim_s: float | None = None
+    watch: ProgressWatch | None = None  # the stuck rule (a fleet world's; None: not judged)
+    frame: LocalNedFrame | None = None  # about its home: the positions the stuck rule compares
     geo: tuple[float, float, float] | None = None  # latest reported lat_deg, lon_deg, alt AMSL (m)
 
 
@@ -209,13 +216,21 @@ def _start(v: _Vehicle, timeout_s: float) -> None:
 
 
 def _judge(v: _Vehicle, link: FleetLink, stall_s: float | None) -> None:
-    """Done when landed and disarmed (mission complete or not), when the vehicle went silent, or when its flight
-    made no progress (item reached, landed state, arming) for ``stall_s`` of sim time (None: never)."""
+    """Done when landed and disarmed (mission complete or not), when the vehicle went silent, or when it is stuck
+    by :class:`ProgressWatch` (``stall_s`` of sim time without mission progress, or a minute without progress and
+    without motion once armed; ``stall_s`` None: never)."""
     status = v.client.telemetry()
     progress = (len(status.items_reached), int(status.landed_state), status.armed)
-    if progress != v.progress or v.progress_at_sim_s is None:
-        v.progress, v.progress_at_sim_s = progress, status.sim_time_s
     v.seen_armed = v.seen_armed or status.armed  # armed in telemetry at least once (a fast sim may finish first)
+    stuck = ""
+    if stall_s is not None and status.sim_time_s is not None:
+        if v.watch is None:
+            v.watch = ProgressWatch(stall_s)
+        pos = None
+        if v.seen_armed and v.geo is not None:
+            v.frame = v.frame or LocalNedFrame(v.plan.home)
+            pos = v.frame.ned_from_geodetic(*v.geo)
+        stuck = v.watch.stuck(status.sim_time_s, progress, pos)
     total = len(v.plan.items)
     landed_disarmed = not status.armed and status.landed_state is LandedState.ON_GROUND
     if landed_disarmed and mission_done(status, total):
@@ -227,12 +242,8 @@ def _judge(v: _Vehicle, link: FleetLink, stall_s: float | None) -> None:
         v.done = True
     elif time.monotonic() - link.last_heard_s.get(v.client.target_system, -math.inf) > LOST_AFTER_S:
         v.reason, v.done = f"no telemetry from the vehicle for {LOST_AFTER_S:g} s (its autopilot is gone?)", True
-    elif (
-        stall_s is not None
-        and status.sim_time_s is not None
-        and status.sim_time_s - (v.progress_at_sim_s or 0.0) > stall_s
-    ):
-        v.reason, v.done = stuck_reason(f"no mission progress for {stall_s:g} s of sim time (crashed?)"), True
+    elif stuck:
+        v.reason, v.done = stuck, True
     if v.done:
         v.t_done = time.monotonic()
 

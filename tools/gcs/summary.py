@@ -6,6 +6,7 @@ rules that judge a vehicle's flight from its telemetry and status texts.
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 
@@ -23,6 +24,41 @@ STUCK_PREFIX = "stuck:"
 #: one on a 300 m leg, reaches its next item well after 120 s (7 of the 8 encounter cases judged STUCK at 120 s
 #: completed every vehicle when given 400 s, the last at 333 s of sim; 2026-12-02).
 FLEET_STALL_S = 300.0
+#: Sim seconds without mission progress and without motion (within STILL_MOVE_M of where it last moved or
+#: progressed) that give a vehicle up as stuck sooner: time enough to hold for traffic and resume.
+FLEET_STILL_S = 60.0
+STILL_MOVE_M = 2.0
+
+
+@dataclass(slots=True)
+class ProgressWatch:
+    """Whether a vehicle's flight still progresses (the one rule of the fleet ground station and the campaign's
+    in-process judge): stuck after ``stall_s`` of sim time without mission progress (an item reached, a change of
+    landed state or arming; None: never), or after ``still_s`` without progress and without motion."""
+
+    stall_s: float | None = FLEET_STALL_S
+    still_s: float = FLEET_STILL_S
+    progress: tuple[object, ...] = ()
+    progress_at_s: float = 0.0
+    still_ned: tuple[float, float, float] | None = None  # where it was when it last moved or progressed
+    still_at_s: float = 0.0
+
+    def stuck(self, t_s: float, progress: tuple[object, ...], pos_ned_m: Sequence[float] | None) -> str:
+        """Update at sim time ``t_s`` with the vehicle's progress and position (NED, m; None: unknown, only the
+        stall rule applies); the stuck reason (``stuck: ...``) once it is stuck, else ''."""
+        if progress != self.progress:
+            self.progress, self.progress_at_s = progress, t_s
+        pos = None if pos_ned_m is None else (float(pos_ned_m[0]), float(pos_ned_m[1]), float(pos_ned_m[2]))
+        moved = pos is not None and (self.still_ned is None or math.dist(pos, self.still_ned) > STILL_MOVE_M)
+        if self.progress_at_s == t_s or moved:
+            self.still_ned, self.still_at_s = pos, t_s
+        if pos is not None and t_s - self.still_at_s > self.still_s:
+            why = f"no mission progress and no motion (within {STILL_MOVE_M:g} m) for {self.still_s:g} s of sim time"
+            return stuck_reason(why)
+        if self.stall_s is not None and t_s - self.progress_at_s > self.stall_s:
+            why = f"no mission progress for {self.stall_s:g} s of sim time (moving, not along its mission)"
+            return stuck_reason(why)
+        return ""
 
 
 def stuck_reason(why: str) -> str:
