@@ -60,6 +60,13 @@ COLUMN_MARGIN_S = 5.0
 LANDING_WINDOW_S = 5.0
 #: The climb-out column of a departure reaches this high above the pad (m): above a delivery drone's cruise.
 DEPARTURE_COLUMN_M = 30.0
+#: The command's ``escape`` while the departure hold is in force.
+TAKEOFF_HELD = "take-off held"
+#: A held take-off that had left the pad goes back down at this speed (m/s): onto the pad while the commander's
+#: take-off has not left it (no land detection then), else to this height (m) over it (a touchdown in the air
+#: would be a landing, and disarm).
+HELD_AGL_M = 0.5
+HELD_DESCENT_M_S = 0.5
 
 _PHASES = {
     FlightMode.AUTO_TAKEOFF: Phase.TAKEOFF,
@@ -83,16 +90,18 @@ def phase_of(mode: FlightMode, landing: bool, pos_home_ned_m: Vec3, pref_ned_m_s
 
 
 def column_conflict(track: TrafficTrack, t_us: int, pos_home_ned_m: Vec3, top_down_m: float, window_s: float,
-                    params: TrafficParams) -> float | None:  # fmt: skip
-    """Seconds until ``track`` (flying straight) enters the column above (or below) the vehicle, from the ground up
-    to ``top_down_m`` (NED about home) grown by its class's volume, within ``window_s``; None if it does not. The
-    column is one cylinder about its middle, so the closest-approach prediction (:func:`predict_approach`) says."""
+                    params: TrafficParams, level: bool = False) -> float | None:  # fmt: skip
+    """Seconds until ``track`` (flying straight; ``level``: at its altitude) enters the column above (or below) the
+    vehicle, from the ground up to ``top_down_m`` (NED about home) grown by its class's volume, within
+    ``window_s``; None if it does not. The column is one cylinder about its middle, so the closest-approach
+    prediction (:func:`predict_approach`) says."""
     volume = (params.manned if track.source is TrafficSource.MANNED else params.uav).grown(params.margin)
     middle_down_m = 0.5 * top_down_m
     p = track.position_at(t_us)
     rel = (p[0] - pos_home_ned_m[0], p[1] - pos_home_ned_m[1], p[2] - middle_down_m)
     column = SeparationVolume(volume.hor_m, abs(middle_down_m) + volume.ver_m)
-    approach = predict_approach(rel, track.vel_ned_m_s, window_s, column)
+    v = track.vel_ned_m_s
+    approach = predict_approach(rel, (v[0], v[1], 0.0) if level else v, window_s, column)
     return approach.loss_in_s if approach.conflict else None
 
 
@@ -109,12 +118,18 @@ class TrafficGuard:
         self._vel: list[float] = [0.0, 0.0, 0.0]
         self._limits_version: object = None
         self.fences: tuple[FenceZoneLike, ...] = ()  # the geofence's zones about home (the navigator's link sets them)
+        self.taking_off = False  # the commander's take-off, not yet off the pad (the link sets it every step)
         self._limits: ReactiveLimits | None = None
         self._said: tuple[str, bool] | None = None
 
     @property
     def engaged(self) -> bool:
         return self._engaged_us >= 0
+
+    @property
+    def holding_takeoff(self) -> bool:
+        """The departure hold is in force (the vehicle waits on its pad)."""
+        return self.command is not None and self.command.escape == TAKEOFF_HELD
 
     def limits(self) -> ReactiveLimits:
         """What the vehicle may fly: MPC_* speeds and acceleration, CA_MIN_AGL_M, CA_CEILING_M / GF_MAX_VER_DIST,
@@ -171,6 +186,8 @@ class TrafficGuard:
             pref[k] = ref_vel_ned_m_s[k] + pull
         pos = frame.home_from_origin(pos_ned_m)
         phase = phase_of(mode, landing, pos, (pref[0], pref[1], pref[2]))
+        if phase is not Phase.MANUAL and not landing and self.holding_takeoff and -pos[2] < GROUND_LOCK_AGL_M:
+            phase = Phase.TAKEOFF  # a held take-off stays one (its reference, stopped, no longer climbs)
         if phase is Phase.MANUAL or (phase is Phase.LAND and -pos[2] < GROUND_LOCK_AGL_M):
             self.release()  # manual: warn only; a landing this low is committed (the others give way to it)
             return
@@ -180,8 +197,10 @@ class TrafficGuard:
             pref[2] = 0.0  # hold the height: no climb out of the pad, no descent into the column
         command = self.layer.solve(t_us, pos, vel_ned_m_s, (pref[0], pref[1], pref[2]), tracks, params, limits,
                                    phase, version)  # fmt: skip
-        if held is not None and phase is Phase.TAKEOFF:  # on the pad: stay (no escape climbs out of it)
-            command = ReactiveCommand((0.0, 0.0, 0.0), held, False, "take-off held")
+        if held is not None and phase is Phase.TAKEOFF:  # on the pad: stay (no escape climbs out of it), low
+            floor_m = 0.0 if self.taking_off else HELD_AGL_M  # back onto it only where no landing can be detected
+            down = HELD_DESCENT_M_S if self.taking_off else min(max(-pos[2] - floor_m, 0.0), HELD_DESCENT_M_S)
+            command = ReactiveCommand((0.0, 0.0, down), held, False, TAKEOFF_HELD)
         elif command is None and held is not None:
             command = ReactiveCommand((pref[0], pref[1], 0.0), held, False, "landing held")
         if command is None:
@@ -216,8 +235,8 @@ class TrafficGuard:
         about to climb out of (from the pad) or descend into, before it would be through (a manned aircraft: within
         the look-ahead, from the pad); None when clear."""
         manned_window = 0.0
-        if phase is Phase.TAKEOFF and pref[2] < 0.0 and -pos[2] < GROUND_LOCK_AGL_M:
-            top, speed = -DEPARTURE_COLUMN_M, max(-pref[2], 0.3)
+        if phase is Phase.TAKEOFF and (pref[2] < 0.0 or self.holding_takeoff) and -pos[2] < GROUND_LOCK_AGL_M:
+            top, speed = -DEPARTURE_COLUMN_M, max(self.params.get("MPC_TKO_SPEED"), 0.3)  # the take-off's climb
             window = DEPARTURE_COLUMN_M / speed + COLUMN_MARGIN_S
             manned_window = max(window, params.horizon_s)
         elif phase is Phase.LAND and pref[2] > 0.0 and -pos[2] >= GROUND_LOCK_AGL_M:
@@ -225,7 +244,14 @@ class TrafficGuard:
         else:
             return None
         for track in tracks:
-            look_s = manned_window if track.source is TrafficSource.MANNED and manned_window else window
-            if not parked(track, t_us) and column_conflict(track, t_us, pos, top, look_s, params) is not None:
+            if parked(track, t_us):
+                continue
+            if track.source is TrafficSource.MANNED and manned_window:  # its climb rate is noisy ADS-B: level too
+                if (
+                    column_conflict(track, t_us, pos, top, manned_window, params) is not None
+                    or column_conflict(track, t_us, pos, top, manned_window, params, level=True) is not None
+                ):
+                    return track.name
+            elif column_conflict(track, t_us, pos, top, window, params) is not None:
                 return track.name
         return None

@@ -11,7 +11,13 @@ import pytest
 from scipy.optimize import minimize
 
 from autopilot.navigation.home_frame import HomeFrame
-from autopilot.navigation.traffic_guard import TrafficGuard, column_conflict, phase_of
+from autopilot.navigation.traffic_guard import (
+    HELD_AGL_M,
+    HELD_DESCENT_M_S,
+    TrafficGuard,
+    column_conflict,
+    phase_of,
+)
 from autopilot.param_schema import all_param_specs
 from autopilot.parameters.store import ParamStore
 from autopilot.traffic.orca_kernel import closest_admissible
@@ -270,9 +276,9 @@ def test_a_landing_below_the_ground_lock_is_committed(agl_m: float, engaged: boo
 
 
 def test_a_take_off_waits_on_the_pad_for_a_manned_aircraft_within_the_look_ahead() -> None:
-    """A helicopter 40 s out, crossing over the depot at 22 m: the climb-out column (30 m / 3 m/s + 5 s) is clear
-    of it, but once up no escape leaves its NMAC volume in time; the vehicle stays on the pad, not moving at all
-    (the layer's own escape would climb out of it). A UAV as far out is not waited for."""
+    """A helicopter 40 s out, crossing over the depot at 22 m: the climb-out column (30 m at MPC_TKO_SPEED + 5 s)
+    is clear of it, but once up no escape leaves its NMAC volume in time; the vehicle stays on the pad, not moving
+    at all (the layer's own escape would climb out of it). A UAV as far out is not waited for."""
     params = ParamStore(all_param_specs())
     frame = HomeFrame(GeoPoint(47.3977, 8.5456, 488.0))
     heli = TrafficTrack(TrafficSource.MANNED, 0xA1, "HELI1", (-1100.0, 40.0, -22.0), (27.0, 0.0, 0.0), 0)
@@ -285,7 +291,32 @@ def test_a_take_off_waits_on_the_pad_for_a_manned_aircraft_within_the_look_ahead
         assert (out is not None) is held
         if held:
             assert guard.command is not None and guard.command.vel_ned_m_s == (0.0, 0.0, 0.0)
+            # held, its reference stops (no longer climbs, may even sag): the hold stays, said once (it used to
+            # flip to "avoiding" at every solve whose reference did not climb, and let the vehicle creep up)
+            for k, ref_vz in enumerate((0.0, 0.01, -0.01, 0.0) * 5):
+                t_us = (k + 1) * 20_000
+                out = guard.step(t_us, 0.004, frame, pad, (0.0, 0.0, 0.0), pad, (0.0, 0.0, ref_vz),
+                                 FlightMode.AUTO_MISSION, False, _Table([track]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
+                assert out is not None and guard.holding_takeoff
+                assert guard.command is not None and guard.command.vel_ned_m_s == (0.0, 0.0, 0.0)
             assert [t.text for t in guard.texts] == ["Traffic: take-off held for HELI1"]
+    # its ADS-B climb rate is noise (3 m/s up would carry it over the column): a level flight is predicted too
+    noisy = TrafficTrack(TrafficSource.MANNED, 0xA1, "HELI1", (-1100.0, 40.0, -22.0), (27.0, 0.0, -3.0), 0)
+    guard = TrafficGuard(params, 1)
+    # and a vehicle that had left the pad when the hold came goes back down to HELD_AGL_M, not onto the pad
+    up = (0.0, 0.0, -1.6)
+    out = guard.step(0, 0.004, frame, up, (0.0, 0.0, 0.0), up, (0.0, 0.0, -0.5), FlightMode.AUTO_MISSION, False,
+                     _Table([noisy]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
+    assert out is not None and guard.holding_takeoff and guard.command is not None
+    assert guard.command.vel_ned_m_s == (0.0, 0.0, HELD_DESCENT_M_S)
+    low = (0.0, 0.0, -HELD_AGL_M)
+    guard.step(20_000, 0.004, frame, low, (0.0, 0.0, 0.0), low, (0.0, 0.0, 0.0), FlightMode.AUTO_MISSION, False,
+               _Table([noisy]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
+    assert guard.holding_takeoff and guard.command is not None and guard.command.vel_ned_m_s == (0.0, 0.0, 0.0)
+    guard.taking_off = True  # the commander's take-off has not left the pad: it sits back on it (no land detection)
+    guard.step(40_000, 0.004, frame, low, (0.0, 0.0, 0.0), low, (0.0, 0.0, 0.0), FlightMode.AUTO_MISSION, False,
+               _Table([noisy]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
+    assert guard.command is not None and guard.command.vel_ned_m_s == (0.0, 0.0, HELD_DESCENT_M_S)
     passed = TrafficTrack(TrafficSource.MANNED, 0xA1, "HELI1", (300.0, 40.0, -22.0), (27.0, 0.0, 0.0), 0)
     guard = TrafficGuard(params, 1)
     out = guard.step(0, 0.004, frame, (0.0, 0.0, -0.05), (0.0, 0.0, 0.0), (0.0, 0.0, -0.05), (0.0, 0.0, -3.0),
