@@ -50,6 +50,8 @@ CLEAR_SLACK_M_S = 1.0
 MIN_ENGAGED_US = 1_000_000
 #: An avoidance shorter than this (µs) ends without a text, and the next one says its start only if it changed.
 QUIET_US = 5_000_000
+#: A change of the kind of avoidance (reactive, fallback, take-off held) is said at most this often (µs).
+SAY_KIND_US = 1_000_000
 #: The preferred velocity pulls toward the reference position with this gain (1/s), at most this fast (m/s).
 PULL_GAIN_1_S = 1.0
 PULL_MAX_M_S = 3.0
@@ -120,7 +122,8 @@ class TrafficGuard:
         self.fences: tuple[FenceZoneLike, ...] = ()  # the geofence's zones about home (the navigator's link sets them)
         self.taking_off = False  # the commander's take-off, not yet off the pad (the link sets it every step)
         self._limits: ReactiveLimits | None = None
-        self._said: tuple[str, bool] | None = None
+        self._said: tuple[str, bool, bool] | None = None
+        self._said_us = 0
 
     @property
     def engaged(self) -> bool:
@@ -215,8 +218,11 @@ class TrafficGuard:
         self.command = command
         on_pad = -pos[2] < GROUND_LOCK_AGL_M and command.vel_ned_m_s[2] >= 0.0 and phase is not Phase.LAND
         said = (command.threat, command.fallback and not on_pad, on_pad)
-        if said != self._said:
-            self._said = said
+        # a new text when the kind of avoidance changes, at most once a second; another track binding (in a crowd
+        # the binding plane changes at every solve) at most once per QUIET_US
+        wait_us = SAY_KIND_US if self._said is None or said[1:] != self._said[1:] else QUIET_US
+        if said != self._said and (self._said is None or t_us - self._said_us >= wait_us):
+            self._said, self._said_us = said, t_us
             if on_pad:
                 self.texts.append(StatusText(Severity.NOTICE, f"Traffic: take-off held for {command.threat}"))
             elif command.fallback:

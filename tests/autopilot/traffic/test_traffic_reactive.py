@@ -322,3 +322,18 @@ def test_a_take_off_waits_on_the_pad_for_a_manned_aircraft_within_the_look_ahead
     out = guard.step(0, 0.004, frame, (0.0, 0.0, -0.05), (0.0, 0.0, 0.0), (0.0, 0.0, -0.05), (0.0, 0.0, -3.0),
                      FlightMode.AUTO_MISSION, False, _Table([passed]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
     assert out is None  # gone past: the take-off goes on
+
+
+def test_a_crowd_does_not_flood_the_link_with_texts() -> None:
+    """Among several tracks the binding plane changes at every solve (50 Hz): a text names a new binding track at
+    most every 5 s, a change of kind (reactive, fallback) at most every second; it used to be one text a solve."""
+    guard = TrafficGuard(ParamStore(all_param_specs()), 1)
+    frame = HomeFrame(GeoPoint(47.3977, 8.5456, 488.0))
+    own, vel = (0.0, 0.0, -15.0), (0.0, 5.0, 0.0)
+    a = uav(2, (0.0, 30.0, -15.0), (0.0, -5.0, 0.0))
+    b = uav(3, (10.0, 30.0, -15.0), (-1.0, -5.0, 0.0))
+    for k in range(250):  # 5 s of solves, the two tracks swapping their order in the table (which binds varies)
+        table = _Table([a, b] if k % 2 else [b, a])
+        guard.step(k * 20_000, 0.02, frame, own, vel, own, vel, FlightMode.AUTO_MISSION, False, table, PARAMS)  # type: ignore[arg-type]
+    said = [t.text for t in guard.texts if t.text.startswith("Traffic:")]
+    assert 1 <= len(said) <= 6, said
