@@ -242,7 +242,7 @@ class TrafficGuard:
         the look-ahead, from the pad); None when clear."""
         manned_window = 0.0
         if phase is Phase.TAKEOFF and (pref[2] < 0.0 or self.holding_takeoff) and -pos[2] < GROUND_LOCK_AGL_M:
-            top, speed = -DEPARTURE_COLUMN_M, max(self.params.get("MPC_TKO_SPEED"), 0.3)  # the take-off's climb
+            top, speed = -DEPARTURE_COLUMN_M, max(-pref[2], 0.3)  # held, the reference stops: the longest window
             window = DEPARTURE_COLUMN_M / speed + COLUMN_MARGIN_S
             manned_window = max(window, params.horizon_s)
         elif phase is Phase.LAND and pref[2] > 0.0 and -pos[2] >= GROUND_LOCK_AGL_M:
