@@ -17,7 +17,7 @@ from mavlink_bridge.contract.vehicle_api import LandedState
 from tools.campaign.fleet_record import record
 from tools.campaign.inproc_flight import DEFAULT_STALL_S, DEFAULT_STUCK_S, _judge, _row, _Vehicle, fly_world
 from tools.gcs import fly as gcs_fly
-from tools.gcs.summary import FLEET_STALL_S, FLEET_STILL_S
+from tools.gcs.summary import FLEET_STALL_S, FLEET_STILL_S, ProgressWatch
 
 
 class _Flight:
@@ -144,3 +144,14 @@ def test_the_ground_station_gives_a_still_vehicle_up_by_the_same_rule() -> None:
                 break
         assert v.done and v.reason.startswith("stuck:")
         assert (t, "no motion" in v.reason) == ((FLEET_STALL_S + 1, False) if moving else (FLEET_STILL_S + 1, True))
+
+
+def test_a_vehicle_held_on_its_pad_waits_without_being_stuck() -> None:
+    """Armed and holding its take-off for traffic (no progress, not moving, on the pad) for 200 s: not stuck (the
+    60 s still rule is for vehicles in the air); at 300 s without progress the stall rule gives it up."""
+    watch = ProgressWatch()
+    verdicts = [watch.stuck(float(t), (0, False, True), (0.0, 0.0, -0.2)) for t in range(400)]
+    assert not any(verdicts[: int(FLEET_STALL_S) + 1]) and verdicts[int(FLEET_STALL_S) + 1].startswith("stuck:")
+    watch = ProgressWatch()  # the same still 5 m up: stuck after a minute
+    verdicts = [watch.stuck(float(t), (0, False, True), (0.0, 0.0, -5.0)) for t in range(100)]
+    assert verdicts.index(next(v for v in verdicts if v)) == FLEET_STILL_S + 1

@@ -28,13 +28,16 @@ FLEET_STALL_S = 300.0
 #: progressed) that give a vehicle up as stuck sooner: time enough to hold for traffic and resume.
 FLEET_STILL_S = 60.0
 STILL_MOVE_M = 2.0
+#: A vehicle within this of its home's height is on its pad (waiting there, for traffic say, is not being stuck).
+PAD_AGL_M = 1.5
 
 
 @dataclass(slots=True)
 class ProgressWatch:
     """Whether a vehicle's flight still progresses (the one rule of the fleet ground station and the campaign's
     in-process judge): stuck after ``stall_s`` of sim time without mission progress (an item reached, a change of
-    landed state or arming; None: never), or after ``still_s`` without progress and without motion."""
+    landed state or arming; None: never), or after ``still_s`` without progress and without motion in the air (on
+    its pad, within ``PAD_AGL_M`` of home's height, a vehicle may wait longer: a departure held for traffic)."""
 
     stall_s: float | None = FLEET_STALL_S
     still_s: float = FLEET_STILL_S
@@ -44,11 +47,13 @@ class ProgressWatch:
     still_at_s: float = 0.0
 
     def stuck(self, t_s: float, progress: tuple[object, ...], pos_ned_m: Sequence[float] | None) -> str:
-        """Update at sim time ``t_s`` with the vehicle's progress and position (NED, m; None: unknown, only the
-        stall rule applies); the stuck reason (``stuck: ...``) once it is stuck, else ''."""
+        """Update at sim time ``t_s`` with the vehicle's progress and position (NED about home, m; None: unknown,
+        only the stall rule applies); the stuck reason (``stuck: ...``) once it is stuck, else ''."""
         if progress != self.progress:
             self.progress, self.progress_at_s = progress, t_s
         pos = None if pos_ned_m is None else (float(pos_ned_m[0]), float(pos_ned_m[1]), float(pos_ned_m[2]))
+        if pos is not None and -pos[2] < PAD_AGL_M:  # on the pad: waiting there is not being stuck
+            pos, self.still_ned = None, None
         moved = pos is not None and (self.still_ned is None or math.dist(pos, self.still_ned) > STILL_MOVE_M)
         if self.progress_at_s == t_s or moved:
             self.still_ned, self.still_at_s = pos, t_s

@@ -276,7 +276,7 @@ def test_a_landing_below_the_ground_lock_is_committed(agl_m: float, engaged: boo
 
 
 def test_a_take_off_waits_on_the_pad_for_a_manned_aircraft_within_the_look_ahead() -> None:
-    """A helicopter 40 s out, crossing over the depot at 22 m: the climb-out column (30 m at MPC_TKO_SPEED + 5 s)
+    """A helicopter 40 s out, crossing over the depot at 22 m: the climb-out column (30 m at the 3 m/s climb + 5 s)
     is clear of it, but once up no escape leaves its NMAC volume in time; the vehicle stays on the pad, not moving
     at all (the layer's own escape would climb out of it). A UAV as far out is not waited for."""
     params = ParamStore(all_param_specs())
