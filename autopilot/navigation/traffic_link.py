@@ -28,7 +28,7 @@ from autopilot.parameters.store import ParamStore
 from autopilot.safety.failsafe import FailsafeEvent
 from autopilot.traffic import AvoidLimits, OwnShip, TrafficAvoidance, TrafficDecision, TrafficParams
 from mavlink_bridge.contract.frames import Vec3
-from mavlink_bridge.contract.vehicle_api import FlightMode, StatusText
+from mavlink_bridge.contract.vehicle_api import FlightMode, LandedState, StatusText
 
 #: The modes the reactive layer avoids in (manual modes only warn).
 REACTIVE_MODES = frozenset((FlightMode.AUTO_TAKEOFF, FlightMode.AUTO_MISSION, FlightMode.AUTO_LOITER,
@@ -150,7 +150,7 @@ class TrafficLink:
         return decision.failsafe
 
     def bound(self, state: VehicleState, control: ControlLike, mode: FlightMode, kind: TargetKind,
-              dt_s: float, taking_off: bool = False) -> ReferenceOverride | None:  # fmt: skip
+              dt_s: float, landed: LandedState = LandedState.IN_AIR) -> ReferenceOverride | None:  # fmt: skip
         """The reactive layer's reference for this control step (about the origin), given to ``control`` (which
         holds this step's reference: the mission's, the landing's or the detour's) when it bounds it; None when
         the reference stays. Position and landing targets only (an idle or velocity target is not the autopilot's
@@ -159,7 +159,7 @@ class TrafficLink:
         if not self.busy or frame is None or (kind is not TargetKind.POSITION and kind is not TargetKind.LAND):
             return None
         ref = control.reference
-        self.guard.taking_off = taking_off
+        self.guard.taking_off = landed is LandedState.TAKEOFF  # still on the pad: no land detection yet
         out = self.guard.step(state.time_us, dt_s, frame, state.pos_ned_m, state.vel_ned_m_s, ref.pos_ned_m,
                               ref.vel_ned_m_s, mode, kind is TargetKind.LAND, self.avoidance.table,
                               self.avoidance.params)  # fmt: skip
