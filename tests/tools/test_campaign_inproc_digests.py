@@ -63,9 +63,10 @@ def test_a_fleet_world_keeps_its_per_vehicle_digests(tmp_path: Path) -> None:
     world = tmp_path / "pair.yaml"
     world.write_text(PAIR)
     out = fly_world(world, seed=9, stagger_s=2.0, sim_time_s=30.0)
+    # both hold their take-off while the helicopter passes 60 m east at 40 m (the departure hold, 2026-12-02)
     assert [v["truth_sha256"] for v in out["sim"]["vehicles"]] == [
-        "4f2f12a05e77d817d6cb86669c437c1384b13f8936cd88b020b0c1feb21e2161",
-        "5691ca00b5cf11cdf00478174c1162c97dbd2b43b273cdfa5ff29e58474db0a0",
+        "006eeab4143f9f9c0a2467b930993c77731c1bc0c8c5b6a3209c90fb98f718a3",
+        "bb2b5d48ea91d52fac6812b4ebfe8e99f45a570b4b4ebd3129ba8c88aafd66c7",
     ]
     # each hears the other's own reports (1 Hz, 1 s late) and the helicopter's ADS-B (1 Hz, 0.6 s late, 95 %)
     assert [v["traffic_reports"] for v in out["sim"]["vehicles"]] == [56, 57]
