@@ -79,14 +79,15 @@ _PHASES = {
 }
 
 
-def phase_of(mode: FlightMode, landing: bool, pos_home_ned_m: Vec3, pref_ned_m_s: Vec3) -> Phase:
-    """The reactive layer's phase: from the mode; a LAND target is a landing; a climb from the pad a take-off."""
+def phase_of(mode: FlightMode, landing: bool, pos_home_ned_m: Vec3, pref_ned_m_s: Vec3, held: bool = False) -> Phase:
+    """The reactive layer's phase: from the mode; a LAND target is a landing; a climb from the pad a take-off, and
+    so is a take-off ``held`` on the pad (its reference, stopped, no longer climbs)."""
     phase = _PHASES.get(mode, Phase.MANUAL)
     if phase is Phase.MANUAL:
         return phase
     if landing:
         return Phase.LAND
-    if -pos_home_ned_m[2] < GROUND_LOCK_AGL_M and pref_ned_m_s[2] < 0.0:
+    if -pos_home_ned_m[2] < GROUND_LOCK_AGL_M and (pref_ned_m_s[2] < 0.0 or held):
         return Phase.TAKEOFF
     return phase
 
@@ -188,9 +189,7 @@ class TrafficGuard:
             pull = min(max(PULL_GAIN_1_S * (ref_pos_ned_m[k] - pos_ned_m[k]), -PULL_MAX_M_S), PULL_MAX_M_S)
             pref[k] = ref_vel_ned_m_s[k] + pull
         pos = frame.home_from_origin(pos_ned_m)
-        phase = phase_of(mode, landing, pos, (pref[0], pref[1], pref[2]))
-        if phase is not Phase.MANUAL and not landing and self.holding_takeoff and -pos[2] < GROUND_LOCK_AGL_M:
-            phase = Phase.TAKEOFF  # a held take-off stays one (its reference, stopped, no longer climbs)
+        phase = phase_of(mode, landing, pos, (pref[0], pref[1], pref[2]), self.holding_takeoff)
         if phase is Phase.MANUAL or (phase is Phase.LAND and -pos[2] < GROUND_LOCK_AGL_M):
             self.release()  # manual: warn only; a landing this low is committed (the others give way to it)
             return
@@ -201,8 +200,8 @@ class TrafficGuard:
         command = self.layer.solve(t_us, pos, vel_ned_m_s, (pref[0], pref[1], pref[2]), tracks, params, limits,
                                    phase, version)  # fmt: skip
         if held is not None and phase is Phase.TAKEOFF:  # on the pad: stay (no escape climbs out of it), low
-            floor_m = 0.0 if self.taking_off else HELD_AGL_M  # back onto it only where no landing can be detected
-            down = HELD_DESCENT_M_S if self.taking_off else min(max(-pos[2] - floor_m, 0.0), HELD_DESCENT_M_S)
+            # back onto the pad only while no landing can be detected there, else down to HELD_AGL_M over it
+            down = HELD_DESCENT_M_S if self.taking_off else min(max(-pos[2] - HELD_AGL_M, 0.0), HELD_DESCENT_M_S)
             command = ReactiveCommand((0.0, 0.0, down), held, False, TAKEOFF_HELD)
         elif command is None and held is not None:
             command = ReactiveCommand((pref[0], pref[1], 0.0), held, False, "landing held")
@@ -252,12 +251,8 @@ class TrafficGuard:
         for track in tracks:
             if parked(track, t_us):
                 continue
-            if track.source is TrafficSource.MANNED and manned_window:  # its climb rate is noisy ADS-B: level too
-                if (
-                    column_conflict(track, t_us, pos, top, manned_window, params) is not None
-                    or column_conflict(track, t_us, pos, top, manned_window, params, level=True) is not None
-                ):
-                    return track.name
-            elif column_conflict(track, t_us, pos, top, window, params) is not None:
+            manned = track.source is TrafficSource.MANNED and manned_window > 0.0
+            look_s, levels = (manned_window, (False, True)) if manned else (window, (False,))  # ADS-B climb: noise
+            if any(column_conflict(track, t_us, pos, top, look_s, params, level) is not None for level in levels):
                 return track.name
         return None
