@@ -57,7 +57,7 @@ def _wait_for(path: Path, proc: subprocess.Popen[bytes], timeout_s: float = 180.
 
 
 #: Cases of the inproc campaign (each about 0.5 s of wall): every worker of the two-worker runs flies some, and the
-#: Ctrl-C (sent once the case folders are written, before the flights) lands while most are still to fly.
+#: Ctrl-C (sent once the third case has started) lands while most are still to fly.
 CASES = 6
 
 
@@ -69,7 +69,10 @@ def resumed(tmp_path_factory: pytest.TempPathFactory) -> tuple[list[dict], list[
     path = write_campaign(folder, cases=CASES)
     out = folder / "out"
     proc = _cli(str(path), "--out", str(out), "--workers", "1")
-    _wait_for(out / "cases" / "case-000001", proc)  # the case folders are written: the flights come next
+    # a worker writes a case's folder as it starts flying it (one worker: in order): with case 2 started, case 0's row
+    # has reached the client (its result was sent a whole flight ago; waiting for case 1's folder only, a slow
+    # machine's Ctrl-C could beat case 0's result to the client and leave nothing written), and cases 2-5 are left
+    _wait_for(out / "cases" / "case-000002", proc)
     proc.send_signal(signal.SIGINT)
     output, _ = proc.communicate(timeout=120)
     assert proc.returncode == 130, output.decode()
