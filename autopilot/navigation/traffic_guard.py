@@ -14,12 +14,18 @@ column above the pad:
   the warning a pass gives, so it waits on the pad, where it is no hazard, for the aircraft to pass;
 - the landing clearance: in a landing, no descent while a track is predicted through the column below. Below
   ``GROUND_LOCK_AGL_M`` a landing is committed: the layer lets it touch down (a vehicle landing has right of way;
-  holding or moving a metre above the pad only delays the touchdown and skids across the pads).
+  holding or moving a metre above the pad only delays the touchdown and skids across the pads);
+- the altitude-change corridor: in a mission, hold or return, no climb or descent while a track passing by is
+  predicted through the levels the change enters (the band it would cross in ``CORRIDOR_S``, beyond the vehicle's
+  own volume, moving with it) before it would be through: two vehicles changing levels through each other pass
+  level, apart by the difference, and change once clear.
 
 Texts: one when avoidance starts (naming the track and the phase), one when the fallback starts, one when it ends.
 """
 
 from __future__ import annotations
+
+import math
 
 from autopilot.navigation.home_frame import HomeFrame
 from autopilot.navigation.outputs import ReferenceOverride
@@ -34,7 +40,7 @@ from autopilot.traffic.reactive import (
     ReactiveLayer,
     ReactiveLimits,
 )
-from autopilot.traffic.rules import parked
+from autopilot.traffic.rules import COLUMN_SPEED_M_S, parked
 from autopilot.traffic.tracks import TrackTable, TrafficTrack
 from mavlink_bridge.contract.frames import Vec3
 from mavlink_bridge.contract.traffic import TrafficSource
@@ -60,6 +66,12 @@ COLUMN_MARGIN_S = 5.0
 #: A landing waits while a track is predicted through the column below within this time (s): one that would cross
 #: it later meets a vehicle descending, which the reactive layers of both keep apart.
 LANDING_WINDOW_S = 5.0
+#: The altitude-change corridor: a climb or descent faster than CORRIDOR_MIN_M_S is checked over the band it would
+#: cross in CORRIDOR_S (s), within CORRIDOR_S + COLUMN_MARGIN_S, against tracks passing by (relative horizontal
+#: speed at least COLUMN_SPEED_M_S: one that keeps station over or under the vehicle is the reactive layer's).
+CORRIDOR_S = 5.0
+CORRIDOR_MIN_M_S = 0.5
+CORRIDOR_PHASES = (Phase.MISSION, Phase.HOLD, Phase.RETURN)
 #: The climb-out column of a departure reaches this high above the pad (m): above a delivery drone's cruise.
 DEPARTURE_COLUMN_M = 30.0
 #: The command's ``escape`` while the departure hold is in force.
@@ -93,18 +105,21 @@ def phase_of(mode: FlightMode, landing: bool, pos_home_ned_m: Vec3, pref_ned_m_s
 
 
 def column_conflict(track: TrafficTrack, t_us: int, pos_home_ned_m: Vec3, top_down_m: float, window_s: float,
-                    params: TrafficParams, level: bool = False) -> float | None:  # fmt: skip
+                    params: TrafficParams, level: bool = False, bottom_down_m: float = 0.0,
+                    own_vel_ned_m_s: Vec3 = (0.0, 0.0, 0.0)) -> float | None:  # fmt: skip
     """Seconds until ``track`` (flying straight; ``level``: at its altitude) enters the column above (or below) the
-    vehicle, from the ground up to ``top_down_m`` (NED about home) grown by its class's volume, within
-    ``window_s``; None if it does not. The column is one cylinder about its middle, so the closest-approach
-    prediction (:func:`predict_approach`) says."""
+    vehicle, from ``bottom_down_m`` (default the ground) up to ``top_down_m`` (NED about home) grown by its class's
+    volume, within ``window_s``; None if it does not. The column moves with the vehicle's horizontal velocity
+    ``own_vel_ned_m_s`` (still by default). It is one cylinder about its middle, so the closest-approach prediction
+    (:func:`predict_approach`) says."""
     volume = (params.manned if track.source is TrafficSource.MANNED else params.uav).grown(params.margin)
-    middle_down_m = 0.5 * top_down_m
+    middle_down_m = 0.5 * (top_down_m + bottom_down_m)
     p = track.position_at(t_us)
     rel = (p[0] - pos_home_ned_m[0], p[1] - pos_home_ned_m[1], p[2] - middle_down_m)
-    column = SeparationVolume(volume.hor_m, abs(middle_down_m) + volume.ver_m)
-    v = track.vel_ned_m_s
-    approach = predict_approach(rel, (v[0], v[1], 0.0) if level else v, window_s, column)
+    column = SeparationVolume(volume.hor_m, 0.5 * abs(top_down_m - bottom_down_m) + volume.ver_m)
+    v, own = track.vel_ned_m_s, own_vel_ned_m_s
+    rel_vel = (v[0] - own[0], v[1] - own[1], 0.0 if level else v[2])
+    approach = predict_approach(rel, rel_vel, window_s, column)
     return approach.loss_in_s if approach.conflict else None
 
 
@@ -194,9 +209,10 @@ class TrafficGuard:
             self.release()  # manual: warn only; a landing this low is committed (the others give way to it)
             return
         limits = self.limits()
+        climbing = pref[2] < 0.0
         held = self._column_threat(t_us, pos, pref, phase, tracks, params)
         if held is not None:
-            pref[2] = 0.0  # hold the height: no climb out of the pad, no descent into the column
+            pref[2] = 0.0  # hold the height: no climb out of the pad, no descent into the column, no level change
         command = self.layer.solve(t_us, pos, vel_ned_m_s, (pref[0], pref[1], pref[2]), tracks, params, limits,
                                    phase, version)  # fmt: skip
         if held is not None and phase is Phase.TAKEOFF:  # on the pad: stay (no escape climbs out of it), low
@@ -204,7 +220,11 @@ class TrafficGuard:
             down = HELD_DESCENT_M_S if self.taking_off else min(max(-pos[2] - HELD_AGL_M, 0.0), HELD_DESCENT_M_S)
             command = ReactiveCommand((0.0, 0.0, down), held, False, TAKEOFF_HELD)
         elif command is None and held is not None:
-            command = ReactiveCommand((pref[0], pref[1], 0.0), held, False, "landing held")
+            what = "landing" if phase is Phase.LAND else "climb" if climbing else "descent"
+            command = ReactiveCommand((pref[0], pref[1], 0.0), held, False, f"{what} held")
+        elif command is not None and held is not None and phase in CORRIDOR_PHASES and not command.fallback:
+            # the layer binds too (its preference held level): the hold is what the text says
+            command = ReactiveCommand(command.vel_ned_m_s, held, False, "climb held" if climbing else "descent held")
         if command is None:
             if self.engaged and t_us - self._engaged_us >= MIN_ENGAGED_US:
                 self.release(t_us)
@@ -236,9 +256,11 @@ class TrafficGuard:
 
     def _column_threat(self, t_us: int, pos: Vec3, pref: list[float], phase: Phase,
                        tracks: tuple[TrafficTrack, ...], params: TrafficParams) -> str | None:  # fmt: skip
-        """The departure hold and the landing clearance: the track predicted through the column the vehicle is
-        about to climb out of (from the pad) or descend into, before it would be through (a manned aircraft: within
-        the look-ahead, from the pad); None when clear."""
+        """The departure hold, the landing clearance and the altitude-change corridor: the track predicted through
+        the column the vehicle is about to climb out of (from the pad), descend into, or change levels through,
+        before it would be through (a manned aircraft: within the look-ahead, from the pad); None when clear."""
+        if phase in CORRIDOR_PHASES and abs(pref[2]) >= CORRIDOR_MIN_M_S and -pos[2] >= GROUND_LOCK_AGL_M:
+            return self._corridor_threat(t_us, pos, pref, tracks, params)
         manned_window = 0.0
         if phase is Phase.TAKEOFF and (pref[2] < 0.0 or self.holding_takeoff) and -pos[2] < GROUND_LOCK_AGL_M:
             top, speed = -DEPARTURE_COLUMN_M, max(-pref[2], 0.3)  # held, the reference stops: the longest window
@@ -254,5 +276,27 @@ class TrafficGuard:
             manned = track.source is TrafficSource.MANNED and manned_window > 0.0
             look_s, levels = (manned_window, (False, True)) if manned else (window, (False,))  # ADS-B climb: noise
             if any(column_conflict(track, t_us, pos, top, look_s, params, level) is not None for level in levels):
+                return track.name
+        return None
+
+    def _corridor_threat(self, t_us: int, pos: Vec3, pref: list[float], tracks: tuple[TrafficTrack, ...],
+                         params: TrafficParams) -> str | None:  # fmt: skip
+        """The altitude-change corridor: the track passing by that is predicted through the band of levels the
+        climb or descent ``pref[2]`` enters within ``CORRIDOR_S`` (from the edge of the vehicle's own volume on,
+        moving with its horizontal velocity); None when clear or the change is within its own volume."""
+        own_ver_m = params.uav.grown(params.margin).ver_m
+        sense = 1.0 if pref[2] > 0.0 else -1.0
+        change_m = pref[2] * CORRIDOR_S
+        if abs(change_m) <= own_ver_m:
+            return None
+        near, far = pos[2] + sense * own_ver_m, pos[2] + change_m
+        window = CORRIDOR_S + COLUMN_MARGIN_S
+        for track in tracks:
+            if parked(track, t_us):
+                continue
+            v = track.vel_ned_m_s
+            if math.hypot(v[0] - pref[0], v[1] - pref[1]) < COLUMN_SPEED_M_S:
+                continue  # keeps station over or under the vehicle: holding would wait for ever (the layer's)
+            if column_conflict(track, t_us, pos, far, window, params, False, near, (pref[0], pref[1], 0.0)) is not None:
                 return track.name
         return None

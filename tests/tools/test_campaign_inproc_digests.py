@@ -63,10 +63,11 @@ def test_a_fleet_world_keeps_its_per_vehicle_digests(tmp_path: Path) -> None:
     world = tmp_path / "pair.yaml"
     world.write_text(PAIR)
     out = fly_world(world, seed=9, stagger_s=2.0, sim_time_s=30.0)
-    # both hold their take-off while the helicopter passes 60 m east at 40 m (the departure hold, 2026-12-02)
+    # both hold their take-off while the helicopter passes 60 m east at 40 m (the departure hold, 2026-12-02); the
+    # climbs above the ground lock go through the altitude-change corridor (both land by 49 s of sim, 54 s before)
     assert [v["truth_sha256"] for v in out["sim"]["vehicles"]] == [
-        "006eeab4143f9f9c0a2467b930993c77731c1bc0c8c5b6a3209c90fb98f718a3",
-        "bb2b5d48ea91d52fac6812b4ebfe8e99f45a570b4b4ebd3129ba8c88aafd66c7",
+        "1fe7245e9bff5a605229ad0fcd03d2e4d5a0c4c78d6a05f3c23ce61e0aa49e2a",
+        "567a0632443d900a70830e0d5a40fc5c97880b82c97f6f3954b69aae6040339b",
     ]
     # each hears the other's own reports (1 Hz, 1 s late) and the helicopter's ADS-B (1 Hz, 0.6 s late, 95 %)
     assert [v["traffic_reports"] for v in out["sim"]["vehicles"]] == [56, 57]

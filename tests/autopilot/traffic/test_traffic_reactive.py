@@ -337,3 +337,32 @@ def test_a_crowd_does_not_flood_the_link_with_texts() -> None:
         guard.step(k * 20_000, 0.02, frame, own, vel, own, vel, FlightMode.AUTO_MISSION, False, table, PARAMS)  # type: ignore[arg-type]
     said = [t.text for t in guard.texts if t.text.startswith("Traffic:")]
     assert 1 <= len(said) <= 6, said
+
+
+def test_a_level_change_waits_for_a_clear_corridor() -> None:
+    """The vertical encounter: a vehicle climbing from 10 m toward 24 m meets one descending from 24 m head-on; the
+    climb is held (level flight at 10 m keeps 14 m from the other) until the other has passed, then goes on. A track
+    in a lane 25 m aside, one keeping station over the vehicle (the reactive layer's), and a change within the
+    vehicle's own volume hold nothing."""
+    params = ParamStore(all_param_specs())
+    frame = HomeFrame(GeoPoint(47.3977, 8.5456, 488.0))
+    own, vel, climb = (0.0, 0.0, -10.0), (5.0, 0.0, -2.0), (5.0, 0.0, -3.0)
+    cases = (
+        (uav(2, (20.0, 0.0, -24.0), (-5.0, 0.0, 2.0)), "Traffic: climb held for UAV 2 (predicted through the column)"),
+        (uav(3, (20.0, 25.0, -24.0), (-5.0, 0.0, 2.0)), None),  # another lane
+        (uav(4, (0.0, 0.0, -30.0), (5.0, 0.0, 0.0)), None),  # station over the vehicle: no passing
+        (uav(5, (-20.0, 0.0, -24.0), (-5.0, 0.0, 0.0)), None),  # behind, going away: passed
+    )
+    for track, said in cases:
+        guard = TrafficGuard(params, 1)
+        guard.step(0, 0.004, frame, own, vel, own, climb, FlightMode.AUTO_MISSION, False, _Table([track]), PARAMS)  # type: ignore[arg-type]
+        held = guard.command is not None and guard.command.escape == "climb held"
+        assert held is (said is not None), track
+        if said is not None:
+            assert guard.command is not None and guard.command.vel_ned_m_s[2] >= 0.0  # no climb (the layer may descend)
+            assert [t.text for t in guard.texts] == [said]
+    guard = TrafficGuard(params, 1)
+    small = (5.0, 0.0, -1.0)  # 5 m in CORRIDOR_S: inside its own grown volume (6.5 m)
+    ahead = uav(2, (20.0, 0.0, -16.0), (-5.0, 0.0, 0.0))
+    guard.step(0, 0.004, frame, own, vel, own, small, FlightMode.AUTO_MISSION, False, _Table([ahead]), PARAMS)  # type: ignore[arg-type]
+    assert guard.command is None or guard.command.escape != "climb held"
