@@ -321,5 +321,27 @@ class ReactiveLayer:
             return ReactiveCommand((0.0, 0.0, 0.0), worst.name, True, escape)  # on the pad: stay there
         want, out = self._pref, self._out
         want[0], want[1], want[2] = 0.0, 0.0, vd
-        least_violating(self._normals, self._offsets, self._m_hard, total, want, self._scratch, out)
+        hard = self._nearest_first(t_us, pos, rows, want, total)
+        least_violating(self._normals, self._offsets, hard, total, want, self._scratch, out)
         return ReactiveCommand((float(out[0]), float(out[1]), float(out[2])), worst.name, True, escape)
+
+    def _nearest_first(self, t_us: int, pos: np.ndarray, rows: list[TrafficTrack], want: np.ndarray,
+                       total: int) -> int:  # fmt: skip
+        """Orders the tracks' planes nearest first (by the separation ratio in their volumes) and returns how many
+        rows, from the vehicle's own limits on, can be met together: those stay hard in the fallback and only the
+        farther tracks' planes are violated (least), instead of all of them alike (a crowd's far planes made the
+        nearest pair's loose: encounter case 142)."""
+        m = self._m_hard
+        params = self._params or TrafficParams()
+        ratio = self._scratch
+        for row in range(m, total):
+            track = rows[int(self._index[row])]
+            p = track.position_at(t_us)
+            volume = params.manned if track.source is TrafficSource.MANNED else params.uav
+            ratio[row] = max(math.hypot(p[0] - pos[0], p[1] - pos[1]) / volume.hor_m, abs(p[2] - pos[2]) / volume.ver_m)
+        order = m + np.argsort(ratio[m:total], kind="stable")
+        self._normals[m:total] = self._normals[order]
+        self._offsets[m:total] = self._offsets[order]
+        self._index[m:total] = self._index[order]
+        failed = closest_admissible(self._normals, self._offsets, total, want, self._out)
+        return total if failed < 0 else failed

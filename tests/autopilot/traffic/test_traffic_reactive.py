@@ -22,7 +22,7 @@ from autopilot.param_schema import all_param_specs
 from autopilot.parameters.store import ParamStore
 from autopilot.traffic.orca_kernel import closest_admissible
 from autopilot.traffic.param_decls import SeparationVolume, TrafficParams
-from autopilot.traffic.reactive import Phase, ReactiveLayer, ReactiveLimits, covering_sphere
+from autopilot.traffic.reactive import OWN_ROWS, Phase, ReactiveLayer, ReactiveLimits, covering_sphere
 from autopilot.traffic.tracks import TrafficTrack
 from mavlink_bridge.contract.frames import GeoPoint
 from mavlink_bridge.contract.traffic import TrafficSource
@@ -366,3 +366,22 @@ def test_a_level_change_waits_for_a_clear_corridor() -> None:
     ahead = uav(2, (20.0, 0.0, -16.0), (-5.0, 0.0, 0.0))
     guard.step(0, 0.004, frame, own, vel, own, small, FlightMode.AUTO_MISSION, False, _Table([ahead]), PARAMS)  # type: ignore[arg-type]
     assert guard.command is None or guard.command.escape != "climb held"
+
+
+def test_the_fallback_keeps_the_nearest_tracks_planes() -> None:
+    """A crowd with no admissible velocity: the planes of the nearest tracks (as many as can be met together)
+    stay hard and only the farther ones are violated; they used to be violated all alike, and in encounter case
+    142 two vehicles, each in its fallback from others, converged to 8.2 m."""
+    layer = ReactiveLayer(3)
+    own = (0.0, 0.0, -15.0)
+    near = uav(10, (0.0, 16.0, -15.0), (0.0, -4.0, 0.0))  # close, closing
+    far = [uav(k + 20, (26.0 * math.cos(a), 26.0 * math.sin(a), -15.0), (-7.0 * math.cos(a), -7.0 * math.sin(a),
+           0.0)) for k, a in enumerate(np.arange(7) * 2.0 * math.pi / 7 + 0.3)]  # fmt: skip
+    stack = [uav(40, (0.0, 0.0, -23.0), (0.0, 0.0, 3.0)), uav(41, (0.0, 0.0, -7.0), (0.0, 0.0, -3.0))]
+    c = layer.solve(0, own, (0.0, 0.0, 0.0), (0.0, 5.0, 0.0), [*far, near, *stack], PARAMS, LIMITS, Phase.MISSION)
+    assert c is not None and c.fallback
+    out = np.array(c.vel_ned_m_s)
+    rows = [r for r in range(OWN_ROWS, OWN_ROWS + 10) if layer._rows[int(layer._index[r])] is near]
+    assert rows, "the near track has a plane"
+    slack = float(layer._normals[rows[0]] @ out - layer._offsets[rows[0]])
+    assert slack >= -1e-6, slack
