@@ -316,7 +316,7 @@ class Autopilot:
             override = nav.avoid(state, target, self.frame_detections)  # each frame's: the sensor runs at 10 Hz
             if override is not None:
                 fc.override(override)
-        nav.traffic.bound(state, fc, commander.mode, target.kind, self._dt_s, commander.landed_state)  # every auto mode
+        nav.traffic.bound(state, fc, commander.mode, target.kind, self._dt_s, commander.landed_state, target.pos_ned_m)
         out = self._pending_control = fc.control(state)
         return (out[0], out[1], out[2], out[3])
 

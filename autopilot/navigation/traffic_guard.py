@@ -12,9 +12,12 @@ column above the pad:
   while a UAV is predicted through the climb-out column before the vehicle would be up, or a manned aircraft
   within the look-ahead (``NAV_TRAFF_COLL_T``): once up, a multirotor cannot leave an NMAC volume 150 m wide in
   the warning a pass gives, so it waits on the pad, where it is no hazard, for the aircraft to pass;
-- the landing clearance: in a landing, no descent while a track is predicted through the column below. Below
-  ``GROUND_LOCK_AGL_M`` a landing is committed: the layer lets it touch down (a vehicle landing has right of way;
-  holding or moving a metre above the pad only delays the touchdown and skids across the pads);
+- the landing clearance: in a landing, no touchdown on a UAV: while one stands on the spot or hovers over it
+  lower down (taking off, holding), the vehicle waits level beside the pad, outside the occupant's climb-out
+  column, and goes back over the spot once it has left; and no descent while a track is predicted through the
+  column below. Below ``GROUND_LOCK_AGL_M`` a landing is committed: the layer lets it touch down (a vehicle
+  landing has right of way; holding or moving a metre above the pad only delays the touchdown and skids across
+  the pads);
 - the altitude-change corridor: in a mission, hold or return, no climb or descent while a track passing by is
   predicted through the levels the change enters (the band it would cross in ``CORRIDOR_S``, beyond the vehicle's
   own volume, moving with it) before it would be through: two vehicles changing levels through each other pass
@@ -39,6 +42,7 @@ from autopilot.traffic.reactive import (
     ReactiveCommand,
     ReactiveLayer,
     ReactiveLimits,
+    uncertainty_m,
 )
 from autopilot.traffic.rules import COLUMN_SPEED_M_S, parked
 from autopilot.traffic.tracks import TrackTable, TrafficTrack
@@ -72,6 +76,19 @@ LANDING_WINDOW_S = 5.0
 CORRIDOR_S = 5.0
 CORRIDOR_MIN_M_S = 0.5
 CORRIDOR_PHASES = (Phase.MISSION, Phase.HOLD, Phase.RETURN)
+#: A landing whose spot has a UAV on it or hovering over it (on the ground, taking off, holding: slower than
+#: COLUMN_SPEED_M_S within PAD_RADIUS_VOLUMES of the grown volume of the spot, its report's accuracy added: a pad
+#: a metre or two off, not a neighbouring pad, which the encounter worlds keep 20 m away and a user's world may
+#: put 12 m away) waits beside the pad, PAD_ASIDE_VOLUMES volumes from the occupant:
+#: outside the occupant's climb-out column, so its departure is not held for the waiting vehicle (which would
+#: never end), and back over the spot once the occupant has left (encounter case 168: a ring-swap vehicle landed
+#: 2 m from one whose take-off was held, and they touched on the ground).
+PAD_RADIUS_VOLUMES = 0.5
+PAD_ASIDE_VOLUMES = 2.0
+#: ... at least this high above home (m): pushed lower (by the layer, down to CA_MIN_AGL_M) it climbs back.
+PAD_HOLD_AGL_M = 5.0
+#: The command's ``escape`` while a landing waits beside an occupied pad.
+PAD_HELD = "landing held beside the pad"
 #: The climb-out column of a departure reaches this high above the pad (m): above a delivery drone's cruise.
 DEPARTURE_COLUMN_M = 30.0
 #: The command's ``escape`` while the departure hold is in force.
@@ -137,6 +154,7 @@ class TrafficGuard:
         self._limits_version: object = None
         self.fences: tuple[FenceZoneLike, ...] = ()  # the geofence's zones about home (the navigator's link sets them)
         self.taking_off = False  # the commander's take-off, not yet off the pad (the link sets it every step)
+        self.land_spot_ned_m: Vec3 | None = None  # a landing's touchdown point about the origin (the link sets it)
         self._limits: ReactiveLimits | None = None
         self._said: tuple[str, bool, bool] | None = None
         self._said_us = 0
@@ -205,31 +223,41 @@ class TrafficGuard:
             pref[k] = ref_vel_ned_m_s[k] + pull
         pos = frame.home_from_origin(pos_ned_m)
         phase = phase_of(mode, landing, pos, (pref[0], pref[1], pref[2]), self.holding_takeoff)
-        if phase is Phase.MANUAL or (phase is Phase.LAND and -pos[2] < GROUND_LOCK_AGL_M):
-            self.release()  # manual: warn only; a landing this low is committed (the others give way to it)
+        if phase is Phase.MANUAL:
+            self.release()  # manual: warn only
+            return
+        climbing = pref[2] < 0.0
+        held = None
+        if phase is Phase.LAND and self.land_spot_ned_m is not None:
+            held = self._pad_occupant(t_us, pos, frame.home_from_origin(self.land_spot_ned_m), pref, tracks, params)
+        pad_held = held is not None
+        if phase is Phase.LAND and not pad_held and -pos[2] < GROUND_LOCK_AGL_M:
+            self.release()  # a landing this low is committed (the others give way to it)
             return
         limits = self.limits()
-        climbing = pref[2] < 0.0
-        held = self._column_threat(t_us, pos, pref, phase, tracks, params)
-        if held is not None:
-            pref[2] = 0.0  # hold the height: no climb out of the pad, no descent into the column, no level change
+        if held is None:
+            held = self._column_threat(t_us, pos, pref, phase, tracks, params)
+            if held is not None:
+                pref[2] = 0.0  # hold the height: no climb out of the pad, no descent into the column, no level change
         command = self.layer.solve(t_us, pos, vel_ned_m_s, (pref[0], pref[1], pref[2]), tracks, params, limits,
-                                   phase, version)  # fmt: skip
+                                   Phase.HOLD if pad_held else phase, version)  # fmt: skip
         if held is not None and phase is Phase.TAKEOFF:  # on the pad: stay (no escape climbs out of it), low
             # back onto the pad only while no landing can be detected there, else down to HELD_AGL_M over it
             down = HELD_DESCENT_M_S if self.taking_off else min(max(-pos[2] - HELD_AGL_M, 0.0), HELD_DESCENT_M_S)
             command = ReactiveCommand((0.0, 0.0, down), held, False, TAKEOFF_HELD)
         elif command is None and held is not None:
             what = "landing" if phase is Phase.LAND else "climb" if climbing else "descent"
-            command = ReactiveCommand((pref[0], pref[1], 0.0), held, False, f"{what} held")
+            command = ReactiveCommand(self.layer.limited_ned_m_s, held, False, PAD_HELD if pad_held else f"{what} held")
+        elif command is not None and pad_held and not command.fallback:
+            command = ReactiveCommand(command.vel_ned_m_s, held, False, PAD_HELD)
         elif command is not None and held is not None and phase in CORRIDOR_PHASES and not command.fallback:
             # the layer binds too (its preference held level): the hold is what the text says
             command = ReactiveCommand(command.vel_ned_m_s, held, False, "climb held" if climbing else "descent held")
         if command is None:
             if self.engaged and t_us - self._engaged_us >= MIN_ENGAGED_US:
                 self.release(t_us)
-            elif self.engaged and self.command is not None:
-                self.command = ReactiveCommand((pref[0], pref[1], pref[2]), self.command.threat, False)
+            elif self.engaged and self.command is not None:  # the preference, within the limits and the fence
+                self.command = ReactiveCommand(self.layer.limited_ned_m_s, self.command.threat, False)
             return
         if not self.engaged:
             self._engaged_us = t_us
@@ -247,6 +275,9 @@ class TrafficGuard:
             elif command.fallback:
                 text = f"Traffic: no safe velocity from {command.threat} ({phase.value}): braking to a hover, "
                 self.texts.append(StatusText(Severity.WARNING, text + command.escape))
+            elif command.escape == PAD_HELD:
+                text = f"Traffic: {PAD_HELD}, {command.threat} on it or over it"
+                self.texts.append(StatusText(Severity.NOTICE, text))
             elif command.escape:
                 text = f"Traffic: {command.escape} for {command.threat} (predicted through the column)"
                 self.texts.append(StatusText(Severity.NOTICE, text))
@@ -277,6 +308,37 @@ class TrafficGuard:
             look_s, levels = (manned_window, (False, True)) if manned else (window, (False,))  # ADS-B climb: noise
             if any(column_conflict(track, t_us, pos, top, look_s, params, level) is not None for level in levels):
                 return track.name
+        return None
+
+    def _pad_occupant(self, t_us: int, pos: Vec3, spot: Vec3, pref: list[float], tracks: tuple[TrafficTrack, ...],
+                      params: TrafficParams) -> str | None:  # fmt: skip
+        """The landing clearance's first half: the UAV on the touchdown ``spot`` (about home) or hovering over it
+        lower than the vehicle (slower than ``COLUMN_SPEED_M_S`` within ``PAD_RADIUS_VOLUMES`` of the grown volume,
+        its report's accuracy added); while there is one, ``pref`` is set to wait level (at least
+        ``PAD_HOLD_AGL_M`` up), ``PAD_ASIDE_VOLUMES`` volumes from it (pulled at ``PULL_GAIN_1_S``, at most
+        ``PULL_MAX_M_S``), and the layer flies a hold (its floor in force). None when the pad is free."""
+        volume = params.uav.grown(params.margin)
+        for track in tracks:
+            if track.source is not TrafficSource.UAV:
+                continue
+            p, v = track.position_at(t_us), track.vel_ned_m_s
+            h_unc = uncertainty_m(track)[0]
+            dn, de = p[0] - spot[0], p[1] - spot[1]
+            if math.hypot(dn, de) >= PAD_RADIUS_VOLUMES * volume.hor_m + h_unc:
+                continue
+            if math.hypot(v[0], v[1]) >= COLUMN_SPEED_M_S:
+                continue
+            if -p[2] >= -pos[2]:  # over the vehicle: going or gone up (the column below it is what it lands in)
+                continue
+            an, ae = pos[0] - p[0], pos[1] - p[1]
+            away = math.hypot(an, ae)
+            if away < 1e-3:  # right over it: aside to the east (lower system id) or west
+                an, ae, away = 0.0, (1.0 if self.layer.system_id < track.target_id else -1.0), 1.0
+            aside = PAD_ASIDE_VOLUMES * (volume.hor_m + h_unc)
+            for k, d in ((0, p[0] + an / away * aside - pos[0]), (1, p[1] + ae / away * aside - pos[1])):
+                pref[k] = min(max(PULL_GAIN_1_S * d, -PULL_MAX_M_S), PULL_MAX_M_S)
+            pref[2] = -min(max(PULL_GAIN_1_S * (PAD_HOLD_AGL_M + pos[2]), 0.0), PULL_MAX_M_S)  # level, not low
+            return track.name
         return None
 
     def _corridor_threat(self, t_us: int, pos: Vec3, pref: list[float], tracks: tuple[TrafficTrack, ...],

@@ -150,16 +150,18 @@ class TrafficLink:
         return decision.failsafe
 
     def bound(self, state: VehicleState, control: ControlLike, mode: FlightMode, kind: TargetKind,
-              dt_s: float, landed: LandedState = LandedState.IN_AIR) -> ReferenceOverride | None:  # fmt: skip
+              dt_s: float, landed: LandedState = LandedState.IN_AIR,
+              spot_ned_m: Vec3 | None = None) -> ReferenceOverride | None:  # fmt: skip
         """The reactive layer's reference for this control step (about the origin), given to ``control`` (which
         holds this step's reference: the mission's, the landing's or the detour's) when it bounds it; None when
         the reference stays. Position and landing targets only (an idle or velocity target is not the autopilot's
-        own flight)."""
+        own flight); ``spot_ned_m``: the target's position (a landing's touchdown point, about the origin)."""
         frame = self._frame
         if not self.busy or frame is None or (kind is not TargetKind.POSITION and kind is not TargetKind.LAND):
             return None
         ref = control.reference
         self.guard.taking_off = landed is LandedState.TAKEOFF  # still on the pad: no land detection yet
+        self.guard.land_spot_ned_m = spot_ned_m if kind is TargetKind.LAND else None
         out = self.guard.step(state.time_us, dt_s, frame, state.pos_ned_m, state.vel_ned_m_s, ref.pos_ned_m,
                               ref.vel_ned_m_s, mode, kind is TargetKind.LAND, self.avoidance.table,
                               self.avoidance.params)  # fmt: skip

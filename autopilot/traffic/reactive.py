@@ -180,13 +180,14 @@ class ReactiveLayer:
             self._load(t_us, tracks, params)
             self._version = version
         rows = self._rows
-        if not rows:
-            return None
         pos, vel, pref = self._pos, self._vel, self._pref
         pos[:], vel[:], pref[:] = pos_home_ned_m, vel_ned_m_s, pref_ned_m_s
         self._own_limits(pos, limits, phase)
         m = self._m_hard = OWN_ROWS + self._fence_rows(pos, vel, limits)
         closest_admissible(self._normals, self._offsets, m, pref, self._limits_out)
+        if not rows:
+            self.slack_m_s = math.inf
+            return None
         speed2 = vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2]
         brake_m = min(speed2 / (2.0 * limits.acc_m_s2), MAX_BRAKE_GROW_M)
         total = orca_planes(t_us * 1e-6, pos, vel, self._tracks, len(rows), brake_m, self._normals, self._offsets, m,
@@ -204,6 +205,13 @@ class ReactiveLayer:
             return None
         self.slack_m_s = 0.0
         return ReactiveCommand((float(out[0]), float(out[1]), float(out[2])), self._binding(rows, m, total), False)
+
+    @property
+    def limited_ned_m_s(self) -> Vec3:
+        """After a solve: the admissible velocity closest to the preferred one under the vehicle's own limits and
+        the fence alone (what a guard still engaged flies when no track binds: never toward the fence)."""
+        out = self._limits_out
+        return (float(out[0]), float(out[1]), float(out[2]))
 
     def _load(self, t_us: int, tracks: Sequence[TrafficTrack], params: TrafficParams) -> None:
         """The rows of the tracks to avoid (parked ones left out), columns ``T_*`` of :mod:`orca_kernel`: each

@@ -10,10 +10,12 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
+from autopilot.geofence.fence import CircleZone
 from autopilot.navigation.home_frame import HomeFrame
 from autopilot.navigation.traffic_guard import (
     HELD_AGL_M,
     HELD_DESCENT_M_S,
+    PAD_ASIDE_VOLUMES,
     TrafficGuard,
     column_conflict,
     phase_of,
@@ -385,3 +387,65 @@ def test_the_fallback_keeps_the_nearest_tracks_planes() -> None:
     assert rows, "the near track has a plane"
     slack = float(layer._normals[rows[0]] @ out - layer._offsets[rows[0]])
     assert slack >= -1e-6, slack
+
+
+def _landing_guard() -> tuple[TrafficGuard, HomeFrame]:
+    guard = TrafficGuard(ParamStore(all_param_specs()), 1)
+    guard.land_spot_ned_m = (0.0, 0.0, 0.0)
+    return guard, HomeFrame(GeoPoint(47.3977, 8.5456, 488.0))
+
+
+def test_a_landing_waits_beside_a_pad_with_a_vehicle_on_it() -> None:
+    """Ring swap: the pad a vehicle lands on is another's home, whose take-off is held. While that one stands on the
+    spot, the landing waits level beside the pad (out of its climb-out column), said once; a vehicle there only
+    passing by, or one already above, holds nothing. Encounter case 168: it used to land 2 m from the other (their
+    rotors touched on the ground)."""
+    over, descend = (0.0, 0.0, -15.0), (0.0, 0.0, 1.5)
+    parked = uav(5, (0.5, -0.3, 0.0), (0.0, 0.0, 0.0))
+    guard, frame = _landing_guard()
+    for k in range(5):
+        guard.step(k * 20_000, 0.02, frame, over, (0.0, 0.0, 0.0), over, descend, FlightMode.AUTO_MISSION, True,
+                   _Table([parked]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
+    assert guard.command is not None and guard.command.escape == "landing held beside the pad"
+    v = guard.command.vel_ned_m_s
+    assert v[2] <= 0.0 and math.hypot(v[0], v[1]) > 1.0  # no descent; moving aside
+    assert [t.text for t in guard.texts] == ["Traffic: landing held beside the pad, UAV 5 on it or over it"]
+    # aside, 2 volumes out: it stays there (level, not drifting back over the pad)
+    d = PAD_ASIDE_VOLUMES * PARAMS.uav.grown(PARAMS.margin).hor_m
+    aside = (0.5 - 0.8 * d, -0.3 + 0.6 * d, -15.0)
+    guard.step(200_000, 0.02, frame, aside, (0.0, 0.0, 0.0), aside, (0.0, 0.0, 0.0), FlightMode.AUTO_MISSION, True,
+               _Table([parked]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
+    assert guard.command is not None and guard.command.escape == "landing held beside the pad"
+    assert all(abs(c) < 0.5 for c in guard.command.vel_ned_m_s)
+    # pushed low while waiting, it climbs back to PAD_HOLD_AGL_M and is not released as a committed landing
+    low = (aside[0], aside[1], -1.5)
+    guard.step(400_000, 0.02, frame, low, (0.0, 0.0, 0.0), low, (0.0, 0.0, 0.0), FlightMode.AUTO_MISSION, True,
+               _Table([parked]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
+    assert guard.command is not None and guard.command.vel_ned_m_s[2] < 0.0
+    for track in (uav(6, (0.0, 0.0, 0.0), (0.0, 5.0, 0.0)), uav(7, (0.0, 0.0, -25.0), (0.0, 0.0, 0.0))):
+        guard, frame = _landing_guard()
+        guard.step(0, 0.02, frame, over, (0.0, 0.0, 0.0), over, descend, FlightMode.AUTO_MISSION, True,
+                   _Table([track]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
+        assert guard.command is None or guard.command.escape != "landing held beside the pad", track
+
+
+def test_an_engaged_guard_never_flies_toward_the_fence() -> None:
+    """While the reactive layer is engaged its preference is the velocity it flew (the reference goes on from it):
+    when no track binds it flew that preference as it was, fence or not, and in encounter case 178 a vehicle
+    running from a helicopter's NMAC volume crossed a 300 m fence by 2 m. Now what it flies keeps the fence."""
+    params = ParamStore(all_param_specs())
+    guard = TrafficGuard(params, 1)
+    guard.fences = (CircleZone((0.0, 0.0), 300.0, True),)
+    frame = HomeFrame(GeoPoint(47.3977, 8.5456, 488.0))
+    fast = (8.0, 0.0, 0.0)
+    close = uav(2, (292.0, 20.0, -40.0), (0.0, -6.0, 0.0))  # closing from the side: the layer engages
+    guard.step(0, 0.02, frame, (280.0, 0.0, -40.0), fast, (280.0, 0.0, -40.0), fast, FlightMode.AUTO_MISSION,
+               False, _Table([close]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
+    assert guard.engaged
+    gone = uav(2, (200.0, -200.0, -40.0), (0.0, -6.0, 0.0))  # no plane binds any more
+    at = (295.0, 0.0, -40.0)  # 5 m from the edge, still engaged (MIN_ENGAGED_US)
+    later = _Table([gone])
+    later.version = 2
+    guard.step(40_000, 0.02, frame, at, fast, at, fast, FlightMode.AUTO_MISSION, False, later, PARAMS)  # type: ignore[arg-type]
+    assert guard.engaged and guard.command is not None
+    assert guard.command.vel_ned_m_s[0] <= 1e-3, guard.command  # not toward the edge any more (8 m/s before)
