@@ -108,6 +108,12 @@ _PHASES = {
 }
 
 
+def _pull_m_s(error_m: float) -> float:
+    """A preferred velocity component toward a point ``error_m`` away: ``PULL_GAIN_1_S`` x it, at most
+    ``PULL_MAX_M_S``."""
+    return min(max(PULL_GAIN_1_S * error_m, -PULL_MAX_M_S), PULL_MAX_M_S)
+
+
 def phase_of(mode: FlightMode, landing: bool, pos_home_ned_m: Vec3, pref_ned_m_s: Vec3, held: bool = False) -> Phase:
     """The reactive layer's phase: from the mode; a LAND target is a landing; a climb from the pad a take-off, and
     so is a take-off ``held`` on the pad (its reference, stopped, no longer climbs)."""
@@ -219,8 +225,7 @@ class TrafficGuard:
                params: TrafficParams, version: int) -> None:  # fmt: skip
         pref = [0.0, 0.0, 0.0]
         for k in range(3):
-            pull = min(max(PULL_GAIN_1_S * (ref_pos_ned_m[k] - pos_ned_m[k]), -PULL_MAX_M_S), PULL_MAX_M_S)
-            pref[k] = ref_vel_ned_m_s[k] + pull
+            pref[k] = ref_vel_ned_m_s[k] + _pull_m_s(ref_pos_ned_m[k] - pos_ned_m[k])
         pos = frame.home_from_origin(pos_ned_m)
         phase = phase_of(mode, landing, pos, (pref[0], pref[1], pref[2]), self.holding_takeoff)
         if phase is Phase.MANUAL:
@@ -229,7 +234,11 @@ class TrafficGuard:
         climbing = pref[2] < 0.0
         held = None
         if phase is Phase.LAND and self.land_spot_ned_m is not None:
-            held = self._pad_occupant(t_us, pos, frame.home_from_origin(self.land_spot_ned_m), pref, tracks, params)
+            spot = frame.home_from_origin(self.land_spot_ned_m)
+            occupant = self._pad_occupant(t_us, pos, spot, tracks, params)
+            if occupant is not None:
+                self._wait_beside(t_us, pos, occupant, pref, params)
+                held = occupant.name
         pad_held = held is not None
         if phase is Phase.LAND and not pad_held and -pos[2] < GROUND_LOCK_AGL_M:
             self.release()  # a landing this low is committed (the others give way to it)
@@ -310,36 +319,34 @@ class TrafficGuard:
                 return track.name
         return None
 
-    def _pad_occupant(self, t_us: int, pos: Vec3, spot: Vec3, pref: list[float], tracks: tuple[TrafficTrack, ...],
-                      params: TrafficParams) -> str | None:  # fmt: skip
+    def _pad_occupant(self, t_us: int, pos: Vec3, spot: Vec3, tracks: tuple[TrafficTrack, ...],
+                      params: TrafficParams) -> TrafficTrack | None:  # fmt: skip
         """The landing clearance's first half: the UAV on the touchdown ``spot`` (about home) or hovering over it
         lower than the vehicle (slower than ``COLUMN_SPEED_M_S`` within ``PAD_RADIUS_VOLUMES`` of the grown volume,
-        its report's accuracy added); while there is one, ``pref`` is set to wait level (at least
-        ``PAD_HOLD_AGL_M`` up), ``PAD_ASIDE_VOLUMES`` volumes from it (pulled at ``PULL_GAIN_1_S``, at most
-        ``PULL_MAX_M_S``), and the layer flies a hold (its floor in force). None when the pad is free."""
-        volume = params.uav.grown(params.margin)
+        its report's accuracy added); None when the pad is free."""
+        reach_m = PAD_RADIUS_VOLUMES * params.uav.grown(params.margin).hor_m
         for track in tracks:
-            if track.source is not TrafficSource.UAV:
+            if track.source is not TrafficSource.UAV or math.hypot(*track.vel_ned_m_s[:2]) >= COLUMN_SPEED_M_S:
                 continue
-            p, v = track.position_at(t_us), track.vel_ned_m_s
-            h_unc = uncertainty_m(track)[0]
-            dn, de = p[0] - spot[0], p[1] - spot[1]
-            if math.hypot(dn, de) >= PAD_RADIUS_VOLUMES * volume.hor_m + h_unc:
-                continue
-            if math.hypot(v[0], v[1]) >= COLUMN_SPEED_M_S:
-                continue
-            if -p[2] >= -pos[2]:  # over the vehicle: going or gone up (the column below it is what it lands in)
-                continue
-            an, ae = pos[0] - p[0], pos[1] - p[1]
-            away = math.hypot(an, ae)
-            if away < 1e-3:  # right over it: aside to the east (lower system id) or west
-                an, ae, away = 0.0, (1.0 if self.layer.system_id < track.target_id else -1.0), 1.0
-            aside = PAD_ASIDE_VOLUMES * (volume.hor_m + h_unc)
-            for k, d in ((0, p[0] + an / away * aside - pos[0]), (1, p[1] + ae / away * aside - pos[1])):
-                pref[k] = min(max(PULL_GAIN_1_S * d, -PULL_MAX_M_S), PULL_MAX_M_S)
-            pref[2] = -min(max(PULL_GAIN_1_S * (PAD_HOLD_AGL_M + pos[2]), 0.0), PULL_MAX_M_S)  # level, not low
-            return track.name
+            p = track.position_at(t_us)
+            on_spot = math.hypot(p[0] - spot[0], p[1] - spot[1]) < reach_m + uncertainty_m(track)[0]
+            if on_spot and -p[2] < -pos[2]:  # one over the vehicle is going or gone up: not in the column below it
+                return track
         return None
+
+    def _wait_beside(self, t_us: int, pos: Vec3, occupant: TrafficTrack, pref: list[float],
+                     params: TrafficParams) -> None:  # fmt: skip
+        """Sets ``pref`` to wait level (at least ``PAD_HOLD_AGL_M`` up) ``PAD_ASIDE_VOLUMES`` volumes from the
+        pad's ``occupant``, on the vehicle's side of it (right over it: east for the lower system id, else west)."""
+        p = occupant.position_at(t_us)
+        an, ae = pos[0] - p[0], pos[1] - p[1]
+        away = math.hypot(an, ae)
+        if away < 1e-3:
+            an, ae, away = 0.0, (1.0 if self.layer.system_id < occupant.target_id else -1.0), 1.0
+        aside = PAD_ASIDE_VOLUMES * (params.uav.grown(params.margin).hor_m + uncertainty_m(occupant)[0])
+        pref[0] = _pull_m_s(p[0] + an / away * aside - pos[0])
+        pref[1] = _pull_m_s(p[1] + ae / away * aside - pos[1])
+        pref[2] = -max(_pull_m_s(PAD_HOLD_AGL_M + pos[2]), 0.0)  # level, and back up if pushed low
 
     def _corridor_threat(self, t_us: int, pos: Vec3, pref: list[float], tracks: tuple[TrafficTrack, ...],
                          params: TrafficParams) -> str | None:  # fmt: skip
