@@ -101,10 +101,10 @@ ALLOWED_IMPORTS: dict[str, frozenset[str]] = {
             "mavlink_bridge.contract", "mavlink_bridge.gcs_server", "mavlink_bridge.lockstep", "mavlink_bridge.wire",
         ),
         # tools: the product's tools, then the campaigns over them; research and benchmarks on top
-        "tools": (
+        "tools": (  # autopilot.control and .traffic: tools.warm_jit compiles their batch and ORCA kernels at setup
             "autopilot", "autopilot.control", "autopilot.estimation", "autopilot.mission", "autopilot.telemetry",
-            "mavlink_bridge.contract", "mavlink_bridge.gcs_client", "mavlink_bridge.lockstep", "mavlink_bridge.wire",
-            "sim",
+            "autopilot.traffic", "mavlink_bridge.contract", "mavlink_bridge.gcs_client", "mavlink_bridge.lockstep",
+            "mavlink_bridge.wire", "sim",
         ),
         "tools.gcs": (
             "autopilot.mission", "mavlink_bridge.contract", "mavlink_bridge.gcs_client", "mavlink_bridge.wire",

@@ -25,6 +25,7 @@ def warm() -> dict[str, float]:
     with ProcessPoolExecutor(max_workers=1) as pool:
         sim_and_bridge = pool.submit(_warm_sim_and_bridge)
         timings = _warm_autopilot()
+        timings.update(_warm_traffic())
         timings.update(sim_and_bridge.result())
     return timings
 
@@ -88,6 +89,35 @@ def _warm_autopilot() -> dict[str, float]:
     return {"autopilot_s": time.perf_counter() - t0}
 
 
+def _warm_traffic() -> dict[str, float]:
+    """The reactive layer's ORCA kernels (every autopilot with traffic solves at 50 Hz): one solve that finds an
+    admissible velocity and one that has none (a closing ring and a stack: the fallback's least violation)."""
+    t0 = time.perf_counter()
+    from autopilot.traffic.param_decls import TrafficParams
+    from autopilot.traffic.reactive import Phase, ReactiveLayer, ReactiveLimits
+    from autopilot.traffic.tracks import TrafficTrack
+    from mavlink_bridge.contract.traffic import TrafficSource
+
+    def uav(sys_id: int, pos: tuple[float, float, float], vel: tuple[float, float, float]) -> TrafficTrack:
+        return TrafficTrack(TrafficSource.UAV, sys_id, "", pos, vel, 0)
+
+    limits, params, own, still = (
+        ReactiveLimits(12.0, 3.0, 1.5, 3.0, -2.0, -120.0),
+        TrafficParams(),
+        (0.0, 0.0, -15.0),
+        (0.0, 0.0, 0.0),
+    )
+    ReactiveLayer(1).solve(0, own, still, (0.0, 5.0, 0.0), [uav(2, (0.0, 40.0, -15.0), (0.0, -5.0, 0.0))], params,
+                           limits, Phase.MISSION)  # fmt: skip
+    angles = np.arange(8) * np.pi / 4.0
+    crowd = [uav(10 + k, (12.0 * np.cos(a), 12.0 * np.sin(a), -15.0), (-8.0 * np.cos(a), -8.0 * np.sin(a), 0.0))
+             for k, a in enumerate(angles)]  # fmt: skip
+    crowd += [uav(30, (0.0, 0.0, -21.0), (0.0, 0.0, 3.0)), uav(31, (0.0, 0.0, -9.0), (0.0, 0.0, -3.0))]
+    command = ReactiveLayer(1).solve(0, own, still, (0.0, 5.0, 0.0), crowd, params, limits, Phase.MISSION)
+    assert command is not None and command.fallback, "the crowd left an admissible velocity: least_violating unwarmed"
+    return {"traffic_s": time.perf_counter() - t0}
+
+
 def _warm_bridge() -> dict[str, float]:
     """The geodetic, frame reader and lockstep answer kernels both processes use."""
     t0 = time.perf_counter()
@@ -107,7 +137,7 @@ def _warm_bridge() -> dict[str, float]:
 
 def main() -> int:
     print(
-        "[setup] compiling the numba kernels (physics, controller, codec): about 35 s the first time, "
+        "[setup] compiling the numba kernels (physics, controller, codec, traffic): about 35 s the first time, "
         "a few seconds once cached...",
         flush=True,
     )
