@@ -40,10 +40,10 @@ def _mission(frame: LocalNedFrame, east_m: float) -> list[MissionItem]:
 def test_two_vehicles_head_on_avoid_each_other_and_finish_their_missions(tmp_path: Path) -> None:
     if importlib.util.find_spec("sim.fleet_world") is None:
         pytest.skip("needs the fleet simulator (quadsitl up --world with vehicles:)")
-    world = write_fleet_world(tmp_path, "pair", [("alpha", 0, 0), ("bravo", 1, 200)])
+    world = write_fleet_world(tmp_path, "pair", [("alpha", 0, 0), ("bravo", 1, 120)])
     block = free_instance_block(2)
     args = [sys.executable, "-m", "quadsitl_cli", "up", "--world", str(world), "--instance", str(block)]
-    args += ["--gcs", "off", "--speed", "max", "--log-dir", str(tmp_path / "logs"), "--duration-s", "150"]
+    args += ["--gcs", "off", "--speed", "max", "--log-dir", str(tmp_path / "logs"), "--duration-s", "100"]
     log = open(tmp_path / "up.log", "wb")  # noqa: SIM115 (the child keeps its own copy)
     up = subprocess.Popen(args, cwd=REPO_ROOT, env=dict(os.environ, PYTHONUNBUFFERED="1"), stdout=log, stderr=log)
     frame = LocalNedFrame(HOME)
@@ -53,7 +53,7 @@ def test_two_vehicles_head_on_avoid_each_other_and_finish_their_missions(tmp_pat
     texts: dict[int, list[str]] = {1: [], 2: []}
     fixes: dict[int, list[tuple[float, tuple[float, float, float]]]] = {1: [], 2: []}
     try:
-        for sid, east_m in ((1, 160.0), (2, 40.0)):  # alpha flies east, bravo west: head-on at one level
+        for sid, east_m in ((1, 100.0), (2, 20.0)):  # alpha flies east, bravo west: head-on at one level
             gcs[sid].wait_until(lambda s: s.home is not None and s.gps_fix_type >= 3, 120.0)
             gcs[sid].upload_mission(_mission(frame, east_m))
         for client in gcs.values():
