@@ -38,6 +38,7 @@ from sim.fleet_world import FleetSpec, FleetVehicle
 from sim.frame_kernel import SensorValues
 from sim.obstacle_sensor import ObstacleSensor
 from sim.sensors import SensorModel
+from sim.separation_kernel import EVENT_CONTACT, EVENT_VOLUME_AIRBORNE, EVENT_VOLUME_GROUND, pair_separation_step
 from sim.vehicle_config import VehicleConfig
 from sim.world import World
 
@@ -151,6 +152,7 @@ class FleetSim:
         self.volume_pairs_ground: dict[tuple[int, int], float] = {}  # the same with one of them on the ground
         self._inside_seen = np.zeros((n, n), dtype=bool)
         self._inside_seen_ground = np.zeros((n, n), dtype=bool)
+        self._events = np.zeros((n * n, 3), dtype=np.int64)  # the kernel's new pair-events of a step
         self._others_id = len(world.obstacles) + np.arange(n, dtype=np.float64)
         gap = self._gaps()
         if n > 1 and float(gap.min()) <= 0.0:
@@ -194,12 +196,9 @@ class FleetSim:
             self.end_reason[members] = batch.end_reason
             self.on_ground[members] = batch.on_ground
 
-    def _gaps(self, diff_ned: np.ndarray | None = None) -> np.ndarray:
-        """(n, n) surface-to-surface distances between vehicles (inf on the diagonal); ``diff_ned`` (n, n, 3):
-        the pairwise position differences when already computed."""
-        if diff_ned is None:
-            diff_ned = self.pos_ned[:, None, :] - self.pos_ned[None, :, :]
-        d = np.linalg.norm(diff_ned, axis=2)
+    def _gaps(self) -> np.ndarray:
+        """(n, n) surface-to-surface distances between vehicles (inf on the diagonal)."""
+        d = np.linalg.norm(self.pos_ned[:, None, :] - self.pos_ned[None, :, :], axis=2)
         gap = d - self.radius_m[:, None] - self.radius_m[None, :]
         np.fill_diagonal(gap, np.inf)
         return gap
@@ -238,43 +237,25 @@ class FleetSim:
             self._contacts()
 
     def _contacts(self) -> None:
-        diff_ned = self.pos_ned[:, None, :] - self.pos_ned[None, :, :]  # one pairwise difference per step
-        gap = self._gaps(diff_ned)
-        np.minimum(self.min_separation_m, gap.min(axis=1), out=self.min_separation_m)
-        self._volume_separation(diff_ned)
-        touching = gap <= 0.0
-        new = touching & ~self._touching
-        self._touching |= touching
-        if not new.any():
+        """The step's pairs (``sim.separation_kernel``): separations folded in, new contacts end both vehicles,
+        new volume pairs recorded with the time they first came inside."""
+        n_events = pair_separation_step(
+            self.pos_ned, self.radius_m, self.on_ground, UAV_VOLUME_HOR_M, UAV_VOLUME_VER_M,
+            self.min_separation_m, self.min_volume_sep_m,
+            self._touching, self._inside_seen, self._inside_seen_ground, self._events,
+        )  # fmt: skip
+        if n_events == 0:  # the usual step
             return
-        for i, j in zip(*np.nonzero(np.triu(new)), strict=True):
-            self.contacts.append((int(i), int(j), self.t_s))
-            self.end(EndReason.COLLISION, [int(i), int(j)])
-
-    def _volume_separation(self, d: np.ndarray) -> None:
-        """Fold the airborne pairs' separations in the volume's measure into ``min_volume_sep_m`` and the pairs inside
-        the volume into ``volume_pairs`` / ``volume_pairs_ground``; ``d`` (n, n, 3): the pairwise differences."""
-        airborne = ~self.on_ground
-        n_air = np.count_nonzero(airborne)
-        if n_air == 0:
-            return
-        sep = np.maximum(np.hypot(d[..., 0], d[..., 1]), np.abs(d[..., 2]) * (UAV_VOLUME_HOR_M / UAV_VOLUME_VER_M))
-        np.fill_diagonal(sep, np.inf)
-        pair = airborne[:, None] & airborne[None, :]
-        if n_air >= 2:
-            np.minimum(self.min_volume_sep_m, np.where(pair, sep, np.inf).min(axis=1), out=self.min_volume_sep_m)
-        close = sep < UAV_VOLUME_HOR_M  # max(hor, 2 ver) < 10: inside 10 m and 5 m at once
-        if not close.any():  # the usual step: nothing more to do
-            return
-        inside = np.triu(close)
-        for seen, first, rows in (
-            (self._inside_seen, self.volume_pairs, pair),
-            (self._inside_seen_ground, self.volume_pairs_ground, ~pair),
-        ):
-            new = inside & rows & ~seen
-            for i, j in zip(*np.nonzero(new), strict=True):
-                first[(int(i), int(j))] = self.t_s
-            seen |= new
+        t_s = self.t_s
+        for i, j, kind in self._events[:n_events].tolist():
+            if kind == EVENT_VOLUME_AIRBORNE:
+                self.volume_pairs[(i, j)] = t_s
+            elif kind == EVENT_VOLUME_GROUND:
+                self.volume_pairs_ground[(i, j)] = t_s
+        for i, j, kind in self._events[:n_events].tolist():
+            if kind == EVENT_CONTACT:
+                self.contacts.append((i, j, t_s))
+                self.end(EndReason.COLLISION, [i, j])
 
     def end(self, reason: EndReason, vehicles: list[int]) -> None:
         """End the running ones of ``vehicles`` with ``reason`` (they freeze)."""
