@@ -23,6 +23,7 @@ import logging
 import math
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -38,7 +39,9 @@ from sim.summary_file import FleetSummary, FleetVehicleSummary, LinkCounts
 from sim.traffic import MannedProximity, ScriptedTraffic, TrafficLinkConfig, TrafficReceiver
 from sim.vehicle_config import VehicleConfig, load_vehicle
 from sim.world import World
-from sim.world_recording import WorldRecorder
+
+if TYPE_CHECKING:
+    from sim.world_recording import WorldRecorder
 
 log = logging.getLogger(__name__)
 _MAV_AUTOPILOT_INVALID = 8
@@ -83,9 +86,11 @@ class FleetRun:
         self.proximity = MannedProximity(self.receiver.traffic, sim.n)
         self.manned_pairs = MannedPairs(self.receiver.traffic, sim.n)
         names = [v.name for v in vehicles]
-        self.recorder = (
-            WorldRecorder(names, self.receiver.traffic, recording, recording_id) if recording is not None else None
-        )
+        self.recorder: WorldRecorder | None = None
+        if recording is not None:  # imported here: rerun costs a process without a recording half a second to load
+            from sim.world_recording import WorldRecorder
+
+            self.recorder = WorldRecorder(names, self.receiver.traffic, recording, recording_id)
         self.writers = [FrameWriter(v.sys_id) for v in vehicles]
         self.receiver_encoders = [Encoder(v.sys_id, MAV_COMP_ID_ADSB) for v in vehicles]
         self._receiver_heartbeat = Heartbeat(MAV_TYPE_ADSB, _MAV_AUTOPILOT_INVALID, 0, 0, _MAV_STATE_ACTIVE)
