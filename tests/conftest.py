@@ -28,3 +28,13 @@ def udp_port() -> int:
 @pytest.fixture
 def repo_root() -> Path:
     return REPO_ROOT
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """EXPERIMENT: pin each xdist worker (and the processes it starts) to one CPU."""
+    import os
+
+    worker = os.environ.get("PYTEST_XDIST_WORKER")
+    if worker and os.environ.get("QUADSITL_PIN") and hasattr(os, "sched_setaffinity"):
+        cpus = sorted(os.sched_getaffinity(0))
+        os.sched_setaffinity(0, {cpus[int(worker.removeprefix("gw")) % len(cpus)]})

@@ -111,15 +111,17 @@ def campaign(
     vehicles: tuple[str, ...] = VEHICLES,
     sets: tuple[str, ...] = SETS,
     cache: Path | None = None,
+    route: str = "delivery",
 ) -> tuple[dict[str, dict[str, object]], int]:
     """Fly every (vehicle, set, seed) of the delivery mission (a set equal to another on a vehicle is flown
-    once); per vehicle and set: the flights' metrics, and the number of distinct flights."""
+    once); per vehicle and set: the flights' metrics, and the number of distinct flights. ``route``: another of
+    ``loop_rollout.ROUTES`` (a pipeline check flies the short ``leg``)."""
     seeds = range(first_seed, first_seed + n_seeds)
     keys = [(v, s) for v in vehicles for s in sets]
     payloads = []
     for v in vehicles:
         gains = gain_sets(v, sets)
-        payloads += [LoopRollout.of(v, gains[s], "delivery", seed) for s in sets for seed in seeds]
+        payloads += [LoopRollout.of(v, gains[s], route, seed) for s in sets for seed in seeds]
     outcomes = fly_cached(payloads, workers, cache)
     table: dict[str, dict[str, object]] = {}
     for i, (v, s) in enumerate(keys):
