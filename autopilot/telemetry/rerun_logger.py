@@ -323,6 +323,8 @@ class RerunTelemetry(SceneLog):
     def flush(self) -> None:
         """Send the buffered rows (one ``send_columns`` per entity) and the open trail segment."""
         rec = self.rec
+        if self._estimator_errors is not None:
+            self._estimator_errors.flush()
         if self._times:
             n = len(self._times)
             rows = np.empty((n, N_COLS))
