@@ -9,7 +9,7 @@ an empty file system (each request refused at once, so a client falls back to th
 protocols without waiting). The autopilot runner owns the clock: it calls ``poll``
 between lockstep frames (never blocks) and ``publish`` once per control step.
 
-Streams run at their rates in sim time, capped at ``max_stream_speedup`` (default 5) times
+Streams run at their rates in sim time, capped at ``max_stream_speedup`` (default 1) times
 those rates in wall time so a run at ``--speed max`` cannot flood a GCS; events are never capped.
 
 GCS link timeouts are wall-clock (the GCS is a real-time peer). When the simulation runs
@@ -93,7 +93,7 @@ class GcsServer:
         default_target_url: str | None = None,
         mission_timeouts: TransferTimeouts | None = None,
         max_mission_items: int = 5000,
-        max_stream_speedup: float | None = 5.0,
+        max_stream_speedup: float | None = 1.0,
     ) -> None:
         self._endpoint = MavlinkEndpoint(
             url,

@@ -39,7 +39,7 @@ def test_gcs_arm_takeoff_hold_reposition_land_disarm(tmp_path: Path) -> None:
                 lambda s: s.mode is FlightMode.AUTO_LOITER and s.landed_state is LandedState.IN_AIR, 120.0
             )
             assert status.armed
-            # Streams are capped at 5x their rate in wall time, so at --speed max the altitude that came with
+            # Streams are capped at their rate in wall time, so at --speed max the altitude that came with
             # the mode change can be ~0.4 s of sim time old (0.5 m of climb): judge it on later samples.
             t_loiter = status.sim_time_s or 0.0
             status = gcs.wait_until(lambda s: (s.sim_time_s or 0.0) > t_loiter + 0.5, 60.0)

@@ -66,8 +66,8 @@ def test_a_return_with_an_exclusion_zone_between_vehicle_and_home_flies_around_i
     assert ap["landed"] and ap["disarmed"] and sim["collisions"] == 0, (ap, sim)
     final_ned = sim["final_pos_ned_m"]
     assert isinstance(final_ned, list) and math.hypot(final_ned[0], final_ned[1]) < 1.5, final_ned  # at home
-    # sampled from the drop point home: streams run in sim time but are capped at 5x their rate in wall time, so
-    # at --speed max an idle machine sees fewer samples than a loaded one (9 on an idle 2-core VM); the
+    # sampled from the drop point home: streams run in sim time but are capped at their rate in wall time, so
+    # at --speed max an idle machine sees fewer samples than a loaded one; the
     # autopilot's own fence check below runs at 10 Hz of sim time and covers every step between them
     assert len(track) >= 5 and max(p[0] for p in track) > 80.0 and min(p[0] for p in track) < 20.0
     breaches = [p for p in track if fence.violates(p)]
