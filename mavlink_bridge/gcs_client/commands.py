@@ -109,6 +109,16 @@ class GcsCommands(GcsSession):
         """MAV_CMD_MISSION_START (PX4 switches to AUTO.MISSION)."""
         self._command_ok(M.MAV_CMD_MISSION_START, float(first_item), float(last_item))
 
+    def request_message(self, message_id: int) -> None:
+        """MAV_CMD_REQUEST_MESSAGE: the vehicle sends ``message_id`` once, now (as QGroundControl asks for
+        HOME_POSITION rather than wait for its slow stream)."""
+        self._command_ok(M.MAV_CMD_REQUEST_MESSAGE, float(message_id))
+
+    def request_home(self, wait_s: float = 0.3) -> None:
+        """Ask for HOME_POSITION now and take what comes within ``wait_s``."""
+        self.request_message(M.MAVLINK_MSG_ID_HOME_POSITION)
+        self.pump(wait_s)
+
     def set_message_interval(self, message_id: int, interval_s: float) -> None:
         """SET_MESSAGE_INTERVAL: ``interval_s`` > 0, 0 = default rate, < 0 = off."""
         interval_us = -1.0 if interval_s < 0 else interval_s * 1e6

@@ -10,7 +10,7 @@ import time
 
 import pytest
 from conftest import free_udp_port
-from gcs_fakes import MAV_CMD_COMPONENT_ARM_DISARM, FakeVehicle, ServerHarness
+from gcs_fakes import HOME_LAT_DEG, MAV_CMD_COMPONENT_ARM_DISARM, FakeVehicle, ServerHarness
 
 from autopilot.parameters.store import ParamSpec, ParamStore
 from mavlink_bridge.contract.vehicle_api import CommandResult, FlightMode, LandedState
@@ -312,4 +312,24 @@ def test_param_list_of_300_over_a_lossy_link() -> None:
             finally:
                 client.close()
     finally:
+        harness.stop()
+
+
+def test_request_home_gets_home_position_at_once_when_its_stream_is_off() -> None:
+    """HOME_POSITION streams at 0.5 Hz (in wall time at --speed max): a client asks for it, as QGroundControl does."""
+    harness, gcs_port = _start()
+    first = GcsClient(f"udpin:127.0.0.1:{gcs_port}", timeout_s=3.0, retry_s=0.1)
+    first.wait_heartbeat(5.0)
+    first.set_message_interval(M.MAVLINK_MSG_ID_HOME_POSITION, -1.0)  # its stream off
+    first.close()
+    client = GcsClient(f"udpin:127.0.0.1:{gcs_port}", timeout_s=3.0, retry_s=0.1)  # a client that never saw it
+    try:
+        client.wait_heartbeat(5.0)
+        client.pump(0.3)
+        assert client.telemetry().home is None
+        client.request_home()
+        home = client.telemetry().home
+        assert home is not None and home.lat_deg == pytest.approx(HOME_LAT_DEG)
+    finally:
+        client.close()
         harness.stop()
