@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 
 from pymavlink.dialects.v20 import common as mavlink2
 
 from mavlink_bridge.contract.vehicle_api import CommandResult, FlightMode
-from mavlink_bridge.gcs_client.errors import CommandFailedError, GcsTimeoutError
+from mavlink_bridge.gcs_client.errors import CommandFailedError, GcsError, GcsTimeoutError
 from mavlink_bridge.gcs_client.session import GcsSession, Msg
 
 M = mavlink2
@@ -91,8 +92,11 @@ class GcsCommands(GcsSession):
         )
 
     def takeoff(self, alt_m: float) -> None:
-        """MAV_CMD_NAV_TAKEOFF to ``alt_m`` above home; param7 is AMSL as PX4 expects (needs HOME_POSITION)."""
+        """MAV_CMD_NAV_TAKEOFF to ``alt_m`` above home; param7 is AMSL as PX4 expects (needs HOME_POSITION: asked
+        for when not known yet, then waited for while the vehicle has none)."""
         if self._telemetry.home is None:
+            with contextlib.suppress(GcsError):  # refused (no home yet: it comes with the fix) or not answered
+                self.request_home(wait_s=0.0)
             self.wait_until(lambda s: s.home is not None, self.timeout_s)
         assert self._telemetry.home is not None
         nan = math.nan
