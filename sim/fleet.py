@@ -38,7 +38,7 @@ from sim.fleet_world import FleetSpec, FleetVehicle
 from sim.frame_kernel import SensorValues
 from sim.obstacle_sensor import ObstacleSensor
 from sim.sensors import SensorModel
-from sim.separation_kernel import EVENT_CONTACT, EVENT_VOLUME_AIRBORNE, EVENT_VOLUME_GROUND, pair_separation_step
+from sim.separation_kernel import EVENT_CONTACT, EVENT_VOLUME_AIRBORNE, pair_separation_step
 from sim.vehicle_config import VehicleConfig
 from sim.world import World
 
@@ -248,14 +248,13 @@ class FleetSim:
             return
         t_s = self.t_s
         for i, j, kind in self._events[:n_events].tolist():
-            if kind == EVENT_VOLUME_AIRBORNE:
-                self.volume_pairs[(i, j)] = t_s
-            elif kind == EVENT_VOLUME_GROUND:
-                self.volume_pairs_ground[(i, j)] = t_s
-        for i, j, kind in self._events[:n_events].tolist():
             if kind == EVENT_CONTACT:
                 self.contacts.append((i, j, t_s))
                 self.end(EndReason.COLLISION, [i, j])
+            elif kind == EVENT_VOLUME_AIRBORNE:
+                self.volume_pairs[(i, j)] = t_s
+            else:
+                self.volume_pairs_ground[(i, j)] = t_s
 
     def end(self, reason: EndReason, vehicles: list[int]) -> None:
         """End the running ones of ``vehicles`` with ``reason`` (they freeze)."""

@@ -93,11 +93,15 @@ class EstimatorErrorLog:
         n = len(self._times)
         rows = np.array(self._rows, dtype=np.float64).reshape(n, _N_COLS)
         t_us = np.array(self._times, dtype=np.int64)
-        ratios = np.array(self._has_ratios)
-        for path, c0, width in ((POS_ERR, 0, 3), (VEL_ERR, 3, 3), (ATT_ERR, 6, 3), (TEST_RATIOS, 9, 4)):
-            keep = ratios if path == TEST_RATIOS else slice(None)
-            if path == TEST_RATIOS and not ratios.any():
-                continue
+        series: list[tuple[str, int, int, slice | np.ndarray]] = [
+            (POS_ERR, 0, 3, slice(None)),
+            (VEL_ERR, 3, 3, slice(None)),
+            (ATT_ERR, 6, 3, slice(None)),
+        ]
+        has_ratios = np.array(self._has_ratios)
+        if has_ratios.any():  # the test ratios only of the samples that came with an estimator status
+            series.append((TEST_RATIOS, 9, 4, has_ratios))
+        for path, c0, width, keep in series:
             self.rec.send_columns(
                 path,
                 indexes=[rr.TimeColumn(self.timeline, duration=t_us[keep].astype("timedelta64[us]"))],

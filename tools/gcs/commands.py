@@ -69,10 +69,11 @@ def cmd_status(client: GcsClient, args: argparse.Namespace) -> str:
     """One screen of what the vehicle reports: mode, arming, position, GPS, battery, mission, recent messages."""
     del args
     client.pump(1.5)  # a round of the 1-4 Hz streams
-    if client.telemetry().home is None and client.telemetry().gps_fix_type >= 3:
+    s = client.telemetry()
+    if s.home is None and s.gps_fix_type >= 3:
         with contextlib.suppress(GcsError):  # HOME_POSITION streams at 0.5 Hz: ask for it, as QGroundControl does
             client.request_home()
-    s = client.telemetry()
+        s = client.telemetry()
     pos = "unknown" if s.pos_ned_m is None else "N {:.1f} m, E {:.1f} m, D {:.1f} m".format(*s.pos_ned_m)
     home = "not set (no GPS fix yet)" if s.home is None else f"{s.home.lat_deg:.6f}, {s.home.lon_deg:.6f}"
     if s.home is not None:
