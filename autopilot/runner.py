@@ -110,6 +110,7 @@ class Autopilot:
         self.frames = 0
         self.end_reason: AutopilotEndReason | None = None
         self.frame_detections: tuple[ObstacleDetection, ...] = ()
+        self._map_detections: Sequence[ObstacleDetection] = ()  # the frame's, less those of tracked vehicles
         self._texts: list[StatusText] = []
         self._context = CommandContext()
         self._prev_time_us: int | None = None
@@ -202,6 +203,7 @@ class Autopilot:
         if state is None:
             return ActuatorCommand(t_us, (0.0, 0.0, 0.0, 0.0), False, commander.gripper_release)
         self.state = state
+        self._map_detections = self.navigator.sense(state, self.frame_detections)  # tracked vehicles: traffic's
         commander.observe(state)
         status = self.estimator.status  # the same object while nothing changes
         if status is not self._context.estimator_status:  # arming checks and SYS_STATUS read it
@@ -226,7 +228,7 @@ class Autopilot:
         if state.time_us >= self._next_failsafe_us:
             self._run_failsafes(state)
         on_ground, rtl_goal = commander.landed_state is LandedState.ON_GROUND, commander.rtl.return_goal_ned_m
-        nav = self.navigator.update(state, commander.mode, on_ground, self.frame_detections, rtl_goal)
+        nav = self.navigator.update(state, commander.mode, on_ground, self._map_detections, rtl_goal)
         if nav.reached:
             self.progress.add(nav.reached)
         if nav.gripper_release is not None:
@@ -313,7 +315,7 @@ class Autopilot:
             return fc.idle(state, target, commander.armed, self._dt_s)
         fc.reference_for(state, target, self._dt_s)
         if target.kind is TargetKind.POSITION and (commander.mode is FlightMode.AUTO_MISSION or nav.returns.active):
-            override = nav.avoid(state, target, self.frame_detections)  # each frame's: the sensor runs at 10 Hz
+            override = nav.avoid(state, target, self._map_detections)  # each frame's: the sensor runs at 10 Hz
             if override is not None:
                 fc.override(override)
         nav.traffic.bound(state, fc, commander.mode, target.kind, self._dt_s, commander.landed_state, target.pos_ned_m)
@@ -376,14 +378,12 @@ class Autopilot:
             detections=self.frame_detections,
             planner_output=self.navigator.planner_output,
             control=fc.controller.sample() if flying else None,
-            battery_remaining_pct=100.0 * self.battery.remaining,
-            battery_voltage_v=self.battery.voltage_v,
+            battery_remaining_pct=100.0 * self.battery.remaining, battery_voltage_v=self.battery.voltage_v,
             truth=self._truth,  # type: ignore[arg-type]
             estimator_status=self.estimator.status,
             planned_route_home_ned_m=self.navigator.route_path_home_ned_m,
-            traffic_decision=traffic.decision,
-            uav_separation=traffic.avoidance.params.uav,
-        )
+            traffic_decision=traffic.decision, uav_separation=traffic.avoidance.params.uav,
+        )  # fmt: skip
 
     def snapshot(self) -> TelemetrySnapshot | None:
         """The telemetry snapshot of the latest step (None before the first state)."""

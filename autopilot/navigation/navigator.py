@@ -241,27 +241,24 @@ class Navigator:
         return self.executor.state if self.executor is not None else MissionState.NO_MISSION
 
     # ------------------------------------------------------------------ the step
-    def update(
-        self,
-        state: VehicleState,
-        mode: FlightMode,
-        landed: bool,
-        detections: Sequence[ObstacleDetection],
-        return_goal_ned_m: Vec3 | None = None,
-    ) -> NavOutput:
+    def sense(self, state: VehicleState, detections: Sequence[ObstacleDetection]) -> Sequence[ObstacleDetection]:
+        """This frame's obstacle detections for the planner: those of tracked vehicles are traffic's
+        (:meth:`TrafficLink.fuse`: fixes of their tracks) and leave the obstacle map."""
+        kept, vehicles = self.traffic.fuse(state, self.frame, detections)
+        if vehicles and isinstance(self.planner, AvoidancePlanner):
+            self.planner.map.forget(vehicles)
+        return kept
+
+    def update(self, state: VehicleState, mode: FlightMode, landed: bool, detections: Sequence[ObstacleDetection],
+               return_goal_ned_m: Vec3 | None = None) -> NavOutput:  # fmt: skip
         """The mission's target at this step (AUTO_MISSION; in AUTO_RTL the routed point toward ``return_goal_ned_m``,
         the commander's point above home about the origin), then traffic avoidance (its failsafe rides along)."""
         out = self._mission_update(state, mode, landed, detections, return_goal_ned_m)
         return self.traffic.step(self, state, mode, landed, out)
 
-    def _mission_update(
-        self,
-        state: VehicleState,
-        mode: FlightMode,
-        landed: bool,
-        detections: Sequence[ObstacleDetection],
-        return_goal_ned_m: Vec3 | None,
-    ) -> NavOutput:
+    def _mission_update(self, state: VehicleState, mode: FlightMode, landed: bool,
+                        detections: Sequence[ObstacleDetection],
+                        return_goal_ned_m: Vec3 | None) -> NavOutput:  # fmt: skip
         """The mission's target at this step (AUTO_MISSION), with skips past obstacles' safety volumes; in AUTO_RTL
         the routed point toward ``return_goal_ned_m`` (the commander's point above home, about the origin)."""
         executor, frame = self.executor, self.frame

@@ -1,6 +1,7 @@
 """The navigator's side of traffic avoidance (SPEC §13): what :class:`TrafficAvoidance` needs, what it gives back.
 
-- Reads: received :class:`TrafficReport` objects (``receive``; the runner hands over each frame's), the vehicle
+- Reads: received :class:`TrafficReport` objects (``receive``; the runner hands over each frame's), the obstacle
+  sensor's detections (``fuse``: those of tracked vehicles become fixes of their tracks), the vehicle
   state (about the estimator origin), the flight mode, whether it is landed, the mission target and the route after
   it, the home frame, the fence, the obstacles the planner tracks, and the CA_*/GF_*/NAV_TRAFF_* parameters.
 - Emits: the :class:`TrafficDecision` of the step; the detour's reference about the origin while one is flown (the
@@ -25,10 +26,15 @@ from autopilot.navigation.home_frame import HomeFrame
 from autopilot.navigation.outputs import ReferenceOverride
 from autopilot.navigation.traffic_guard import TrafficGuard
 from autopilot.parameters.store import ParamStore
+from autopilot.planner.obstacle_map import ObstacleKind, detection_volume
 from autopilot.safety.failsafe import FailsafeEvent
 from autopilot.traffic import AvoidLimits, OwnShip, TrafficAvoidance, TrafficDecision, TrafficParams
+from autopilot.traffic.param_decls import TrafficAction
+from autopilot.traffic.sensor_fusion import associate, fix_sigma_m
+from autopilot.traffic.tracks import TrackKey
 from mavlink_bridge.contract.frames import Vec3
 from mavlink_bridge.contract.vehicle_api import FlightMode, LandedState, StatusText
+from mavlink_bridge.contract.wire import ObstacleDetection
 
 #: The modes the reactive layer avoids in (manual modes only warn).
 REACTIVE_MODES = frozenset((FlightMode.AUTO_TAKEOFF, FlightMode.AUTO_MISSION, FlightMode.AUTO_LOITER,
@@ -81,10 +87,44 @@ class TrafficLink:
         self._frame: HomeFrame | None = None
         self._last_update_us = -UPDATE_PERIOD_US
         self.guard = TrafficGuard(params, system_id)
+        self._held: dict[int, TrackKey] = {}  # obstacle sensor id -> the track it was last associated with
 
     def receive(self, reports: Iterable[object]) -> None:
         """Reports received since the last step (any number; checked at the next step)."""
         self._pending.extend(reports)
+
+    def fuse(
+        self, state: VehicleState, frame: HomeFrame | None, detections: Sequence[ObstacleDetection]
+    ) -> tuple[Sequence[ObstacleDetection], frozenset[int]]:
+        """This frame's obstacle detections that are tracked vehicles (:func:`associate`) become fixes of their
+        tracks; returns (the detections that are obstacles, the sensor ids that are vehicles). With NAV_TRAFF_AVOID
+        avoiding, the vehicles are traffic's alone; otherwise (warn, off, a failsafe action) they stay obstacles
+        too, as they were before: nothing else would steer around them."""
+        table = self.avoidance.table
+        if not detections or frame is None or not table.has_tracks:
+            return detections, frozenset()
+        self.avoidance.set_home(frame.geo)
+        tracks = table.tracks
+        centers: list[Vec3 | None] = []
+        ranges: list[float] = []
+        for det in detections:
+            kind, center, _, rng = detection_volume(det, np.asarray(state.pos_ned_m, float), state.q_ned_frd)
+            c = center.tolist()
+            centers.append(frame.home_from_origin((c[0], c[1], c[2])) if kind is ObstacleKind.SPHERE else None)
+            ranges.append(rng)
+        ids = [det.obstacle_id for det in detections]
+        matched = associate(tracks, state.time_us, centers, ids, self._held)
+        if not matched:
+            return detections, frozenset()
+        for i, key in matched.items():
+            center = centers[i]
+            assert center is not None
+            table.observe(key, state.time_us, center, fix_sigma_m(ranges[i]))
+            self._held[ids[i]] = key
+        vehicles = frozenset(ids[i] for i in matched)
+        if self.avoidance.params.action is not TrafficAction.AVOID:
+            return detections, frozenset()
+        return tuple(det for i, det in enumerate(detections) if i not in matched), vehicles
 
     @property
     def busy(self) -> bool:

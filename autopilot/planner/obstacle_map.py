@@ -232,6 +232,20 @@ class ObstacleMap:
             self._arrays = ObstacleArrays(self._snapshot)
         return changed
 
+    def forget(self, sensor_ids: Iterable[int]) -> bool:
+        """Drop the tracks of these sensor ids (objects known to be something else: a tracked vehicle is traffic,
+        not an obstacle); True when the snapshot changed. A volume one of them was merged into stays as grown."""
+        ids = set(sensor_ids)
+        gone = [k for k in ids if k in self._tracks]
+        for k in gone:
+            del self._tracks[k]
+        self._alias = {s: t for s, t in self._alias.items() if t in self._tracks and s not in ids}
+        if not gone:
+            return False
+        self._snapshot = tuple(t.frozen() for t in self._tracks.values())
+        self._arrays = ObstacleArrays(self._snapshot)
+        return True
+
     def _find(self, sensor_id: int, kind: ObstacleKind, center: Vec3, radius: float) -> _Track | None:
         track_id = self._alias.get(sensor_id)
         if track_id is not None and track_id in self._tracks:

@@ -9,13 +9,19 @@ A UTM report may carry the sender's intent (its next waypoint, converted about h
 flies it from the reported position toward that waypoint at the reported speed and holds it there, so a climb,
 descent or turn toward the waypoint is predicted before it shows in the velocity; without intent it is
 :meth:`TrafficTrack.position_at`'s constant velocity.
+
+A vehicle this one also sees (its obstacle sensor's detection associated with the track,
+:mod:`autopilot.traffic.sensor_fusion`) gets *fixes*: :meth:`TrackTable.observe` runs an alpha-beta filter over them
+(position and velocity about home), and while its fixes are newer than the track's report and keep coming, the
+track flies on the filter's position, velocity, time and accuracy instead of the report's (a UTM report is a second
+old when it arrives; the camera's frame is not). The report still says who it is, its intent and its flight state.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from mavlink_bridge.contract.frames import GeoPoint, LocalNedFrame, Vec3
 from mavlink_bridge.contract.traffic import TrafficReport, TrafficSource, UtmFlightState
@@ -32,6 +38,15 @@ MAX_INTENT_DISTANCE_M = 50_000.0
 MAX_FUTURE_US = 1_000_000
 
 TrackKey = tuple[TrafficSource, int]
+
+#: Fixes: the alpha-beta filter's gains at the camera's 10 Hz (alpha: position, beta: velocity; Kalata's
+#: tracking index about 0.5, a steady filter for a vehicle manoeuvring at a few m/s^2).
+FIX_ALPHA = 0.5
+FIX_BETA = 0.15
+#: A fix this long after the previous one (µs) starts the filter again from the track's own prediction.
+FIX_RESTART_US = 500_000
+#: Fixes stop moving the track this long after the last one (µs): the reports take over again.
+FIX_HOLD_US = 1_000_000
 
 
 @dataclass(frozen=True, slots=True)
@@ -88,6 +103,16 @@ class TrafficTrack:
         return (p[0] + u[0] * dt, p[1] + u[1] * dt, p[2] + u[2] * dt), u
 
 
+@dataclass(slots=True)
+class _Fix:
+    """The alpha-beta filter of one track's fixes: the last fix's time, position and velocity about home, 1-sigma."""
+
+    t_us: int
+    pos: list[float]
+    vel: list[float]
+    sigma_m: float
+
+
 def report_problem(report: object, now_us: int, own_system_id: int) -> str | None:
     """Why a report cannot be used (one line), or None when it can."""
     if not isinstance(report, TrafficReport):
@@ -125,6 +150,7 @@ class TrackTable:
         self._frame: LocalNedFrame | None = None
         self.version = 0  # changes whenever the tracks in force change
         self._cached: tuple[int, tuple[TrafficTrack, ...]] = (-1, ())
+        self._fixes: dict[TrackKey, _Fix] = {}
 
     def set_home(self, home: GeoPoint) -> None:
         """Home moved: every track is converted again about the new home."""
@@ -132,6 +158,7 @@ class TrackTable:
             return
         self._frame = LocalNedFrame(home)
         self._tracks = {key: self._track(report) for key, report in self._reports.items()}
+        self._fixes.clear()  # about the old home
         self.version += 1
 
     def _track(self, r: TrafficReport) -> TrafficTrack:
@@ -145,6 +172,40 @@ class TrackTable:
                 next_pos = w
         return TrafficTrack(r.source, r.target_id, r.callsign, pos, vel, r.t_us, next_pos, r.flight_state,
                             float(r.h_acc_m), float(r.v_acc_m))  # fmt: skip
+
+    def observe(self, key: TrackKey, t_us: int, pos_home_ned_m: Vec3, sigma_m: float) -> bool:
+        """A fix of track ``key``: its position about home at ``t_us`` seen by this vehicle (1-sigma ``sigma_m``);
+        False when there is no such track or the fix is not newer than its last one (nothing changes)."""
+        track = self._tracks.get(key)
+        if track is None:
+            return False
+        fix = self._fixes.get(key)
+        if fix is not None and t_us <= fix.t_us:
+            return False
+        if fix is None or t_us - fix.t_us > FIX_RESTART_US:  # (re)start: this position, the report's velocity
+            self._fixes[key] = _Fix(t_us, list(pos_home_ned_m), list(track.vel_ned_m_s), sigma_m)
+            self.version += 1
+            return True
+        dt = (t_us - fix.t_us) * 1e-6
+        pos, vel = fix.pos, fix.vel
+        for i in range(3):
+            predicted = pos[i] + vel[i] * dt
+            residual = pos_home_ned_m[i] - predicted
+            pos[i] = predicted + FIX_ALPHA * residual
+            if dt > 0.0:
+                vel[i] += FIX_BETA * residual / dt
+        fix.t_us, fix.sigma_m = t_us, sigma_m
+        self.version += 1
+        return True
+
+    def _fused(self, track: TrafficTrack) -> TrafficTrack:
+        """The track flown on its fixes while they are not older than its report (see the module's docstring)."""
+        fix = self._fixes.get(track.key)
+        if fix is None or fix.t_us < track.t_us:
+            return track
+        p, v, s = fix.pos, fix.vel, fix.sigma_m
+        return replace(track, pos_home_ned_m=(p[0], p[1], p[2]), vel_ned_m_s=(v[0], v[1], v[2]), t_us=fix.t_us,
+                       h_acc_m=s, v_acc_m=s)  # fmt: skip
 
     def update(self, now_us: int, reports: Iterable[object], max_age_s: float) -> tuple[list[str], list[TrafficTrack]]:
         """Take new reports and drop stale tracks; returns (rejections, dropped tracks)."""
@@ -175,6 +236,9 @@ class TrackTable:
             self.version += 1
         for key in [k for k, r in self._reports.items() if now_us - r.t_us > max_age_us]:
             del self._reports[key]  # stale before home was known
+        for key in [k for k, f in self._fixes.items() if now_us - f.t_us > FIX_HOLD_US or k not in self._tracks]:
+            del self._fixes[key]
+            self.version += 1
         return rejected, dropped
 
     @property
@@ -185,5 +249,5 @@ class TrackTable:
     def tracks(self) -> tuple[TrafficTrack, ...]:
         """Tracks in force, in key order (deterministic)."""
         if self._cached[0] != self.version:
-            self._cached = (self.version, tuple(self._tracks[k] for k in sorted(self._tracks)))
+            self._cached = (self.version, tuple(self._fused(self._tracks[k]) for k in sorted(self._tracks)))
         return self._cached[1]

@@ -66,10 +66,12 @@ def test_a_fleet_world_keeps_its_per_vehicle_digests(tmp_path: Path) -> None:
     # both hold their take-off while the helicopter passes 60 m east at 40 m (the departure hold, 2026-12-02); the
     # climbs above the ground lock go through the altitude-change corridor (both land by 49 s of sim, 54 s before);
     # re-pinned 2026-12-03: while engaged with no track binding the layer flies its preference within the vehicle's
-    # own limits and the fence, no longer the preference as it was (the pads 8 m apart: the climb-outs engage it)
+    # own limits and the fence, no longer the preference as it was (the pads 8 m apart: the climb-outs engage it);
+    # and again when each vehicle's camera detections of the other became fixes of its track (8 m apart they see
+    # each other: the tracks are fresher, and the other is no longer an obstacle to the planner)
     assert [v["truth_sha256"] for v in out["sim"]["vehicles"]] == [
-        "1cf59c90f951bc30fed2183c93486dd64383330c63c6ff2d78034eed7497d4cc",
-        "2c26df786b942f86062c2bd57997848d3b36b52fd9ecd4649ee7b7827c890e96",
+        "cfe32cf368271d4bc18e711b13a07c4483cb922e63c3566870af25d530b30f18",
+        "d334907a71c0f32e2f4f29614652f4eafa4837ba6561f64a6e9e72dd1e57e253",
     ]
     # each hears the other's own reports (1 Hz, 1 s late) and the helicopter's ADS-B (1 Hz, 0.6 s late, 95 %)
     assert [v["traffic_reports"] for v in out["sim"]["vehicles"]] == [56, 57]

@@ -90,3 +90,17 @@ def test_threat_is_the_first_conflict_on_the_route_or_velocity() -> None:
     # flying sideways toward #3 (velocity ray) while the route is clear of it
     t3 = assess_threat(POS, np.array([0.0, 5.0, 0.0]), route, obstacles[2:], 1.5, 40.0)
     assert t3 is not None and not t3.on_route
+
+
+def test_forget_drops_the_tracks_of_sensor_ids_and_their_aliases() -> None:
+    """A detection known to be a tracked vehicle leaves the map (navigator.sense); other obstacles stay."""
+    m = ObstacleMap()
+    q = quat_from_euler(0.0, 0.0, 0.0)
+    m.update(0, POS, q, [ObstacleDetection(0, 3, (8.0, 0.0, 0.0), 1.0, ObstacleShape.SPHERE),
+                         ObstacleDetection(0, 9, (8.0, 6.0, 0.0), 1.0, ObstacleShape.SPHERE)])  # fmt: skip
+    assert {o.obstacle_id for o in m.obstacles} == {3, 9}
+    assert m.forget({9, 42}) is True
+    assert [o.obstacle_id for o in m.obstacles] == [3] and len(m.arrays) == 1
+    assert m.forget({9}) is False  # nothing left of it: the snapshot stays
+    m.update(100_000, POS, q, [ObstacleDetection(100_000, 9, (8.0, 6.0, 0.0), 1.0, ObstacleShape.SPHERE)])
+    assert {o.obstacle_id for o in m.obstacles} == {3, 9}  # seen again (not associated): an obstacle again
