@@ -12,6 +12,8 @@ autopilot is connected to the end). The breakdown says what bounds it, per contr
 - ``cpu_bound_us``: (sim + autopilots CPU) / cores, the wall time per step if the cores were never idle;
 - ``wall_us``: the measured wall time per step. ``wall - cpu_bound`` is what scheduling and transport add.
 
+``fleet_rtf_n8_avoid_off`` flies the 8 again with traffic avoidance off (``NAV_TRAFF_AVOID`` 0) right after
+them; ``fleet_n8_avoid_rtf_ratio`` is ``fleet_rtf_n8`` over it (issue 28: the reactive layer costs less than 10 %).
 ``fleet_rtf_n1_same_run`` is the single-vehicle scripted flight of ``lockstep_flight`` in the same run (same
 spin setting), the reference the fleet figures compare with. Targets (issue 23): N=4 >= 5x, N=8 >= 3x,
 N=32 >= 1x on the 2-core machine. Spinning for the peer's datagram is off for every process
@@ -81,8 +83,9 @@ def _cpu_s(proc: subprocess.Popen[bytes], timeout_s: float) -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-def fly_fleet(n: int, duration_s: float, work: Path) -> dict[str, float]:
-    """One fleet flight; the sim summary's figures and the CPU breakdown per control step (µs)."""
+def fly_fleet(n: int, duration_s: float, work: Path, params_yaml: str | None = None) -> dict[str, float]:
+    """One fleet flight; the sim summary's figures and the CPU breakdown per control step (µs). ``params_yaml``:
+    parameters every autopilot starts with (``--params``)."""
     work.mkdir(parents=True, exist_ok=True)
     world = work / "fleet.yaml"
     world.write_text(fleet_world(n))
@@ -94,6 +97,9 @@ def fly_fleet(n: int, duration_s: float, work: Path) -> dict[str, float]:
     sim = _popen(sim_args, work / "sim.log")
     ap_args = ["--gcs", "off", "--api", "off", "--script", str(script), "--lockstep-spin-us", "0"]
     ap_args += ["--sim-timeout-s", "60", "--connect-timeout-s", "600"]
+    if params_yaml is not None:
+        (work / "params.yaml").write_text(params_yaml)
+        ap_args += ["--params", str(work / "params.yaml")]
     autopilots = [
         _popen(
             ["autopilot", "--sim", f"udpout:127.0.0.1:{base + i}", "--sys-id", str(i + 1), *ap_args],
@@ -179,4 +185,18 @@ def run(quick: bool) -> list[BenchResult]:
                 BenchResult(f"fleet_n{n}_cpu_bound_us_per_step", bound_us, note=f"(sim + autopilots CPU) / {cores}"),
                 BenchResult(f"fleet_n{n}_answer_wait_us", r["answer_wait_us"], note="sim waiting for the answers"),
             ]
+            if n == 8 and not quick:
+                results += _avoidance_cost(r["rtf"], duration_s, Path(tmp) / "n8_off")
     return results
+
+
+def _avoidance_cost(rtf_on: float, duration_s: float, work: Path) -> list[BenchResult]:
+    """The 8-vehicle flight again with traffic avoidance off (NAV_TRAFF_AVOID 0: tracks kept, no reactive layer,
+    no detour), right after the one with it: what the traffic layer costs the fleet (issue 28: within 10 %)."""
+    off = fly_fleet(8, duration_s, work, "NAV_TRAFF_AVOID: 0\n")["rtf"]
+    ratio = rtf_on / off
+    note = "fleet_rtf_n8 / the same flight with NAV_TRAFF_AVOID 0, flown right after it"
+    return [
+        BenchResult("fleet_rtf_n8_avoid_off", off, note="8 x500 + EKF, NAV_TRAFF_AVOID 0, same run"),
+        BenchResult("fleet_n8_avoid_rtf_ratio", ratio, ">= 0.9", ratio >= 0.9, note),
+    ]
