@@ -106,14 +106,16 @@ class TrafficLink:
         self.avoidance.set_home(frame.geo)
         tracks = table.tracks
         centers: list[Vec3 | None] = []
+        radii: list[float] = []
         ranges: list[float] = []
         for det in detections:
-            kind, center, _, rng = detection_volume(det, np.asarray(state.pos_ned_m, float), state.q_ned_frd)
+            kind, center, radius, rng = detection_volume(det, np.asarray(state.pos_ned_m, float), state.q_ned_frd)
             c = center.tolist()
             centers.append(frame.home_from_origin((c[0], c[1], c[2])) if kind is ObstacleKind.SPHERE else None)
+            radii.append(radius)
             ranges.append(rng)
         ids = [det.obstacle_id for det in detections]
-        matched = associate(tracks, state.time_us, centers, ids, self._held)
+        matched = associate(tracks, state.time_us, centers, radii, ids, self._held)
         if not matched:
             return detections, frozenset()
         for i, key in matched.items():

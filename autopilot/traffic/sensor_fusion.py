@@ -11,7 +11,9 @@ Gating (per frame, greedy by distance, one detection per track and one track per
 detection's centre to the track's position at the detection's time must be within ``GATE_M`` plus the track's
 accuracy (twice its 1-sigma) plus how far an unreported manoeuvre takes it since its report
 (``MANOEUVRE_M_S2 · age² / 2``); a sensor id associated before keeps its track within twice that (a tracker's
-object id is stable). Only sphere-like detections: a column stands on the ground.
+object id is stable). Only sphere-like detections (a column stands on the ground), and for a UAV track only one
+no larger than a small UAS (``MAX_UAV_RADIUS_M``): a floating obstacle the vehicle passes near is not taken for it
+(the gate of a report 2 s old reaches 8 m).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from collections.abc import Mapping, Sequence
 
 from autopilot.traffic.tracks import TrackKey, TrafficTrack
 from mavlink_bridge.contract.frames import Vec3
+from mavlink_bridge.contract.traffic import TrafficSource
 
 #: The gate's fixed part (m): a quad's size and the camera's and both estimators' position errors.
 GATE_M = 2.0
@@ -30,6 +33,8 @@ MANOEUVRE_M_S2 = 3.0
 #: the square of the range; the fixed part is this vehicle's own estimator error).
 FIX_SIGMA_M = 0.3
 FIX_SIGMA_PER_M2 = 0.001
+#: A detection larger than this (radius, m) is not a UAV: a 25 kg multirotor spans under 3 m.
+MAX_UAV_RADIUS_M = 1.5
 
 
 def gate_m(track: TrafficTrack, t_us: int, held: bool) -> float:
@@ -47,15 +52,18 @@ def fix_sigma_m(range_m: float) -> float:
 
 
 def associate(tracks: Sequence[TrafficTrack], t_us: int, centers_home_ned_m: Sequence[Vec3 | None],
-              sensor_ids: Sequence[int], held: Mapping[int, TrackKey]) -> dict[int, TrackKey]:  # fmt: skip
-    """Detection index -> track key for the detections (centres about home; None: not a vehicle's shape) that are
-    tracked vehicles; ``held``: sensor id -> track key of earlier associations."""
+              radii_m: Sequence[float], sensor_ids: Sequence[int],
+              held: Mapping[int, TrackKey]) -> dict[int, TrackKey]:  # fmt: skip
+    """Detection index -> track key for the detections (centres about home, None: not a vehicle's shape; radii)
+    that are tracked vehicles; ``held``: sensor id -> track key of earlier associations."""
     pairs: list[tuple[float, int, int]] = []
     predicted = [track.position_at(t_us) for track in tracks]
-    for i, (center, sensor_id) in enumerate(zip(centers_home_ned_m, sensor_ids, strict=True)):
+    for i, (center, radius, sensor_id) in enumerate(zip(centers_home_ned_m, radii_m, sensor_ids, strict=True)):
         if center is None:
             continue
         for k, (track, p) in enumerate(zip(tracks, predicted, strict=True)):
+            if track.source is TrafficSource.UAV and radius > MAX_UAV_RADIUS_M:
+                continue
             d = math.dist(center, p)
             if d <= gate_m(track, t_us, held.get(sensor_id) == track.key):
                 pairs.append((d, i, k))

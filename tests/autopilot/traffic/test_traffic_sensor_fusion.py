@@ -29,18 +29,20 @@ def _track(target_id: int, pos: tuple[float, float, float], vel=(0.0, 0.0, 0.0),
 
 def test_detections_are_gated_onto_the_nearest_track_one_to_one() -> None:
     """Two tracks 6 m apart, three detections: each track takes its nearest, the one far from both stays an
-    obstacle, a column (None) is never a vehicle; the gate widens with the report's age (an unreported
-    manoeuvre) and for a sensor id held before."""
+    obstacle, a column (None) is never a vehicle, nor a sphere larger than a small UAS; the gate widens with the
+    report's age (an unreported manoeuvre) and for a sensor id held before."""
     a, b = _track(2, (20.0, 0.0, -10.0)), _track(3, (20.0, 6.0, -10.0))
     centers = [(20.5, 5.0, -10.0), (19.0, 0.5, -10.0), (40.0, 0.0, -10.0), None]
-    out = associate((a, b), 0, centers, [11, 12, 13, 14], {})
+    out = associate((a, b), 0, centers, [0.4] * 4, [11, 12, 13, 14], {})
     assert out == {0: b.key, 1: a.key}
+    big = associate((a, b), 0, centers, [2.0, 0.4, 0.4, 0.4], [11, 12, 13, 14], {})
+    assert big == {1: a.key}  # a 2 m sphere where UAV 3 is predicted is an obstacle, not a small UAS
     assert gate_m(a, 0, False) == pytest.approx(GATE_M + 1.0)
     assert gate_m(a, 2_000_000, False) > gate_m(a, 0, False) + 5.0
     assert gate_m(a, 0, True) == pytest.approx(2.0 * gate_m(a, 0, False))
     off = [(20.0, 4.5, -10.0)]  # 4.5 m from a's prediction: outside its gate, inside the held one
-    assert associate((a,), 0, off, [12], {}) == {}
-    assert associate((a,), 0, off, [12], {12: a.key}) == {0: a.key}
+    assert associate((a,), 0, off, [0.4], [12], {}) == {}
+    assert associate((a,), 0, off, [0.4], [12], {12: a.key}) == {0: a.key}
 
 
 def test_fixes_give_the_track_a_fresh_position_and_the_velocity_it_flies() -> None:
