@@ -26,7 +26,7 @@ from autopilot.navigation.home_frame import HomeFrame
 from autopilot.navigation.outputs import ReferenceOverride
 from autopilot.navigation.traffic_guard import TrafficGuard
 from autopilot.parameters.store import ParamStore
-from autopilot.planner.obstacle_map import ObstacleKind, detection_volume
+from autopilot.planner.obstacle_map import ObstacleKind, detection_volumes
 from autopilot.safety.failsafe import FailsafeEvent
 from autopilot.traffic import AvoidLimits, OwnShip, TrafficAvoidance, TrafficDecision, TrafficParams
 from autopilot.traffic.param_decls import TrafficAction
@@ -105,15 +105,10 @@ class TrafficLink:
             return detections, frozenset()
         self.avoidance.set_home(frame.geo)
         tracks = table.tracks
-        centers: list[Vec3 | None] = []
-        radii: list[float] = []
-        ranges: list[float] = []
-        for det in detections:
-            kind, center, radius, rng = detection_volume(det, np.asarray(state.pos_ned_m, float), state.q_ned_frd)
-            c = center.tolist()
-            centers.append(frame.home_from_origin((c[0], c[1], c[2])) if kind is ObstacleKind.SPHERE else None)
-            radii.append(radius)
-            ranges.append(rng)
+        volumes = detection_volumes(detections, state.pos_ned_m, state.q_ned_frd)
+        centers = [frame.home_from_origin(c) if kind is ObstacleKind.SPHERE else None for kind, c, _, _ in volumes]
+        radii = [v[2] for v in volumes]
+        ranges = [v[3] for v in volumes]
         ids = [det.obstacle_id for det in detections]
         matched = associate(tracks, state.time_us, centers, radii, ids, self._held)
         if not matched:

@@ -24,7 +24,7 @@ bounds of the track.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from enum import Enum
 
@@ -130,14 +130,18 @@ def _volume(det: ObstacleDetection, pos: Vec3, rel_ned: Vec3) -> tuple[ObstacleK
     return kind, surface, radius, rng
 
 
-def detection_volume(
-    det: ObstacleDetection, pos_ned: np.ndarray, q_ned_frd: np.ndarray
-) -> tuple[ObstacleKind, np.ndarray, float, float]:
-    """(kind, centre NED, radius m, range m) of one detection seen from ``pos_ned`` with attitude ``q_ned_frd``."""
-    rel = rotate_frd_to_ned(np.asarray(q_ned_frd, float), np.asarray(det.pos_frd_m, float)).tolist()
+def detection_volumes(
+    detections: Sequence[ObstacleDetection], pos_ned: Sequence[float] | np.ndarray, q_ned_frd: Sequence[float]
+) -> list[tuple[ObstacleKind, Vec3, float, float]]:
+    """(kind, centre NED, radius m, range m) of each of one frame's detections seen from ``pos_ned`` with attitude
+    ``q_ned_frd`` (one rotation of the whole frame's surface points, body FRD -> NED)."""
+    if not detections:
+        return []
+    frame_frd = np.array([d.pos_frd_m for d in detections], float)
+    rel_ned = rotate_frd_to_ned(np.asarray(q_ned_frd, float), frame_frd).tolist()
     p = np.asarray(pos_ned, float).tolist()
-    kind, center, radius, rng = _volume(det, (p[0], p[1], p[2]), (rel[0], rel[1], rel[2]))
-    return kind, np.array(center), radius, rng
+    pos = (p[0], p[1], p[2])
+    return [_volume(det, pos, (r[0], r[1], r[2])) for det, r in zip(detections, rel_ned, strict=True)]
 
 
 class ObstacleMap:
@@ -181,14 +185,8 @@ class ObstacleMap:
         """
         changed: set[int] = set()
         detections = tuple(detections)
-        rel_ned: list[list[float]] = []
-        if detections:  # one rotation of the whole frame's surface points, body FRD -> NED
-            frame_frd = np.array([d.pos_frd_m for d in detections], float)
-            rel_ned = rotate_frd_to_ned(np.asarray(q_ned_frd, float), frame_frd).tolist()
-        p = np.asarray(pos_ned, float).tolist()
-        pos = (p[0], p[1], p[2])
-        for det, rel in zip(detections, rel_ned, strict=True):
-            kind, center, radius, rng = _volume(det, pos, (rel[0], rel[1], rel[2]))
+        for det, (kind, center, radius, rng) in zip(detections, detection_volumes(detections, pos_ned, q_ned_frd),
+                                                    strict=True):  # fmt: skip
             weight = 1.0 / (1.0 + (rng / 10.0) ** 2)
             track = self._find(det.obstacle_id, kind, center, radius)
             if track is None:

@@ -35,15 +35,16 @@ FIX_SIGMA_M = 0.3
 FIX_SIGMA_PER_M2 = 0.001
 #: A detection larger than this (radius, m) is not a UAV: a 25 kg multirotor spans under 3 m.
 MAX_UAV_RADIUS_M = 1.5
+#: The gate of a sensor id associated with the track before (a tracker's object id is stable).
+HELD_GATE_FACTOR = 2.0
 
 
-def gate_m(track: TrafficTrack, t_us: int, held: bool) -> float:
-    """How far (m) a detection at ``t_us`` may lie from ``track``'s prediction and still be it (``held``: its
-    sensor id was associated with this track before)."""
+def gate_m(track: TrafficTrack, t_us: int) -> float:
+    """How far (m) a detection at ``t_us`` may lie from ``track``'s prediction and still be it (a sensor id
+    associated with this track before: ``HELD_GATE_FACTOR`` times that)."""
     age_s = max(t_us - track.t_us, 0) * 1e-6
     acc = track.h_acc_m if math.isfinite(track.h_acc_m) else 0.0
-    gate = GATE_M + 2.0 * acc + 0.5 * MANOEUVRE_M_S2 * age_s * age_s
-    return 2.0 * gate if held else gate
+    return GATE_M + 2.0 * acc + 0.5 * MANOEUVRE_M_S2 * age_s * age_s
 
 
 def fix_sigma_m(range_m: float) -> float:
@@ -58,14 +59,16 @@ def associate(tracks: Sequence[TrafficTrack], t_us: int, centers_home_ned_m: Seq
     that are tracked vehicles; ``held``: sensor id -> track key of earlier associations."""
     pairs: list[tuple[float, int, int]] = []
     predicted = [track.position_at(t_us) for track in tracks]
+    gates = [gate_m(track, t_us) for track in tracks]
     for i, (center, radius, sensor_id) in enumerate(zip(centers_home_ned_m, radii_m, sensor_ids, strict=True)):
         if center is None:
             continue
+        key = held.get(sensor_id)
         for k, (track, p) in enumerate(zip(tracks, predicted, strict=True)):
             if track.source is TrafficSource.UAV and radius > MAX_UAV_RADIUS_M:
                 continue
             d = math.dist(center, p)
-            if d <= gate_m(track, t_us, held.get(sensor_id) == track.key):
+            if d <= (HELD_GATE_FACTOR * gates[k] if key == track.key else gates[k]):
                 pairs.append((d, i, k))
     pairs.sort()
     out: dict[int, TrackKey] = {}

@@ -37,9 +37,8 @@ def test_detections_are_gated_onto_the_nearest_track_one_to_one() -> None:
     assert out == {0: b.key, 1: a.key}
     big = associate((a, b), 0, centers, [2.0, 0.4, 0.4, 0.4], [11, 12, 13, 14], {})
     assert big == {1: a.key}  # a 2 m sphere where UAV 3 is predicted is an obstacle, not a small UAS
-    assert gate_m(a, 0, False) == pytest.approx(GATE_M + 1.0)
-    assert gate_m(a, 2_000_000, False) > gate_m(a, 0, False) + 5.0
-    assert gate_m(a, 0, True) == pytest.approx(2.0 * gate_m(a, 0, False))
+    assert gate_m(a, 0) == pytest.approx(GATE_M + 1.0)
+    assert gate_m(a, 2_000_000) > gate_m(a, 0) + 5.0
     off = [(20.0, 4.5, -10.0)]  # 4.5 m from a's prediction: outside its gate, inside the held one
     assert associate((a,), 0, off, [0.4], [12], {}) == {}
     assert associate((a,), 0, off, [0.4], [12], {12: a.key}) == {0: a.key}
