@@ -97,9 +97,9 @@ class TrafficLink:
         self, state: VehicleState, frame: HomeFrame | None, detections: Sequence[ObstacleDetection]
     ) -> tuple[Sequence[ObstacleDetection], frozenset[int]]:
         """This frame's obstacle detections that are tracked vehicles (:func:`associate`) become fixes of their
-        tracks; returns (the detections that are obstacles, the sensor ids that are vehicles). With NAV_TRAFF_AVOID
-        avoiding, the vehicles are traffic's alone; otherwise (warn, off, a failsafe action) they stay obstacles
-        too, as they were before: nothing else would steer around them."""
+        tracks; returns (the detections left for the obstacle map, the sensor ids to drop from it). With
+        NAV_TRAFF_AVOID avoiding, the vehicles are traffic's alone; otherwise (warn, off, a failsafe action) they
+        stay obstacles too, as they were before: nothing else would steer around them."""
         table = self.avoidance.table
         if not detections or frame is None or not table.has_tracks:
             return detections, frozenset()
@@ -107,21 +107,16 @@ class TrafficLink:
         tracks = table.tracks
         volumes = detection_volumes(detections, state.pos_ned_m, state.q_ned_frd)
         centers = [frame.home_from_origin(c) if kind is ObstacleKind.SPHERE else None for kind, c, _, _ in volumes]
-        radii = [v[2] for v in volumes]
-        ranges = [v[3] for v in volumes]
         ids = [det.obstacle_id for det in detections]
-        matched = associate(tracks, state.time_us, centers, radii, ids, self._held)
-        if not matched:
-            return detections, frozenset()
+        matched = associate(tracks, state.time_us, centers, [v[2] for v in volumes], ids, self._held)
         for i, key in matched.items():
             center = centers[i]
             assert center is not None
-            table.observe(key, state.time_us, center, fix_sigma_m(ranges[i]))
+            table.observe(key, state.time_us, center, fix_sigma_m(volumes[i][3]))
             self._held[ids[i]] = key
-        vehicles = frozenset(ids[i] for i in matched)
-        if self.avoidance.params.action is not TrafficAction.AVOID:
+        if not matched or self.avoidance.params.action is not TrafficAction.AVOID:
             return detections, frozenset()
-        return tuple(det for i, det in enumerate(detections) if i not in matched), vehicles
+        return tuple(det for i, det in enumerate(detections) if i not in matched), frozenset(ids[i] for i in matched)
 
     @property
     def busy(self) -> bool:

@@ -186,14 +186,13 @@ class TrackTable:
             self._fixes[key] = _Fix(t_us, list(pos_home_ned_m), list(track.vel_ned_m_s), sigma_m)
             self.version += 1
             return True
-        dt = (t_us - fix.t_us) * 1e-6
+        dt = (t_us - fix.t_us) * 1e-6  # > 0: an older or same-time fix returned above
         pos, vel = fix.pos, fix.vel
         for i in range(3):
             predicted = pos[i] + vel[i] * dt
             residual = pos_home_ned_m[i] - predicted
             pos[i] = predicted + FIX_ALPHA * residual
-            if dt > 0.0:
-                vel[i] += FIX_BETA * residual / dt
+            vel[i] += FIX_BETA * residual / dt
         fix.t_us, fix.sigma_m = t_us, sigma_m
         self.version += 1
         return True
