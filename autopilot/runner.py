@@ -52,6 +52,7 @@ from mavlink_bridge.contract.wire import ActuatorCommand, ObstacleDetection
 FAILSAFE_PERIOD_US = 100_000
 #: Navigator and commander period (µs, 50 Hz as PX4's navigator and land detector; at once after a command).
 NAV_PERIOD_US = 20_000
+_IDLE = NavTarget(TargetKind.IDLE)
 
 
 @dataclass(frozen=True)
@@ -114,14 +115,13 @@ class Autopilot:
         self._texts: list[StatusText] = []
         self._context = CommandContext()
         self._prev_time_us: int | None = None
-        self._dt_s = 0.004
         self._last_mode = self.commander.mode
         self._last_home: object | None = None
-        self._target = NavTarget(TargetKind.IDLE)
+        self._target = _IDLE
         self._pending_truth: object | None = None  # this step's truth, hashed by after_answer
         self._truth: object | None = None  # the latest truth, for the step record (estimate vs truth)
         self._pending_control: SingleStep | None = None  # this step's cascade output, booked by after_answer
-        self._motor = (0.0, 0.0, 0.0, 0.0)
+        self._motor, self._dt_s = (0.0, 0.0, 0.0, 0.0), 0.004
         self._next_failsafe_us = self._next_nav_us = 0
         self.own_reporter = OwnReporter(self.config.system_id)  # its UTM report at 1 Hz: report_for(t_us) (SPEC §13)
         autopilot_bindings(
@@ -229,8 +229,7 @@ class Autopilot:
             self._run_failsafes(state)
         on_ground, rtl_goal = commander.landed_state is LandedState.ON_GROUND, commander.rtl.return_goal_ned_m
         nav = self.navigator.update(state, commander.mode, on_ground, self._map_detections, rtl_goal)
-        if nav.reached:
-            self.progress.add(nav.reached)
+        self.progress.add(nav.reached)  # () most steps
         if nav.gripper_release is not None:
             commander.set_gripper(release=nav.gripper_release)
         if nav.failsafe is not None:  # no route to the mission target for CA_NOROUTE_T
@@ -318,7 +317,8 @@ class Autopilot:
             override = nav.avoid(state, target, self._map_detections)  # each frame's: the sensor runs at 10 Hz
             if override is not None:
                 fc.override(override)
-        nav.traffic.bound(state, fc, commander.mode, target.kind, self._dt_s, commander.landed_state, target.pos_ned_m)
+        if nav.traffic.bound(state, fc, commander.mode, target, self._dt_s, commander.landed_state):
+            return fc.idle(state, _IDLE, commander.armed, self._dt_s)  # held on the pad: PX4's ready-for-takeoff
         out = self._pending_control = fc.control(state)
         return (out[0], out[1], out[2], out[3])
 

@@ -98,6 +98,9 @@ TAKEOFF_HELD = "take-off held"
 #: would be a landing, and disarm).
 HELD_AGL_M = 0.5
 HELD_DESCENT_M_S = 0.5
+#: A held take-off this low over its pad (m, the estimate's height about home) is on it: the caller flies nothing,
+#: motors at idle and no integrator winding up against the ground (PX4's ready-for-takeoff) until the hold ends.
+PAD_CONTACT_AGL_M = 0.1
 
 _PHASES = {
     FlightMode.AUTO_TAKEOFF: Phase.TAKEOFF,
@@ -173,6 +176,11 @@ class TrafficGuard:
     def holding_takeoff(self) -> bool:
         """The departure hold is in force (the vehicle waits on its pad)."""
         return self.command is not None and self.command.escape == TAKEOFF_HELD
+
+    def on_pad(self, frame: HomeFrame, pos_ned_m: Vec3) -> bool:
+        """The departure hold keeps the commander's take-off on its pad (``PAD_CONTACT_AGL_M``; ``pos_ned_m``
+        about the origin): nothing is flown until it ends."""
+        return self.taking_off and self.holding_takeoff and -frame.home_from_origin(pos_ned_m)[2] < PAD_CONTACT_AGL_M
 
     def limits(self) -> ReactiveLimits:
         """What the vehicle may fly: MPC_* speeds and acceleration, CA_MIN_AGL_M, CA_CEILING_M / GF_MAX_VER_DIST,

@@ -181,19 +181,19 @@ class TrafficLink:
             self.say(text)
         return decision.failsafe
 
-    def bound(self, state: VehicleState, control: ControlLike, mode: FlightMode, kind: TargetKind,
-              dt_s: float, landed: LandedState = LandedState.IN_AIR,
-              spot_ned_m: Vec3 | None = None) -> ReferenceOverride | None:  # fmt: skip
-        """The reactive layer's reference for this control step (about the origin), given to ``control`` (which
-        holds this step's reference: the mission's, the landing's or the detour's) when it bounds it; None when
-        the reference stays. Position and landing targets only (an idle or velocity target is not the autopilot's
-        own flight); ``spot_ned_m``: the target's position (a landing's touchdown point, about the origin)."""
-        frame = self._frame
+    def bound(self, state: VehicleState, control: ControlLike, mode: FlightMode, target: NavTarget,
+              dt_s: float, landed: LandedState = LandedState.IN_AIR) -> bool:  # fmt: skip
+        """Bound this control step's reference: the reactive layer's (about the origin) is given to ``control``
+        (which holds this step's reference: the mission's, the landing's or the detour's) when it binds. True when
+        the departure hold keeps the vehicle on its pad (:meth:`TrafficGuard.on_pad`): the caller flies nothing.
+        Position and landing targets only (an idle or velocity target is not the autopilot's own flight; a
+        landing's position is its touchdown point)."""
+        kind, frame = target.kind, self._frame
         if not self.busy or frame is None or (kind is not TargetKind.POSITION and kind is not TargetKind.LAND):
-            return None
+            return False
         ref = control.reference
         self.guard.taking_off = landed is LandedState.TAKEOFF  # still on the pad: no land detection yet
-        self.guard.land_spot_ned_m = spot_ned_m if kind is TargetKind.LAND else None
+        self.guard.land_spot_ned_m = target.pos_ned_m if kind is TargetKind.LAND else None
         out = self.guard.step(state.time_us, dt_s, frame, state.pos_ned_m, state.vel_ned_m_s, ref.pos_ned_m,
                               ref.vel_ned_m_s, mode, kind is TargetKind.LAND, self.avoidance.table,
                               self.avoidance.params)  # fmt: skip
@@ -201,9 +201,12 @@ class TrafficLink:
             for text in self.guard.texts:
                 self.say(text)
             self.guard.texts.clear()
-        if out is not None:
-            control.override(out)
-        return out
+        if out is None:
+            return False
+        if self.guard.on_pad(frame, state.pos_ned_m):
+            return True
+        control.override(out)
+        return False
 
     def override(self, t_us: int, make: Callable[[Vec3, Vec3, Vec3], R]) -> R | None:
         """``make(pos about the origin, vel, acc)`` of the traffic detour at ``t_us``; None when none is flown."""

@@ -104,3 +104,38 @@ def test_nav_traff_avoid_2_returns_home_on_a_conflict() -> None:
     _start(loop, 200.0)
     assert loop.run_until(lambda: loop.ap.commander.mode is FlightMode.AUTO_RTL, 20.0), loop.texts[-10:]
     assert any(t.startswith("Traffic conflict: UAV 7") for t in loop.texts)
+
+
+def test_a_take_off_held_on_the_pad_waits_at_idle_and_then_climbs_level() -> None:
+    """A UAV crossing over the pad at 15 m holds the take-off (it is predicted through the climb-out column): the
+    vehicle waits on its pad with the motors at idle, nothing integrating against the ground (PX4's
+    ready-for-takeoff), and climbs out level once it has passed. Before, a held take-off pushed against the ground
+    near hover thrust for the whole hold, its integrators winding up: in encounter case 262 it hopped off the pad
+    after 50 s, touched down 23 degrees tilted and slid away on its gear."""
+    loop = TrafficLoop((-25.0, 0.0, -15.0), (3.0, 0.0, 0.0))
+    loop.run_s(0.5)
+    frame = loop.frame_geo = LocalNedFrame(loop.ap.home_geo)  # type: ignore[arg-type]
+    items = [MissionItem(0, int(MavCmd.NAV_TAKEOFF), REL, z_alt_m=ALT_M, param4=math.nan), _wp(frame, 0.0, 30.0),
+             MissionItem(0, int(MavCmd.NAV_LAND), REL, param4=math.nan)]  # fmt: skip
+    numbered = [MissionItem(k, *(getattr(it, f) for f in MissionItem.__slots__[1:])) for k, it in enumerate(items)]
+    assert loop.vehicle.replace_mission(MissionType.MISSION, numbered) == (MissionResult.ACCEPTED, "")
+    loop.go_us = loop.sim.t_us
+    assert loop.vehicle.handle_command(command(400, 1.0)) is CommandResult.ACCEPTED
+    assert loop.vehicle.handle_command(command(300, 0.0)) is CommandResult.ACCEPTED
+    idle = loop.ap.params.get("MOT_SPIN_IDLE")
+    guard = loop.ap.navigator.traffic.guard
+    held_steps, worst_tilt_deg = 0, 0.0
+
+    def watch() -> None:
+        nonlocal held_steps, worst_tilt_deg
+        assert loop.last is not None
+        if guard.holding_takeoff and loop.alt_m < 0.05:
+            held_steps += 1
+            assert loop.last.motor_cmd == (idle, idle, idle, idle)
+        w, x, y, z = (float(c) for c in loop.sim.q_ned_frd)
+        worst_tilt_deg = max(worst_tilt_deg, math.degrees(math.acos(min(1.0, 1.0 - 2.0 * (x * x + y * y)))))
+
+    assert loop.run_until(lambda: watch() is None and loop.alt_m > ALT_M - 1.0, 60.0), loop.texts[-10:]
+    assert "Traffic: take-off held for UAV 7" in loop.texts
+    assert held_steps >= 5 * 250  # held at least 5 s
+    assert worst_tilt_deg < 5.0

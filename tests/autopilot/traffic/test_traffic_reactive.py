@@ -319,6 +319,9 @@ def test_a_take_off_waits_on_the_pad_for_a_manned_aircraft_within_the_look_ahead
     guard.step(40_000, 0.004, frame, low, (0.0, 0.0, 0.0), low, (0.0, 0.0, 0.0), FlightMode.AUTO_MISSION, False,
                _Table([noisy]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
     assert guard.command is not None and guard.command.vel_ned_m_s == (0.0, 0.0, HELD_DESCENT_M_S)
+    assert not guard.on_pad(frame, low) and guard.on_pad(frame, (0.0, 0.0, -0.05))  # on it: the caller flies nothing
+    guard.taking_off = False
+    assert not guard.on_pad(frame, (0.0, 0.0, -0.05))  # the commander's take-off is over (landing detected)
     passed = TrafficTrack(TrafficSource.MANNED, 0xA1, "HELI1", (300.0, 40.0, -22.0), (27.0, 0.0, 0.0), 0)
     guard = TrafficGuard(params, 1)
     out = guard.step(0, 0.004, frame, (0.0, 0.0, -0.05), (0.0, 0.0, 0.0), (0.0, 0.0, -0.05), (0.0, 0.0, -3.0),
