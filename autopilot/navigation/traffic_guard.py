@@ -98,9 +98,14 @@ TAKEOFF_HELD = "take-off held"
 #: would be a landing, and disarm).
 HELD_AGL_M = 0.5
 HELD_DESCENT_M_S = 0.5
-#: A held take-off this low over its pad (m, the estimate's height about home) is on it: the caller flies nothing,
-#: motors at idle and no integrator winding up against the ground (PX4's ready-for-takeoff) until the hold ends.
+#: A held take-off that has stayed this low over its pad (m, the estimate's height about home) and this slow (m/s,
+#: vertical) for PAD_SETTLE_US (µs) sits on it: the caller flies nothing, motors at idle and no integrator winding
+#: up against the ground (PX4's ready-for-takeoff) until the hold ends. Not at once: a hold that comes back a moment
+#: after its release finds the vehicle a few centimetres up, and idle motors there drop it with no attitude control
+#: (encounter case 267: it touched down rolled 21 degrees); the hold's descent puts it down first.
 PAD_CONTACT_AGL_M = 0.1
+PAD_SETTLE_M_S = 0.2
+PAD_SETTLE_US = 1_000_000
 
 _PHASES = {
     FlightMode.AUTO_TAKEOFF: Phase.TAKEOFF,
@@ -167,6 +172,7 @@ class TrafficGuard:
         self._limits: ReactiveLimits | None = None
         self._said: tuple[str, bool, bool] | None = None
         self._said_us = 0
+        self._settling_us = -1  # since when a held take-off has been low and still on its pad (on_pad)
 
     @property
     def engaged(self) -> bool:
@@ -177,10 +183,17 @@ class TrafficGuard:
         """The departure hold is in force (the vehicle waits on its pad)."""
         return self.command is not None and self.command.escape == TAKEOFF_HELD
 
-    def on_pad(self, frame: HomeFrame, pos_ned_m: Vec3) -> bool:
-        """The departure hold keeps the commander's take-off on its pad (``PAD_CONTACT_AGL_M``; ``pos_ned_m``
-        about the origin): nothing is flown until it ends."""
-        return self.taking_off and self.holding_takeoff and -frame.home_from_origin(pos_ned_m)[2] < PAD_CONTACT_AGL_M
+    def on_pad(self, t_us: int, frame: HomeFrame, pos_ned_m: Vec3, vel_ned_m_s: Vec3) -> bool:
+        """The departure hold keeps the commander's take-off on its pad and the vehicle has settled on it
+        (``PAD_CONTACT_AGL_M``, ``PAD_SETTLE_M_S`` for ``PAD_SETTLE_US``; ``pos_ned_m`` about the origin): nothing
+        is flown until the hold ends."""
+        low = -frame.home_from_origin(pos_ned_m)[2] < PAD_CONTACT_AGL_M and abs(vel_ned_m_s[2]) < PAD_SETTLE_M_S
+        if not (self.taking_off and self.holding_takeoff and low):
+            self._settling_us = -1
+            return False
+        if self._settling_us < 0:
+            self._settling_us = t_us
+        return t_us - self._settling_us >= PAD_SETTLE_US
 
     def limits(self) -> ReactiveLimits:
         """What the vehicle may fly: MPC_* speeds and acceleration, CA_MIN_AGL_M, CA_CEILING_M / GF_MAX_VER_DIST,

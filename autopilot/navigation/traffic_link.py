@@ -203,7 +203,7 @@ class TrafficLink:
             self.guard.texts.clear()
         if out is None:
             return False
-        if self.guard.on_pad(frame, state.pos_ned_m):
+        if self.guard.on_pad(state.time_us, frame, state.pos_ned_m, state.vel_ned_m_s):
             return True
         control.override(out)
         return False

@@ -124,18 +124,20 @@ def test_a_take_off_held_on_the_pad_waits_at_idle_and_then_climbs_level() -> Non
     assert loop.vehicle.handle_command(command(300, 0.0)) is CommandResult.ACCEPTED
     idle = loop.ap.params.get("MOT_SPIN_IDLE")
     guard = loop.ap.navigator.traffic.guard
-    held_steps, worst_tilt_deg = 0, 0.0
+    held_steps = idle_steps = 0
+    worst_tilt_deg = 0.0
 
     def watch() -> None:
-        nonlocal held_steps, worst_tilt_deg
+        nonlocal held_steps, idle_steps, worst_tilt_deg
         assert loop.last is not None
         if guard.holding_takeoff and loop.alt_m < 0.05:
             held_steps += 1
-            assert loop.last.motor_cmd == (idle, idle, idle, idle)
-        w, x, y, z = (float(c) for c in loop.sim.q_ned_frd)
+            idle_steps += loop.last.motor_cmd == (idle, idle, idle, idle)
+        _, x, y, _ = (float(c) for c in loop.sim.q_ned_frd)
         worst_tilt_deg = max(worst_tilt_deg, math.degrees(math.acos(min(1.0, 1.0 - 2.0 * (x * x + y * y)))))
 
     assert loop.run_until(lambda: watch() is None and loop.alt_m > ALT_M - 1.0, 60.0), loop.texts[-10:]
     assert "Traffic: take-off held for UAV 7" in loop.texts
     assert held_steps >= 5 * 250  # held at least 5 s
+    assert idle_steps >= held_steps - 1.1 * 250  # at idle once settled on the pad (PAD_SETTLE_US)
     assert worst_tilt_deg < 5.0

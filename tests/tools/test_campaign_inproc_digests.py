@@ -69,10 +69,11 @@ def test_a_fleet_world_keeps_its_per_vehicle_digests(tmp_path: Path) -> None:
     # own limits and the fence, no longer the preference as it was (the pads 8 m apart: the climb-outs engage it);
     # and again when each vehicle's camera detections of the other became fixes of its track (8 m apart they see
     # each other: the tracks are fresher, and the other is no longer an obstacle to the planner); and again when a
-    # take-off held on its pad began to wait at idle (it had pushed against the ground near hover thrust)
+    # take-off held on its pad began to wait at idle once settled on it (it had pushed against the ground near hover
+    # thrust)
     assert [v["truth_sha256"] for v in out["sim"]["vehicles"]] == [
-        "453041fdc319237496103457ba971dc6812f2ce9907c102f9bf87a5a8ea78ec7",
-        "96633d52e2a0094f32cfe3afeaddd5be0208fd339dc3738c025569ef9752e896",
+        "5ead191953927d489f3b017bf25ae5eae938f590338f0b93e49dadfa3be8330d",
+        "af20b60988b9610d7861b0b69eb7badf639189b664a731df2421870005c6b4e6",
     ]
     # each hears the other's own reports (1 Hz, 1 s late) and the helicopter's ADS-B (1 Hz, 0.6 s late, 95 %)
     assert [v["traffic_reports"] for v in out["sim"]["vehicles"]] == [56, 57]

@@ -16,6 +16,7 @@ from autopilot.navigation.traffic_guard import (
     HELD_AGL_M,
     HELD_DESCENT_M_S,
     PAD_ASIDE_VOLUMES,
+    PAD_SETTLE_US,
     TrafficGuard,
     column_conflict,
     phase_of,
@@ -319,9 +320,13 @@ def test_a_take_off_waits_on_the_pad_for_a_manned_aircraft_within_the_look_ahead
     guard.step(40_000, 0.004, frame, low, (0.0, 0.0, 0.0), low, (0.0, 0.0, 0.0), FlightMode.AUTO_MISSION, False,
                _Table([noisy]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
     assert guard.command is not None and guard.command.vel_ned_m_s == (0.0, 0.0, HELD_DESCENT_M_S)
-    assert not guard.on_pad(frame, low) and guard.on_pad(frame, (0.0, 0.0, -0.05))  # on it: the caller flies nothing
+    pad, still, sinking = (0.0, 0.0, -0.05), (0.0, 0.0, 0.0), (0.0, 0.0, 0.5)
+    assert not guard.on_pad(40_000, frame, low, still)  # half a metre up: flown down onto it
+    assert not guard.on_pad(60_000, frame, pad, sinking)  # still coming down
+    assert not guard.on_pad(80_000, frame, pad, still)  # on it, settling: the hold's descent still flown
+    assert guard.on_pad(80_000 + PAD_SETTLE_US, frame, pad, still)  # settled: the caller flies nothing
     guard.taking_off = False
-    assert not guard.on_pad(frame, (0.0, 0.0, -0.05))  # the commander's take-off is over (landing detected)
+    assert not guard.on_pad(90_000 + PAD_SETTLE_US, frame, pad, still)  # the take-off is over (landing detected)
     passed = TrafficTrack(TrafficSource.MANNED, 0xA1, "HELI1", (300.0, 40.0, -22.0), (27.0, 0.0, 0.0), 0)
     guard = TrafficGuard(params, 1)
     out = guard.step(0, 0.004, frame, (0.0, 0.0, -0.05), (0.0, 0.0, 0.0), (0.0, 0.0, -0.05), (0.0, 0.0, -3.0),
