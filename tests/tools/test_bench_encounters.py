@@ -59,6 +59,18 @@ def test_the_ratios_match_encounters_by_case_id_with_a_seeded_bootstrap_interval
     assert math.isnan(ratio(avoid, [_row(k) for k in range(200)], "traffic_nmac")[0])  # warn-only had none
 
 
+def test_no_event_with_avoidance_still_bounds_the_ratio_above_zero() -> None:
+    """0 pair-events with avoidance against 66 warn-only: the bootstrap alone says [0, 0]; the exact Poisson-ratio
+    bound (Clopper-Pearson on 0 of 66, 1 - 0.025 ** (1 / 66) = 0.0544 as p, p / (1 - p)) keeps it honest."""
+    avoid = [_row(k) for k in range(100)]
+    warn = [_row(k, traffic_nmac=float(k % 3 == 0) * 2.0) for k in range(100)]  # 34 cases x 2 = 68 events
+    warn[0]["traffic_nmac"] = 0.0  # 66 events
+    value, low, high, matched = ratio(avoid, warn, "traffic_nmac")
+    p_high = 1.0 - 0.025 ** (1.0 / 66.0)
+    assert (value, low, matched) == (0.0, 0.0, 100)
+    assert high == pytest.approx(p_high / (1.0 - p_high)) and 0.05 < high < 0.06
+
+
 def test_keys_from_folders_refuse_a_folder_of_another_campaign(tmp_path: Path) -> None:
     for name in ("a", "w"):
         (tmp_path / name).mkdir()

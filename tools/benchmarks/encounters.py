@@ -98,8 +98,13 @@ def ratio(
     avoid: list[dict[str, Any]], warn: list[dict[str, Any]], column: str, resamples: int = BOOTSTRAP
 ) -> tuple[float, float, float, int]:
     """Events of ``column`` with avoidance / warn-only over the cases judged both ways (matched by case id), its
-    95 % percentile-bootstrap interval (resampling the matched encounters, seeded; resamples without a warn-only
-    event are left out) and the number of matched cases. NaN when warn-only has no event."""
+    95 % interval and the number of matched cases. NaN when warn-only has no event.
+
+    The interval is the wider of two: the percentile bootstrap over the matched encounters (seeded; resamples
+    without a warn-only event left out), which keeps the clustering of events within one encounter, and the exact
+    interval of a ratio of two Poisson counts over the same exposure (``a`` given ``a + w`` is binomial with
+    p = r / (1 + r); Clopper-Pearson on p). The bootstrap alone collapses to [0, 0] when avoidance has no event,
+    a certainty the encounters flown cannot give: 0 against 66 warn-only events bounds the ratio by 0.057."""
     by_id = {r["case_id"]: r for r in warn if r["status"] in _JUDGED}
     pairs = [
         (r[column], by_id[r["case_id"]][column]) for r in avoid if r["status"] in _JUDGED and r["case_id"] in by_id
@@ -113,7 +118,17 @@ def ratio(
     num, den = a[idx].sum(axis=1), w[idx].sum(axis=1)
     boot = num[den > 0.0] / den[den > 0.0]
     low, high = np.percentile(boot, [2.5, 97.5])
-    return (float(a.sum() / w.sum()), float(low), float(high), len(pairs))
+    exact_low, exact_high = _poisson_ratio_interval(round(float(a.sum())), round(float(w.sum())))
+    return (float(a.sum() / w.sum()), min(float(low), exact_low), max(float(high), exact_high), len(pairs))
+
+
+def _poisson_ratio_interval(events_avoid: int, events_warn: int) -> tuple[float, float]:
+    """Exact 95 % interval of the ratio of two Poisson rates over the same exposure, from the conditional binomial
+    (Clopper-Pearson on events_avoid of events_avoid + events_warn, p mapped to p / (1 - p))."""
+    from tools.campaign.report import pass_interval
+
+    p_low, p_high = pass_interval(events_avoid, events_avoid + events_warn)
+    return (p_low / (1.0 - p_low), p_high / (1.0 - p_high) if p_high < 1.0 else math.inf)
 
 
 def pass_rates(rows: list[dict[str, Any]]) -> dict[str, dict[str, dict[str, float]]]:
