@@ -102,8 +102,9 @@ def _odd_perpendicular(v0: float, v1: float, v2: float) -> tuple[float, float, f
 #: Columns of the track rows ``orca_planes`` reads (one row per track, about home, NED).
 T_PN, T_PE, T_PD, T_VN, T_VE, T_VD, T_TS, T_RADIUS, T_SCALE, T_RESP, T_TAU = range(11)
 N_TRACK_COLS = 11
-#: Already inside a volume: the ORCA plane asks to leave it within this time (s) (RVO2 uses one time step; a
-#: quadrotor cannot jump, and inside the grown sphere is not yet inside the volume).
+#: Already inside a volume: the ORCA plane asks to move apart at the rate that leaves it within this time (s) (RVO2
+#: asks to be out after one time step; a quadrotor cannot jump, and inside the grown sphere is not yet inside the
+#: volume).
 RECOVER_S = 3.0
 #: The acceleration a track may have used since its report (m/s^2): it is extrapolated along its velocity (and
 #: intent), so its age hides at most 1/2 a t^2 of manoeuvre (a multirotor's 3 m/s^2; an aircraft turning at 15 deg
@@ -177,17 +178,12 @@ def orca_planes(
                 else:
                     n0, n1, n2 = w0 / wl, w1 / wl, w2 / wl
                     s = radius * tt - wl
-        else:  # inside already: leave within RECOVER_S
-            inv = 1.0 / RECOVER_S
-            w0, w1, w2 = v0 - inv * p0, v1 - inv * p1, v2 - inv * p2
-            wl = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
-            if wl < 1e-9:  # on top of each other, not moving apart: push along the line of centres (or up)
-                d = math.sqrt(dist2)
-                n0, n1, n2 = (-p0 / d, -p1 / d, -p2 / d) if d > 1e-9 else (0.0, 0.0, -1.0)
-                s = radius * inv
-            else:
-                n0, n1, n2 = w0 / wl, w1 / wl, w2 / wl
-                s = radius * inv - wl
+        else:  # inside already: move apart along the line of centres, fast enough to be out within RECOVER_S
+            # (not RVO2's "out of the sphere after one step" taken over RECOVER_S: at a closing speed above
+            # radius / RECOVER_S that is met by flying on through the other, out of its far side: search case 3)
+            d = math.sqrt(dist2)
+            n0, n1, n2 = (-p0 / d, -p1 / d, -p2 / d) if d > 1e-9 else (0.0, 0.0, -1.0)
+            s = (radius - d) / RECOVER_S - (v0 * n0 + v1 * n1 + v2 * n2)
         resp = tracks[r, T_RESP]
         # the plane in the stretched space: n . (v' - (own' + resp s n)) >= 0, with v' = (vn, ve, c vd)
         q0 = own_vel[0] + resp * s * n0

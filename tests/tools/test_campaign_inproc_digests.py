@@ -70,10 +70,11 @@ def test_a_fleet_world_keeps_its_per_vehicle_digests(tmp_path: Path) -> None:
     # and again when each vehicle's camera detections of the other became fixes of its track (8 m apart they see
     # each other: the tracks are fresher, and the other is no longer an obstacle to the planner); and again when a
     # take-off held on its pad began to wait at idle once settled on it (it had pushed against the ground near hover
-    # thrust)
+    # thrust); and again when the plane inside a grown sphere began to ask to move apart along the line of centres
+    # (it had let a fast pair fly on through each other: the pads 8 m apart start inside it)
     assert [v["truth_sha256"] for v in out["sim"]["vehicles"]] == [
-        "5ead191953927d489f3b017bf25ae5eae938f590338f0b93e49dadfa3be8330d",
-        "af20b60988b9610d7861b0b69eb7badf639189b664a731df2421870005c6b4e6",
+        "99ac65254281586f2a9f562423667587d375197f4992e02321c249ddb889fec4",
+        "88efd42be8a5054b9386b2ef331e8505cecc19867f1dd94296bc44b9b89bd9d2",
     ]
     # each hears the other's own reports (1 Hz, 1 s late) and the helicopter's ADS-B (1 Hz, 0.6 s late, 95 %)
     assert [v["traffic_reports"] for v in out["sim"]["vehicles"]] == [56, 57]

@@ -397,6 +397,23 @@ def test_the_fallback_keeps_the_nearest_tracks_planes() -> None:
     assert slack >= -1e-6, slack
 
 
+@pytest.mark.parametrize("speed_m_s", [2.0, 10.0])
+def test_inside_the_sphere_the_plane_moves_apart_and_never_through(speed_m_s: float) -> None:
+    """Already inside the grown sphere (6 m from another vehicle, closing head-on): the plane asks both to move
+    apart along the line of centres. It used to ask only to be outside the sphere after RECOVER_S, which a closing
+    speed above radius / RECOVER_S met by flying on through the other: in search case 3 (the depot, a helicopter)
+    a vehicle at 10.6 m/s flew into another at 2.4 m above the ground."""
+    a, b = ReactiveLayer(1), ReactiveLayer(2)
+    pa, pb, va, vb = (0.0, 0.0, -15.0), (0.0, -6.0, -15.0), (0.0, -speed_m_s, 0.0), (0.0, 5.0, 0.0)
+    ca = a.solve(0, pa, va, va, [uav(2, pb, vb)], PARAMS, LIMITS, Phase.MISSION)
+    cb = b.solve(0, pb, vb, vb, [uav(1, pa, va)], PARAMS, LIMITS, Phase.MISSION)
+    assert ca is not None and cb is not None and not ca.fallback and not cb.fallback
+    # a is east of b: a's east velocity minus b's is the rate they move apart, and both share it
+    apart = ca.vel_ned_m_s[1] - cb.vel_ned_m_s[1]
+    assert apart > 0.5, (ca, cb)
+    assert ca.vel_ned_m_s[1] > -0.1 and cb.vel_ned_m_s[1] < 0.1  # neither goes on toward the other
+
+
 def _landing_guard() -> tuple[TrafficGuard, HomeFrame]:
     guard = TrafficGuard(ParamStore(all_param_specs()), 1)
     guard.land_spot_ned_m = (0.0, 0.0, 0.0)
