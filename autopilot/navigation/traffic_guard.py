@@ -234,12 +234,15 @@ class TrafficGuard:
         if command is None:
             return None
         a = self.limits().acc_m_s2 * dt_s
-        acc = [0.0, 0.0, 0.0]
+        vel, acc = self._vel, [0.0, 0.0, 0.0]
+        before = (vel[0], vel[1], vel[2])
         for k in range(3):
-            dv = min(max(command.vel_ned_m_s[k] - self._vel[k], -a), a)
-            self._vel[k] += dv
+            dv = min(max(command.vel_ned_m_s[k] - vel[k], -a), a)
+            vel[k] += dv
             acc[k] = dv / dt_s if dt_s > 0.0 else 0.0
-        return ReferenceOverride(pos_ned_m, (self._vel[0], self._vel[1], self._vel[2]), (acc[0], acc[1], acc[2]))
+        if self.layer.keep_inside_fence(vel) and dt_s > 0.0:  # on the way to the command too, never toward the fence
+            acc = [(vel[k] - before[k]) / dt_s for k in range(3)]
+        return ReferenceOverride(pos_ned_m, (vel[0], vel[1], vel[2]), (acc[0], acc[1], acc[2]))
 
     def _solve(self, t_us: int, frame: HomeFrame, pos_ned_m: Vec3, vel_ned_m_s: Vec3, ref_pos_ned_m: Vec3,
                ref_vel_ned_m_s: Vec3, mode: FlightMode, landing: bool, tracks: tuple[TrafficTrack, ...],

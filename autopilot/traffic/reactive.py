@@ -213,6 +213,24 @@ class ReactiveLayer:
         out = self._limits_out
         return (float(out[0]), float(out[1]), float(out[2]))
 
+    def keep_inside_fence(self, vel_ned_m_s: list[float]) -> bool:
+        """Moves ``vel_ned_m_s`` (in place) onto the fence rows of the last solve: the velocity flown while it slews
+        toward a command never heads toward the fence faster than the room allows. Each command keeps the fence,
+        but the way to it need not: a command along the fence reversed while the velocity slewed at the acceleration
+        limit per axis went through outward velocities for seconds (failure search of the depot with a
+        helicopter, case 0: 9.6 m past a 300 m fence). True when it moved it."""
+        normals, offsets = self._normals, self._offsets
+        moved = False
+        for row in range(OWN_ROWS, self._m_hard):
+            n0, n1, n2 = float(normals[row, 0]), float(normals[row, 1]), float(normals[row, 2])
+            short = float(offsets[row]) - (n0 * vel_ned_m_s[0] + n1 * vel_ned_m_s[1] + n2 * vel_ned_m_s[2])
+            if short > 1e-9:
+                vel_ned_m_s[0] += short * n0
+                vel_ned_m_s[1] += short * n1
+                vel_ned_m_s[2] += short * n2
+                moved = True
+        return moved
+
     def _load(self, t_us: int, tracks: Sequence[TrafficTrack], params: TrafficParams) -> None:
         """The rows of the tracks to avoid (parked ones left out), columns ``T_*`` of :mod:`orca_kernel`: each
         track's report, its class's volume grown by the margin and by its position uncertainty

@@ -474,3 +474,21 @@ def test_an_engaged_guard_never_flies_toward_the_fence() -> None:
     guard.step(40_000, 0.02, frame, at, fast, at, fast, FlightMode.AUTO_MISSION, False, later, PARAMS)  # type: ignore[arg-type]
     assert guard.engaged and guard.command is not None
     assert guard.command.vel_ned_m_s[0] <= 1e-3, guard.command  # not toward the edge any more (8 m/s before)
+
+
+def test_the_velocity_on_its_way_to_a_command_keeps_the_fence() -> None:
+    """The velocity flown slews toward the command at the acceleration limit per axis; each command keeps the
+    fence, but the way between two need not (a reversal along the fence passes through outward velocities): in the
+    failure search of the depot with a helicopter (case 0) a vehicle went 9.6 m past a 300 m fence that way. What
+    is flown now keeps the fence rows on the way too."""
+    guard = TrafficGuard(ParamStore(all_param_specs()), 1)
+    guard.fences = (CircleZone((0.0, 0.0), 300.0, True),)
+    frame = HomeFrame(GeoPoint(47.3977, 8.5456, 488.0))
+    at, along = (296.0, 0.0, -40.0), (0.0, 10.0, 0.0)  # 4 m from the edge: at most 0.5 m/s outward
+    close = uav(2, (296.0, 25.0, -40.0), (0.0, -6.0, 0.0))  # ahead along the fence, closing: the layer engages
+    table = _Table([close])
+    guard.step(0, 0.02, frame, at, along, at, along, FlightMode.AUTO_MISSION, False, table, PARAMS)  # type: ignore[arg-type]
+    assert guard.engaged
+    guard._vel = [6.0, 10.0, 0.0]  # outward, left over from the slew toward another command
+    out = guard.step(20_000, 0.02, frame, at, along, at, along, FlightMode.AUTO_MISSION, False, table, PARAMS)  # type: ignore[arg-type]
+    assert out is not None and out.vel_ned_m_s[0] <= 0.5 + 1e-6, out
