@@ -97,6 +97,10 @@ TAKEOFF_HELD = "take-off held"
 #: take-off has not left it (no land detection then), else to this height (m) over it (a touchdown in the air
 #: would be a landing, and disarm).
 HELD_AGL_M = 0.5
+#: A take-off's climb to ``GROUND_LOCK_AGL_M`` stays within this (m) of where it left the ground: a vehicle low and
+#: climbing farther away is not taking off (failure search of the depot with a helicopter, case 3: one pushed down
+#: to the floor 260 m from its pad was held as a take-off and sank to 0.7 m, unable to move aside).
+DEPARTURE_RADIUS_M = 5.0
 HELD_DESCENT_M_S = 0.5
 #: A held take-off that has stayed this low over its pad (m, the estimate's height about home) and this slow (m/s,
 #: vertical) for PAD_SETTLE_US (µs) sits on it: the caller flies nothing, motors at idle and no integrator winding
@@ -122,15 +126,17 @@ def _pull_m_s(error_m: float) -> float:
     return min(max(PULL_GAIN_1_S * error_m, -PULL_MAX_M_S), PULL_MAX_M_S)
 
 
-def phase_of(mode: FlightMode, landing: bool, pos_home_ned_m: Vec3, pref_ned_m_s: Vec3, held: bool = False) -> Phase:
+def phase_of(mode: FlightMode, landing: bool, pos_home_ned_m: Vec3, pref_ned_m_s: Vec3, held: bool = False,
+             departing: bool = True) -> Phase:  # fmt: skip
     """The reactive layer's phase: from the mode; a LAND target is a landing; a climb from the pad a take-off, and
-    so is a take-off ``held`` on the pad (its reference, stopped, no longer climbs)."""
+    so is a take-off ``held`` on the pad (its reference, stopped, no longer climbs). ``departing``: the vehicle is
+    where its take-off began (:attr:`TrafficGuard.departing`); a low climb anywhere else is no take-off."""
     phase = _PHASES.get(mode, Phase.MANUAL)
     if phase is Phase.MANUAL:
         return phase
     if landing:
         return Phase.LAND
-    if -pos_home_ned_m[2] < GROUND_LOCK_AGL_M and (pref_ned_m_s[2] < 0.0 or held):
+    if departing and -pos_home_ned_m[2] < GROUND_LOCK_AGL_M and (pref_ned_m_s[2] < 0.0 or held):
         return Phase.TAKEOFF
     return phase
 
@@ -173,6 +179,7 @@ class TrafficGuard:
         self._said: tuple[str, bool, bool] | None = None
         self._said_us = 0
         self._settling_us = -1  # since when a held take-off has been low and still on its pad (on_pad)
+        self._departure_ne_m: tuple[float, float] | None = None  # where the last take-off left the ground, about home
 
     @property
     def engaged(self) -> bool:
@@ -194,6 +201,16 @@ class TrafficGuard:
         if self._settling_us < 0:
             self._settling_us = t_us
         return t_us - self._settling_us >= PAD_SETTLE_US
+
+    def departing(self, pos_home_ned_m: Vec3) -> bool:
+        """In the commander's take-off, held on the pad, or within ``DEPARTURE_RADIUS_M`` of where the last take-off
+        left the ground."""
+        if self.taking_off or self.holding_takeoff:
+            return True
+        spot = self._departure_ne_m
+        if spot is None:
+            return False
+        return math.hypot(pos_home_ned_m[0] - spot[0], pos_home_ned_m[1] - spot[1]) < DEPARTURE_RADIUS_M
 
     def limits(self) -> ReactiveLimits:
         """What the vehicle may fly: MPC_* speeds and acceleration, CA_MIN_AGL_M, CA_CEILING_M / GF_MAX_VER_DIST,
@@ -222,6 +239,9 @@ class TrafficGuard:
              params: TrafficParams) -> ReferenceOverride | None:  # fmt: skip
         """This control step's reference (about the origin), or None to fly the one given; ``table``'s tracks are
         read at the navigator's rate."""
+        if self.taking_off:
+            spot = frame.home_from_origin(pos_ned_m)
+            self._departure_ne_m = (spot[0], spot[1])
         if params.action is not TrafficAction.AVOID or not table.has_tracks:
             self.release()
             return None
@@ -251,7 +271,7 @@ class TrafficGuard:
         for k in range(3):
             pref[k] = ref_vel_ned_m_s[k] + _pull_m_s(ref_pos_ned_m[k] - pos_ned_m[k])
         pos = frame.home_from_origin(pos_ned_m)
-        phase = phase_of(mode, landing, pos, (pref[0], pref[1], pref[2]), self.holding_takeoff)
+        phase = phase_of(mode, landing, pos, (pref[0], pref[1], pref[2]), self.holding_takeoff, self.departing(pos))
         if phase is Phase.MANUAL:
             self.release()  # manual: warn only
             return
@@ -272,8 +292,9 @@ class TrafficGuard:
             held = self._column_threat(t_us, pos, pref, phase, tracks, params)
             if held is not None:
                 pref[2] = 0.0  # hold the height: no climb out of the pad, no descent into the column, no level change
+        over_pad = phase is Phase.TAKEOFF or phase is Phase.LAND or pad_held or self.departing(pos)
         command = self.layer.solve(t_us, pos, vel_ned_m_s, (pref[0], pref[1], pref[2]), tracks, params, limits,
-                                   Phase.HOLD if pad_held else phase, version)  # fmt: skip
+                                   Phase.HOLD if pad_held else phase, version, over_pad)  # fmt: skip
         if held is not None and phase is Phase.TAKEOFF:  # on the pad: stay (no escape climbs out of it), low
             # back onto the pad only while no landing can be detected there, else down to HELD_AGL_M over it
             down = HELD_DESCENT_M_S if self.taking_off else min(max(-pos[2] - HELD_AGL_M, 0.0), HELD_DESCENT_M_S)
@@ -296,7 +317,7 @@ class TrafficGuard:
             self._engaged_us = t_us
             self._vel = [float(ref_vel_ned_m_s[0]), float(ref_vel_ned_m_s[1]), float(ref_vel_ned_m_s[2])]
         self.command = command
-        on_pad = -pos[2] < GROUND_LOCK_AGL_M and command.vel_ned_m_s[2] >= 0.0 and phase is not Phase.LAND
+        on_pad = -pos[2] < GROUND_LOCK_AGL_M and command.vel_ned_m_s[2] >= 0.0 and phase is Phase.TAKEOFF
         said = (command.threat, command.fallback and not on_pad, on_pad)
         # a new text when the kind of avoidance changes, at most once a second; another track binding (in a crowd
         # the binding plane changes at every solve) at most once per QUIET_US

@@ -173,8 +173,10 @@ class ReactiveLayer:
 
     def solve(self, t_us: int, pos_home_ned_m: Vec3, vel_ned_m_s: Vec3, pref_ned_m_s: Vec3,
               tracks: Sequence[TrafficTrack], params: TrafficParams, limits: ReactiveLimits, phase: Phase,
-              version: int | None = None) -> ReactiveCommand | None:  # fmt: skip
+              version: int | None = None, over_pad: bool = True) -> ReactiveCommand | None:  # fmt: skip
         """The velocity to fly now instead of ``pref_ned_m_s``, or None when the preferred one keeps separation.
+        ``over_pad``: the vehicle is over a pad (leaving or coming to one): below ``GROUND_LOCK_AGL_M`` it moves only
+        vertically there; elsewhere it keeps its sideways moves at any height above the floor.
         ``version``: the track table's (:attr:`TrackTable.version`); the same as last time reuses the rows."""
         if version is None or version != self._version or params is not self._params:
             self._load(t_us, tracks, params)
@@ -182,7 +184,7 @@ class ReactiveLayer:
         rows = self._rows
         pos, vel, pref = self._pos, self._vel, self._pref
         pos[:], vel[:], pref[:] = pos_home_ned_m, vel_ned_m_s, pref_ned_m_s
-        self._own_limits(pos, limits, phase)
+        self._own_limits(pos, limits, phase, over_pad)
         m = self._m_hard = OWN_ROWS + self._fence_rows(pos, vel, limits)
         closest_admissible(self._normals, self._offsets, m, pref, self._limits_out)
         if not rows:
@@ -254,7 +256,7 @@ class ReactiveLayer:
             rows.append(track)
         self._rows = rows
 
-    def _own_limits(self, pos: np.ndarray, limits: ReactiveLimits, phase: Phase) -> None:
+    def _own_limits(self, pos: np.ndarray, limits: ReactiveLimits, phase: Phase, over_pad: bool = True) -> None:
         """The offsets of the vehicle's own half-spaces (rows 0..OWN_ROWS-1, normals set once; always feasible
         together: zero velocity satisfies them); a row not in force has an offset no velocity misses."""
         offsets = self._offsets
@@ -270,7 +272,9 @@ class ReactiveLayer:
         offsets[k + 3] = min((limits.ceiling_down_m - pos[2]) / FLOOR_TIME_S, 0.0)
         # up or down only near the ground (never skid across the pads): no horizontal velocity at all. Not "toward
         # the preferred one": while the layer flies, that is its own velocity, and a bound from it would ratchet.
-        lock = 0.0 if -pos[2] < GROUND_LOCK_AGL_M else OFF
+        # Away from the pads a vehicle pushed down to the floor keeps its sideways moves (failure search of the depot
+        # with a helicopter, case 3: two at the floor 260 m from their pads, one of them locked, came within 4.4 m).
+        lock = 0.0 if over_pad and -pos[2] < GROUND_LOCK_AGL_M else OFF
         offsets[k + 4 : k + 8] = lock  # vn >= 0, -vn >= 0, ve >= 0, -ve >= 0
 
     def _fence_rows(self, pos: np.ndarray, vel: np.ndarray, limits: ReactiveLimits) -> int:

@@ -164,6 +164,24 @@ def test_phase_of_modes() -> None:
     assert phase_of(FlightMode.AUTO_MISSION, True, (0.0, 0.0, -10.0), (0.0, 0.0, 1.0)) is Phase.LAND
     assert phase_of(FlightMode.AUTO_MISSION, False, (0.0, 0.0, -0.3), (0.0, 0.0, -1.0)) is Phase.TAKEOFF
     assert phase_of(FlightMode.AUTO_RTL, False, (0.0, 0.0, -20.0), (3.0, 0.0, 0.0)) is Phase.RETURN
+    low_far = (260.0, 40.0, -1.8)  # pushed down to the floor far from its pad, climbing back: no take-off
+    assert phase_of(FlightMode.AUTO_MISSION, False, low_far, (0.0, 0.0, -1.0), departing=False) is Phase.MISSION
+
+
+def test_a_low_climb_away_from_where_the_take_off_began_is_no_take_off() -> None:
+    """The departure hold is for a vehicle leaving its pad: in the failure search of the depot with a helicopter
+    (case 3) one pushed down to the floor 260 m from its pad was held as a take-off there, sank to 0.7 m and, unable
+    to move sideways so low, was come at by another within 4.4 m."""
+    guard = TrafficGuard(ParamStore(all_param_specs()), 1)
+    assert not guard.departing((0.0, 0.0, -0.5))  # never took off under this guard
+    guard.taking_off = True
+    assert guard.departing((0.0, 0.0, -0.5))
+    frame = HomeFrame(GeoPoint(47.3977, 8.5456, 488.0))
+    still = (0.0, 0.0, 0.0)
+    guard.step(0, 0.02, frame, (0.5, 0.2, -0.4), still, (0.5, 0.2, -15.0), (0.0, 0.0, -1.0), FlightMode.AUTO_MISSION,
+               False, _Table([]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
+    guard.taking_off = False  # off the pad
+    assert guard.departing((1.5, 0.0, -1.5)) and not guard.departing((260.0, 40.0, -1.8))
 
 
 def _ring_swap(n: int, radius_m: float, latency_s: float) -> tuple[float, int]:
@@ -260,6 +278,18 @@ def test_no_sideways_motion_near_the_ground_even_at_the_layers_own_velocity() ->
     assert c.vel_ned_m_s[0] == pytest.approx(0.0, abs=1e-9) and c.vel_ned_m_s[1] == pytest.approx(0.0, abs=1e-9)
 
 
+def test_away_from_the_pads_a_vehicle_at_the_floor_still_moves_aside() -> None:
+    """The ground lock is for the pads: a vehicle pushed down to 1.8 m in the field (fleeing a helicopter, search
+    case 3) with another closing on it moves aside; over a pad it only moves vertically."""
+    closing = uav(2, (0.0, 12.0, -3.0), (0.0, -6.0, 0.0))
+    field = ReactiveLayer(1).solve(0, (0.0, 0.0, -1.8), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), [closing], PARAMS, LIMITS,
+                                   Phase.MISSION, over_pad=False)  # fmt: skip
+    pad = ReactiveLayer(1).solve(0, (0.0, 0.0, -1.8), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), [closing], PARAMS, LIMITS,
+                                 Phase.MISSION)  # fmt: skip
+    assert field is not None and math.hypot(field.vel_ned_m_s[0], field.vel_ned_m_s[1]) > 1.0, field
+    assert pad is not None and math.hypot(pad.vel_ned_m_s[0], pad.vel_ned_m_s[1]) < 1e-9, pad
+
+
 class _Table:
     """The two things the guard reads of a track table."""
 
@@ -278,6 +308,17 @@ def test_a_landing_below_the_ground_lock_is_committed(agl_m: float, engaged: boo
     assert (out is not None) is engaged and guard.engaged is engaged
 
 
+def _departed_here(params: ParamStore, frame: HomeFrame) -> TrafficGuard:
+    """A guard whose commander's take-off left the ground at home (no track then), its take-off state over."""
+    guard = TrafficGuard(params, 1)
+    guard.taking_off = True
+    pad = (0.0, 0.0, -0.05)
+    guard.step(-100_000, 0.004, frame, pad, (0.0, 0.0, 0.0), pad, (0.0, 0.0, -1.0), FlightMode.AUTO_MISSION, False,
+               _Table([]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
+    guard.taking_off = False
+    return guard
+
+
 def test_a_take_off_waits_on_the_pad_for_a_manned_aircraft_within_the_look_ahead() -> None:
     """A helicopter 40 s out, crossing over the depot at 22 m: the climb-out column (30 m at the 3 m/s climb + 5 s)
     is clear of it, but once up no escape leaves its NMAC volume in time; the vehicle stays on the pad, not moving
@@ -287,7 +328,7 @@ def test_a_take_off_waits_on_the_pad_for_a_manned_aircraft_within_the_look_ahead
     heli = TrafficTrack(TrafficSource.MANNED, 0xA1, "HELI1", (-1100.0, 40.0, -22.0), (27.0, 0.0, 0.0), 0)
     far_uav = uav(2, heli.pos_home_ned_m, heli.vel_ned_m_s)
     for track, held in ((heli, True), (far_uav, False)):
-        guard = TrafficGuard(params, 1)
+        guard = _departed_here(params, frame)
         pad, climb = (0.0, 0.0, -0.05), (0.0, 0.0, -3.0)
         out = guard.step(0, 0.004, frame, pad, (0.0, 0.0, 0.0), pad, climb, FlightMode.AUTO_MISSION, False,
                          _Table([track]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
@@ -305,7 +346,7 @@ def test_a_take_off_waits_on_the_pad_for_a_manned_aircraft_within_the_look_ahead
             assert [t.text for t in guard.texts] == ["Traffic: take-off held for HELI1"]
     # its ADS-B climb rate is noise (3 m/s up would carry it over the column): a level flight is predicted too
     noisy = TrafficTrack(TrafficSource.MANNED, 0xA1, "HELI1", (-1100.0, 40.0, -22.0), (27.0, 0.0, -3.0), 0)
-    guard = TrafficGuard(params, 1)
+    guard = _departed_here(params, frame)
     # and a vehicle that had left the pad when the hold came goes back down to HELD_AGL_M, not onto the pad
     up = (0.0, 0.0, -1.6)
     out = guard.step(0, 0.004, frame, up, (0.0, 0.0, 0.0), up, (0.0, 0.0, -0.5), FlightMode.AUTO_MISSION, False,
@@ -328,7 +369,7 @@ def test_a_take_off_waits_on_the_pad_for_a_manned_aircraft_within_the_look_ahead
     guard.taking_off = False
     assert not guard.on_pad(90_000 + PAD_SETTLE_US, frame, pad, still)  # the take-off is over (landing detected)
     passed = TrafficTrack(TrafficSource.MANNED, 0xA1, "HELI1", (300.0, 40.0, -22.0), (27.0, 0.0, 0.0), 0)
-    guard = TrafficGuard(params, 1)
+    guard = _departed_here(params, frame)
     out = guard.step(0, 0.004, frame, (0.0, 0.0, -0.05), (0.0, 0.0, 0.0), (0.0, 0.0, -0.05), (0.0, 0.0, -3.0),
                      FlightMode.AUTO_MISSION, False, _Table([passed]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
     assert out is None  # gone past: the take-off goes on
