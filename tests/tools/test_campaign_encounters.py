@@ -115,6 +115,25 @@ def test_a_row_says_stuck_or_unfinished_when_a_vehicle_did_not_finish() -> None:
         assert record({"sim": {"vehicles": truth}, "vehicles": rows})["sim"]["end_reason"] == reason
 
 
+def test_a_vehicle_that_landed_and_disarmed_after_the_judges_last_look_is_no_longer_flying() -> None:
+    """The judge looks once a second; a vehicle that landed and disarmed in the case's last second, its mission
+    complete, was scored "still flying" (failure search of the depot, case 4: 28 of 28 items, every vehicle landed
+    and disarmed, completion 0.75)."""
+    from types import SimpleNamespace
+
+    from tools.campaign.inproc_flight import _MISSION_COMPLETE, _row
+
+    summary = {"items_total": 7, "reached_seqs": list(range(7)), "mission_state": _MISSION_COMPLETE,
+               "sim_time_s": 200.0, "landed": True, "disarmed": True}  # fmt: skip
+    v = SimpleNamespace(autopilot=SimpleNamespace(summary=lambda wall_s: summary), reason="", upload_error="",
+                        texts=[], done=False, name="alpha", stuck=False, fence_exits=0)  # fmt: skip
+    row = _row(v, 1.0, 200.0)  # type: ignore[arg-type]
+    assert row["ok"] and row["reason"] == "", row
+    flying = _row(SimpleNamespace(**{**vars(v), "autopilot": SimpleNamespace(  # type: ignore[arg-type]
+        summary=lambda wall_s: {**summary, "landed": False, "disarmed": False})}), 1.0, 200.0)  # fmt: skip
+    assert not flying["ok"] and flying["reason"].startswith("still flying"), flying
+
+
 @pytest.mark.sitl
 @pytest.mark.slow
 def test_one_head_on_encounter_flown_as_a_campaign_case(tmp_path: Path) -> None:

@@ -354,9 +354,9 @@ def _row(v: _Vehicle, wall_s: float, end_s: float) -> dict[str, Any]:
     reason = v.reason or v.upload_error or failsafe_reason(v.texts)
     if not reason and v.done and not mission_done:
         reason = "the vehicle landed and disarmed before the mission was complete"
-    if not reason and not v.done:
-        reason = f"still flying when the case ended at {end_s:.1f} s of sim time"
     landed, disarmed = bool(s["landed"]), bool(s["disarmed"])
+    if not reason and not v.done and not (landed and disarmed):  # (landed and disarmed after the judge's last look)
+        reason = f"still flying when the case ended at {end_s:.1f} s of sim time"
     return {
         "name": v.name,
         "ok": not reason and landed and disarmed and mission_done,
