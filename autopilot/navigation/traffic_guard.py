@@ -130,7 +130,7 @@ def phase_of(mode: FlightMode, landing: bool, pos_home_ned_m: Vec3, pref_ned_m_s
              departing: bool = True) -> Phase:  # fmt: skip
     """The reactive layer's phase: from the mode; a LAND target is a landing; a climb from the pad a take-off, and
     so is a take-off ``held`` on the pad (its reference, stopped, no longer climbs). ``departing``: the vehicle is
-    where its take-off began (:attr:`TrafficGuard.departing`); a low climb anywhere else is no take-off."""
+    where its take-off began (:meth:`TrafficGuard.departing`); a low climb anywhere else is no take-off."""
     phase = _PHASES.get(mode, Phase.MANUAL)
     if phase is Phase.MANUAL:
         return phase
@@ -271,7 +271,8 @@ class TrafficGuard:
         for k in range(3):
             pref[k] = ref_vel_ned_m_s[k] + _pull_m_s(ref_pos_ned_m[k] - pos_ned_m[k])
         pos = frame.home_from_origin(pos_ned_m)
-        phase = phase_of(mode, landing, pos, (pref[0], pref[1], pref[2]), self.holding_takeoff, self.departing(pos))
+        departing = self.departing(pos)
+        phase = phase_of(mode, landing, pos, (pref[0], pref[1], pref[2]), self.holding_takeoff, departing)
         if phase is Phase.MANUAL:
             self.release()  # manual: warn only
             return
@@ -292,7 +293,7 @@ class TrafficGuard:
             held = self._column_threat(t_us, pos, pref, phase, tracks, params)
             if held is not None:
                 pref[2] = 0.0  # hold the height: no climb out of the pad, no descent into the column, no level change
-        over_pad = phase is Phase.TAKEOFF or phase is Phase.LAND or pad_held or self.departing(pos)
+        over_pad = departing or pad_held or phase is Phase.LAND  # (a take-off phase is a departing one)
         command = self.layer.solve(t_us, pos, vel_ned_m_s, (pref[0], pref[1], pref[2]), tracks, params, limits,
                                    Phase.HOLD if pad_held else phase, version, over_pad)  # fmt: skip
         if held is not None and phase is Phase.TAKEOFF:  # on the pad: stay (no escape climbs out of it), low
