@@ -101,6 +101,12 @@ HELD_AGL_M = 0.5
 #: climbing farther away is not taking off (failure search of the depot with a helicopter, case 3: one pushed down
 #: to the floor 260 m from its pad was held as a take-off and sank to 0.7 m, unable to move aside).
 DEPARTURE_RADIUS_M = 5.0
+#: A landing is over its spot within this (m) of the touchdown point: only there is it committed below
+#: ``GROUND_LOCK_AGL_M``, locked to vertical moves and free of the altitude floor. One the layer pushed aside is
+#: not landing there (encounter case 84: a landing vehicle pushed 45 m aside by a helicopter's plane sank under the
+#: floor, was released as committed at 1.7 m and flew back to its pad at that height through another vehicle's
+#: escape: 9.1 m).
+LANDING_RADIUS_M = 5.0
 HELD_DESCENT_M_S = 0.5
 #: A held take-off that has stayed this low over its pad (m, the estimate's height about home) and this slow (m/s,
 #: vertical) for PAD_SETTLE_US (µs) sits on it: the caller flies nothing, motors at idle and no integrator winding
@@ -212,6 +218,13 @@ class TrafficGuard:
             return False
         return math.hypot(pos_home_ned_m[0] - spot[0], pos_home_ned_m[1] - spot[1]) < DEPARTURE_RADIUS_M
 
+    def over_spot(self, frame: HomeFrame, pos_home_ned_m: Vec3) -> bool:
+        """Within ``LANDING_RADIUS_M`` of the landing's touchdown point (a landing without one: where it is)."""
+        if self.land_spot_ned_m is None:
+            return True
+        spot = frame.home_from_origin(self.land_spot_ned_m)
+        return math.hypot(pos_home_ned_m[0] - spot[0], pos_home_ned_m[1] - spot[1]) < LANDING_RADIUS_M
+
     def limits(self) -> ReactiveLimits:
         """What the vehicle may fly: MPC_* speeds and acceleration, CA_MIN_AGL_M, CA_CEILING_M / GF_MAX_VER_DIST,
         the fence's zones (``fences``, about home) with CA_FENCE_MARG_M."""
@@ -285,7 +298,8 @@ class TrafficGuard:
                 self._wait_beside(t_us, pos, occupant, pref, params)
                 held = occupant.name
         pad_held = held is not None
-        if phase is Phase.LAND and not pad_held and -pos[2] < GROUND_LOCK_AGL_M:
+        landing_here = phase is Phase.LAND and self.over_spot(frame, pos)
+        if landing_here and not pad_held and -pos[2] < GROUND_LOCK_AGL_M:
             self.release()  # a landing this low is committed (the others give way to it)
             return
         limits = self.limits()
@@ -293,9 +307,11 @@ class TrafficGuard:
             held = self._column_threat(t_us, pos, pref, phase, tracks, params)
             if held is not None:
                 pref[2] = 0.0  # hold the height: no climb out of the pad, no descent into the column, no level change
-        over_pad = departing or pad_held or phase is Phase.LAND  # (a take-off phase is a departing one)
+        over_pad = departing or pad_held or landing_here  # (a take-off phase is a departing one)
+        # waiting beside the pad, or pushed away from the spot, a landing vehicle is held in the air (the floor)
+        layer_phase = Phase.HOLD if pad_held or (phase is Phase.LAND and not landing_here) else phase
         command = self.layer.solve(t_us, pos, vel_ned_m_s, (pref[0], pref[1], pref[2]), tracks, params, limits,
-                                   Phase.HOLD if pad_held else phase, version, over_pad)  # fmt: skip
+                                   layer_phase, version, over_pad)  # fmt: skip
         if held is not None and phase is Phase.TAKEOFF:  # on the pad: stay (no escape climbs out of it), low
             # back onto the pad only while no landing can be detected there, else down to HELD_AGL_M over it
             down = HELD_DESCENT_M_S if self.taking_off else min(max(-pos[2] - HELD_AGL_M, 0.0), HELD_DESCENT_M_S)

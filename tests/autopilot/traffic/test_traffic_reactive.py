@@ -495,6 +495,26 @@ def test_a_landing_waits_beside_a_pad_with_a_vehicle_on_it() -> None:
         assert guard.command is None or guard.command.escape != "landing held beside the pad", track
 
 
+def test_a_landing_pushed_off_its_spot_is_no_committed_landing() -> None:
+    """A landing vehicle pushed 20 m aside (by a helicopter's plane) and low: not over its spot, so it is no committed
+    landing and no pad: it keeps the altitude floor (no descent under it) and moves aside from a vehicle coming at
+    it. Over the spot at the same height it touches down. Encounter case 84: released at 1.7 m, 45 m from its pad,
+    it flew back at that height through another vehicle's escape (9.1 m)."""
+    low = (20.0, 0.0, -1.5)
+    other = uav(2, (20.0, 14.0, -1.8), (0.0, -6.0, 0.0))
+    guard, frame = _landing_guard()
+    guard.step(0, 0.02, frame, low, (0.0, 0.0, 0.5), low, (0.0, 0.0, 0.8), FlightMode.AUTO_MISSION, True,
+               _Table([other]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
+    assert guard.command is not None and not guard.over_spot(frame, low)
+    v = guard.command.vel_ned_m_s
+    assert v[2] <= 1e-9 and math.hypot(v[0], v[1]) > 0.5, v  # no descent under the floor; aside (no ground lock)
+    over = (0.0, 0.0, -1.5)
+    guard, frame = _landing_guard()
+    guard.step(0, 0.02, frame, over, (0.0, 0.0, 0.5), over, (0.0, 0.0, 0.8), FlightMode.AUTO_MISSION, True,
+               _Table([uav(2, (0.0, 14.0, -1.8), (0.0, -6.0, 0.0))]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
+    assert guard.command is None and guard.over_spot(frame, over)
+
+
 def test_an_engaged_guard_never_flies_toward_the_fence() -> None:
     """While the reactive layer is engaged its preference is the velocity it flew (the reference goes on from it):
     when no track binds it flew that preference as it was, fence or not, and in encounter case 178 a vehicle
