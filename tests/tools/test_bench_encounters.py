@@ -1,15 +1,17 @@
 """The encounter Monte Carlo's bench keys (tools.benchmarks.encounters): pair-event totals over the rows of both
 campaigns, the risk and loss-of-separation ratios over the same encounters with their bootstrap intervals, the
-pass rate per kind, vehicle count and traffic class."""
+pass rate per kind, vehicle count and traffic class; keys merged only from rows flown by the flight code at HEAD."""
 
 from __future__ import annotations
 
 import math
+import subprocess
 from pathlib import Path
 
 import pytest
 
-from tools.benchmarks.encounters import AVOID, main, ratio, results, totals
+from tools.benchmarks.encounters import AVOID, WARN, flown_at, main, not_head_flight_code, ratio, results, totals
+from tools.campaign.results import ShardWriter
 
 
 def _row(case_id: int = 0, status: str = "ok", **traffic: object) -> dict:
@@ -78,3 +80,39 @@ def test_keys_from_folders_refuse_a_folder_of_another_campaign(tmp_path: Path) -
     with pytest.raises(SystemExit) as exc:
         main(["--avoid-dir", str(tmp_path / "a"), "--warn-dir", str(tmp_path / "w")])
     assert exc.value.code == 2
+
+
+def _git(root: Path, *args: str) -> str:
+    out = subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True, check=True)
+    return out.stdout.strip()
+
+
+def test_rows_name_the_commit_that_flew_them_and_only_heads_flight_code_counts(tmp_path: Path) -> None:
+    """A campaign folder flown over several sessions: each row's ``versions`` names its commit; a commit that
+    changed only the docs flies the code at HEAD, one before a change under autopilot/ does not, nor one git does
+    not know."""
+    rows = [{"versions": "quadsitl 0.1, numpy 2.1, python 3.11.7, git abc1234"}] * 2 + [{"versions": "numpy 2.1"}]
+    assert flown_at(rows) == {"abc1234": 2, "unknown": 1}
+    repo = tmp_path / "repo"
+    (repo / "autopilot").mkdir(parents=True)
+    _git(tmp_path, "init", "-q", str(repo))
+    for name, text in (("autopilot/guard.py", "A = 1\n"), ("README.md", "docs\n"), ("autopilot/guard.py", "A = 2\n")):
+        (repo / name).write_text(text)
+        _git(repo, "add", "-A")
+        _git(repo, "-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", name)
+    before, docs, head = _git(repo, "rev-list", "--max-count=3", "HEAD").split()[::-1]
+    assert not_head_flight_code([head, docs, before, "0badc0de"], repo) == [docs, before, "0badc0de"]
+    assert not_head_flight_code([head], repo) == []
+
+
+def test_keys_are_not_merged_from_rows_of_other_flight_code(tmp_path: Path) -> None:
+    for name, spec in (("a", AVOID), ("w", WARN)):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "campaign.yaml").write_text(spec.read_text())
+        writer = ShardWriter(tmp_path / name)
+        writer.add({**_row(0), "versions": "numpy 2.1, git 0badc0de"})
+        writer.flush()
+    out = tmp_path / "results.json"
+    with pytest.raises(SystemExit) as exc:
+        main(["--avoid-dir", str(tmp_path / "a"), "--warn-dir", str(tmp_path / "w"), "--merge-into", str(out)])
+    assert exc.value.code == 2 and not out.exists()

@@ -22,13 +22,18 @@ cases, seeded), and the pass rate per encounter kind, vehicle count and traffic 
 
 The campaigns take hours on a 2-core machine; ``python -m tools.benchmarks.encounters --avoid-dir A --warn-dir W
 [--merge-into bench/results.json]`` computes the keys from campaign folders flown with ``quadsitl campaign``
-(the same files), printing the tables (docs/traffic.md says how the committed numbers were made).
+(the same files), printing the tables (docs/traffic.md says how the committed numbers were made). The folders may
+have been flown over several sessions (``make encounters`` resumes the committed ones in ``bench/campaigns/``):
+every row names the git commit that flew it, and the keys are merged only when each of those commits has the same
+flight code (``FLIGHT_CODE``) as the checkout's HEAD: a committed number is a claim about the code at main.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+import re
+import subprocess
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -46,6 +51,11 @@ BOOTSTRAP_SEED = 28
 #: The must-show of issue 28 (counts of the drawn mix, and the outcome with avoidance).
 MIN_ENCOUNTERS, MIN_MANNED, MIN_RING_SWAPS, MIN_EIGHT_SHARE, MIN_COMPLETION = 1000, 150, 100, 0.2, 0.995
 _JUDGED = ("ok", "fail")
+#: What a row's flight and its judging depend on: a row flown at a commit whose files here differ from HEAD's is not
+#: a flight of the code at HEAD.
+FLIGHT_CODE = ("autopilot", "sim", "mavlink_bridge", "tools/encounters.py", "tools/campaign/cases.py",
+               "tools/campaign/inproc_flight.py", "tools/campaign/fleet_record.py", "tools/gcs/summary.py",
+               "missions/params")  # fmt: skip
 
 
 def _rows(campaign: Path, cases: int | None, out_dir: Path, workers: int | None) -> list[dict[str, Any]]:
@@ -129,6 +139,33 @@ def _poisson_ratio_interval(events_avoid: int, events_warn: int) -> tuple[float,
 
     p_low, p_high = pass_interval(events_avoid, events_avoid + events_warn)
     return (p_low / (1.0 - p_low), p_high / (1.0 - p_high) if p_high < 1.0 else math.inf)
+
+
+def flown_at(rows: list[dict[str, Any]]) -> dict[str, int]:
+    """The git commits the rows were flown at (their ``versions`` column's ``git <commit>``; ``unknown`` when a row
+    has none) and how many rows each flew, in the order first seen."""
+    commits: dict[str, int] = {}
+    for r in rows:
+        found = re.search(r"\bgit ([0-9a-f]{4,40})\b", str(r.get("versions") or ""))
+        commit = found.group(1) if found else "unknown"
+        commits[commit] = commits.get(commit, 0) + 1
+    return commits
+
+
+def not_head_flight_code(commits: list[str], root: Path = REPO_ROOT) -> list[str]:
+    """The commits among ``commits`` whose ``FLIGHT_CODE`` differs from HEAD's in the checkout at ``root`` (or that
+    git does not know there)."""
+    stale = []
+    for commit in commits:
+        try:
+            diff = subprocess.run(["git", "-C", str(root), "diff", "--quiet", commit, "HEAD", "--", *FLIGHT_CODE],
+                                  capture_output=True, timeout=60, check=False)  # fmt: skip
+            same = diff.returncode == 0
+        except (OSError, subprocess.TimeoutExpired):
+            same = False
+        if not same:
+            stale.append(commit)
+    return stale
 
 
 def pass_rates(rows: list[dict[str, Any]]) -> dict[str, dict[str, dict[str, float]]]:
@@ -256,6 +293,13 @@ def main(argv: list[str] | None = None) -> int:
                 f"{folder}: not a campaign flown from {spec.relative_to(REPO_ROOT)} (its campaign.yaml differs)"
             )
         rows.append(read_rows(folder))
+        commits = flown_at(rows[-1])
+        stale = not_head_flight_code(list(commits))
+        said = ", ".join(f"{c} ({n} rows)" for c, n in commits.items())
+        print(f"{folder}: flown at {said}; flight code as at HEAD: {'no: ' + ', '.join(stale) if stale else 'yes'}")
+        if stale and args.merge_into is not None:
+            why = f"{', '.join(stale)}: {' '.join(FLIGHT_CODE)} differ"
+            parser.error(f"{folder}: rows flown by other flight code than HEAD's ({why}); fly them again first")
     _print_groups(rows[0], rows[1])
     bench = results(rows[0], rows[1])
     for r in bench:
