@@ -15,9 +15,9 @@ column above the pad:
 - the landing clearance: in a landing, no touchdown on a UAV: while one stands on the spot or hovers over it
   lower down (taking off, holding), the vehicle waits level beside the pad, outside the occupant's climb-out
   column, and goes back over the spot once it has left; and no descent while a track is predicted through the
-  column below. Below ``GROUND_LOCK_AGL_M`` a landing is committed: the layer lets it touch down (a vehicle
-  landing has right of way; holding or moving a metre above the pad only delays the touchdown and skids across
-  the pads);
+  column below. Below ``GROUND_LOCK_AGL_M`` over its spot (within ``LANDING_RADIUS_M``) a landing is committed:
+  the layer lets it touch down (a vehicle landing has right of way; holding or moving a metre above the pad only
+  delays the touchdown and skids across the pads); pushed farther aside it is held in the air, above the floor;
 - the altitude-change corridor: in a mission, hold or return, no climb or descent while a track passing by is
   predicted through the levels the change enters (the band it would cross in ``CORRIDOR_S``, beyond the vehicle's
   own volume, moving with it) before it would be through: two vehicles changing levels through each other pass

@@ -17,7 +17,8 @@ sideways motion on the ground), and the admissible velocity closest to the one t
   path takes time).
 - Fallback, when no admissible velocity exists: brake to a hover and escape vertically away from the most urgent
   track (above: down; below: up; level: the lower system id up, the higher down, manned traffic: away from it
-  where the floor allows), never below the floor; both vehicles apply the same rule.
+  where the floor allows), never below the floor; both vehicles apply the same rule. The planes that stay hard
+  are the UAVs', nearest first, then the manned aircraft's: a manned plane is given up before a UAV pair's.
 
 Pure: no clock, no I/O; the compiled kernels do the arithmetic in preallocated arrays.
 """
@@ -82,6 +83,8 @@ FENCE_STEP_M = 0.5
 #: this is taken off the room (a vehicle at 6-8 m/s with the room counted from where it was crossed a 300 m circle
 #: by 2 m past a 3 m margin: encounter case 41).
 FENCE_RESPONSE_S = 1.0
+#: In the fallback every UAV's plane ranks before every manned aircraft's (added to the manned ratio).
+MANNED_AFTER = 1.0e6
 #: The offset of a half-space not in force (every velocity is on its side).
 OFF = -1e9
 
@@ -357,10 +360,14 @@ class ReactiveLayer:
 
     def _nearest_first(self, t_us: int, pos: np.ndarray, rows: list[TrafficTrack], want: np.ndarray,
                        total: int) -> int:  # fmt: skip
-        """Orders the tracks' planes nearest first (by the separation ratio in their volumes) and returns how many
-        rows, from the vehicle's own limits on, can be met together: those stay hard in the fallback and only the
-        farther tracks' planes are violated (least), instead of all of them alike (a crowd's far planes made the
-        nearest pair's loose: encounter case 142)."""
+        """Orders the tracks' planes, every UAV's before every manned aircraft's, each nearest first (by the
+        separation ratio in its volume), and returns how many rows, from the vehicle's own limits on, can be met
+        together: those stay hard in the fallback and only the later planes are violated (least), instead of all
+        of them alike (a crowd's far planes made the nearest pair's loose: encounter case 142). A UAV's plane
+        before a manned one's: a helicopter 200 m off is nearer in its 150 m volume's measure than a UAV 16 m off
+        in its 10 m one, but only the UAV can be met in seconds, and both vehicles of a pair keep their planes
+        alike (failure search of the depot with a helicopter, case 3: two vehicles fleeing it at the floor, each
+        keeping its plane and giving up the other's, came within 3.5 m)."""
         m = self._m_hard
         params = self._params or TrafficParams()
         ratio = self._scratch
@@ -369,6 +376,8 @@ class ReactiveLayer:
             p = track.position_at(t_us)
             volume = params.manned if track.source is TrafficSource.MANNED else params.uav
             ratio[row] = max(math.hypot(p[0] - pos[0], p[1] - pos[1]) / volume.hor_m, abs(p[2] - pos[2]) / volume.ver_m)
+            if track.source is TrafficSource.MANNED:
+                ratio[row] += MANNED_AFTER
         order = m + np.argsort(ratio[m:total], kind="stable")
         self._normals[m:total] = self._normals[order]
         self._offsets[m:total] = self._offsets[order]

@@ -438,6 +438,24 @@ def test_the_fallback_keeps_the_nearest_tracks_planes() -> None:
     assert slack >= -1e-6, slack
 
 
+def test_the_fallback_keeps_a_uavs_plane_before_a_manned_aircrafts() -> None:
+    """At the floor, a helicopter 200 m off at 26 m (nearer in its 150 m volume's measure than the UAV 16 m off in
+    its 10 m one) and a UAV closing: no velocity meets both planes. The UAV's stays hard and the manned one's is
+    given up: it used to be the other way, and in the failure search of the depot with a helicopter (case 3) two
+    vehicles fleeing it at the floor, each giving up the other's plane, came within 3.5 m."""
+    layer = ReactiveLayer(4)
+    own, still = (0.0, 0.0, -2.2), (0.0, 0.0, 0.0)
+    helicopter = TrafficTrack(TrafficSource.MANNED, 0xABC, "HELI1", (-190.0, -80.0, -26.0), (0.0, 40.0, 0.0), 0)
+    closing = uav(2, (16.0, 0.0, -2.5), (-6.0, 0.0, 0.0))
+    c = layer.solve(0, own, still, still, [helicopter, closing], PARAMS, LIMITS, Phase.MISSION)
+    assert c is not None and c.fallback
+    out = np.array(c.vel_ned_m_s)
+    slack = {layer._rows[int(layer._index[r])].name: float(layer._normals[r] @ out - layer._offsets[r])
+             for r in range(OWN_ROWS, OWN_ROWS + 2)}  # fmt: skip
+    assert slack["UAV 2"] >= -1e-6 and slack["HELI1"] < 0.0, slack
+    assert out[0] < 0.0  # not toward the UAV
+
+
 @pytest.mark.parametrize("speed_m_s", [2.0, 10.0])
 def test_inside_the_sphere_the_plane_moves_apart_and_never_through(speed_m_s: float) -> None:
     """Already inside the grown sphere (6 m from another vehicle, closing head-on): the plane asks both to move
