@@ -18,11 +18,11 @@ from autopilot.navigation.traffic_guard import (
     PAD_ASIDE_VOLUMES,
     PAD_SETTLE_US,
     TrafficGuard,
-    column_conflict,
     phase_of,
 )
 from autopilot.param_schema import all_param_specs
 from autopilot.parameters.store import ParamStore
+from autopilot.traffic.columns import column_conflict
 from autopilot.traffic.orca_kernel import closest_admissible
 from autopilot.traffic.param_decls import SeparationVolume, TrafficParams
 from autopilot.traffic.reactive import OWN_ROWS, Phase, ReactiveLayer, ReactiveLimits, covering_sphere
