@@ -90,9 +90,10 @@ def _git(root: Path, *args: str) -> str:
 def test_rows_name_the_commit_that_flew_them_and_only_heads_flight_code_counts(tmp_path: Path) -> None:
     """A campaign folder flown over several sessions: each row's ``versions`` names its commit; a commit that
     changed only the docs flies the code at HEAD, one before a change under autopilot/ does not, nor one git does
-    not know."""
+    not know, nor HEAD itself with uncommitted flight code (``+dirty``)."""
     rows = [{"versions": "quadsitl 0.1, numpy 2.1, python 3.11.7, git abc1234"}] * 2 + [{"versions": "numpy 2.1"}]
-    assert flown_at(rows) == {"abc1234": 2, "unknown": 1}
+    rows.append({"versions": "numpy 2.1, git abc1234+dirty"})  # flown from uncommitted flight code
+    assert flown_at(rows) == {"abc1234": 2, "unknown": 1, "abc1234+dirty": 1}
     repo = tmp_path / "repo"
     (repo / "autopilot").mkdir(parents=True)
     _git(tmp_path, "init", "-q", str(repo))
@@ -102,6 +103,7 @@ def test_rows_name_the_commit_that_flew_them_and_only_heads_flight_code_counts(t
         _git(repo, "-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", name)
     before, docs, head = _git(repo, "rev-list", "--max-count=3", "HEAD").split()[::-1]
     assert not_head_flight_code([head, docs, before, "0badc0de"], repo) == [docs, before, "0badc0de"]
+    assert not_head_flight_code([f"{head}+dirty"], repo) == [f"{head}+dirty"]
     assert not_head_flight_code([head], repo) == []
 
 

@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from tools.benchmarks import BenchResult
+from tools.campaign.task import FLIGHT_CODE
 
 REPO_ROOT = Path(__file__).resolve().parent.parent.parent
 AVOID = REPO_ROOT / "missions" / "campaigns" / "encounters.yaml"
@@ -51,11 +52,6 @@ BOOTSTRAP_SEED = 28
 #: The must-show of issue 28 (counts of the drawn mix, and the outcome with avoidance).
 MIN_ENCOUNTERS, MIN_MANNED, MIN_RING_SWAPS, MIN_EIGHT_SHARE, MIN_COMPLETION = 1000, 150, 100, 0.2, 0.995
 _JUDGED = ("ok", "fail")
-#: What a row's flight and its judging depend on: a row flown at a commit whose files here differ from HEAD's is not
-#: a flight of the code at HEAD.
-FLIGHT_CODE = ("autopilot", "sim", "mavlink_bridge", "tools/encounters.py", "tools/campaign/cases.py",
-               "tools/campaign/inproc_flight.py", "tools/campaign/fleet_record.py", "tools/gcs/summary.py",
-               "missions/params")  # fmt: skip
 
 
 def _rows(campaign: Path, cases: int | None, out_dir: Path, workers: int | None) -> list[dict[str, Any]]:
@@ -142,11 +138,12 @@ def _poisson_ratio_interval(events_avoid: int, events_warn: int) -> tuple[float,
 
 
 def flown_at(rows: list[dict[str, Any]]) -> dict[str, int]:
-    """The git commits the rows were flown at (their ``versions`` column's ``git <commit>``; ``unknown`` when a row
-    has none) and how many rows each flew, in the order first seen."""
+    """The git commits the rows were flown at (their ``versions`` column's ``git <commit>``, ``+dirty`` kept:
+    uncommitted flight code; ``unknown`` when a row has none) and how many rows each flew, in the order first
+    seen."""
     commits: dict[str, int] = {}
     for r in rows:
-        found = re.search(r"\bgit ([0-9a-f]{4,40})\b", str(r.get("versions") or ""))
+        found = re.search(r"\bgit ([0-9a-f]{4,40}(?:\+dirty)?)(?![\w+])", str(r.get("versions") or ""))
         commit = found.group(1) if found else "unknown"
         commits[commit] = commits.get(commit, 0) + 1
     return commits
@@ -154,9 +151,12 @@ def flown_at(rows: list[dict[str, Any]]) -> dict[str, int]:
 
 def not_head_flight_code(commits: list[str], root: Path = REPO_ROOT) -> list[str]:
     """The commits among ``commits`` whose ``FLIGHT_CODE`` differs from HEAD's in the checkout at ``root`` (or that
-    git does not know there)."""
+    git does not know there, or that flew uncommitted flight code: ``+dirty``)."""
     stale = []
     for commit in commits:
+        if commit.endswith("+dirty"):
+            stale.append(commit)
+            continue
         try:
             diff = subprocess.run(["git", "-C", str(root), "diff", "--quiet", commit, "HEAD", "--", *FLIGHT_CODE],
                                   capture_output=True, timeout=60, check=False)  # fmt: skip

@@ -52,16 +52,27 @@ class CasePayload:
     rerun: str | None = None  # replay: autopilot --rerun save:PATH
 
 
+#: What a flight and its judging depend on (paths in the repository): ``tools.benchmarks.encounters`` counts a row as
+#: a flight of the code at HEAD only when its commit has these as HEAD has them.
+FLIGHT_CODE = ("autopilot", "sim", "mavlink_bridge", "tools/encounters.py", "tools/campaign/cases.py",
+               "tools/campaign/inproc_flight.py", "tools/campaign/fleet_record.py", "tools/gcs/summary.py",
+               "missions/params")  # fmt: skip
+
+
 @functools.cache
 def versions() -> str:
     """The versions a row was flown with (numpy's streams and numba's kernels are tied to them), with the git
-    commit of the code when it runs from a checkout."""
+    commit of the code when it runs from a checkout (``+dirty`` when the flight code, ``FLIGHT_CODE``, has
+    uncommitted changes: no commit holds what flew)."""
     import importlib.metadata as md
 
     root = Path(__file__).resolve().parent.parent.parent
     try:
         head = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
                               timeout=10, check=False).stdout.strip()  # fmt: skip
+        changed = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--", *FLIGHT_CODE],
+                                 capture_output=True, text=True, timeout=10, check=False).stdout.strip()  # fmt: skip
+        head += "+dirty" if head and changed else ""
     except (OSError, subprocess.TimeoutExpired):
         head = ""
 
