@@ -4,6 +4,7 @@ pass rate per kind, vehicle count and traffic class; keys merged only from rows 
 
 from __future__ import annotations
 
+import json
 import math
 import subprocess
 from pathlib import Path
@@ -118,3 +119,25 @@ def test_keys_are_not_merged_from_rows_of_other_flight_code(tmp_path: Path) -> N
     with pytest.raises(SystemExit) as exc:
         main(["--avoid-dir", str(tmp_path / "a"), "--warn-dir", str(tmp_path / "w"), "--merge-into", str(out)])
     assert exc.value.code == 2 and not out.exists()
+
+
+def test_without_the_warn_only_folder_no_comparison_is_kept(tmp_path: Path) -> None:
+    """Keys from the avoid folder alone: no ``_warn`` keys and no ratios, and merging drops those of an earlier set
+    from the file (they compared other encounters), with its pass-rate keys; other suites' keys stay."""
+    folder = tmp_path / "a"
+    folder.mkdir()
+    (folder / "campaign.yaml").write_text(AVOID.read_text())
+    head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True,
+                          cwd=Path(__file__).parent).stdout.strip()  # fmt: skip
+    writer = ShardWriter(folder)
+    writer.add({**_row(0), "versions": f"numpy 2.1, git {head}"})
+    writer.flush()
+    out = tmp_path / "results.json"
+    old = {"traffic_nmac_warn": 176.0, "traffic_risk_ratio": 0.0, "traffic_los_ratio_ci95_high": 0.004,
+           "traffic_pass_rate_kind_depot": 0.5, "fleet_rtf_n8": 2.5}  # fmt: skip
+    out.write_text(json.dumps(old))
+    assert main(["--avoid-dir", str(folder), "--merge-into", str(out)]) == 0
+    merged = json.loads(out.read_text())
+    assert merged["fleet_rtf_n8"] == 2.5 and merged["traffic_encounters"] == 1.0
+    assert not [k for k in merged if k.endswith("_warn") or "_ratio" in k or k == "traffic_pass_rate_kind_depot"]
+    assert merged["traffic_pass_rate_kind_head_on"] == 1.0

@@ -20,10 +20,12 @@ and 8-vehicle counts, the same with ``_warn`` for warnings only. Over the cases 
 cases, seeded), and the pass rate per encounter kind, vehicle count and traffic class (printed, and keys
 ``traffic_pass_rate_<group>_<level>``).
 
-The campaigns take hours on a 2-core machine; ``python -m tools.benchmarks.encounters --avoid-dir A --warn-dir W
+The campaigns take hours on a 2-core machine; ``python -m tools.benchmarks.encounters --avoid-dir A [--warn-dir W]
 [--merge-into bench/results.json]`` computes the keys from campaign folders flown with ``quadsitl campaign``
-(the same files), printing the tables (docs/traffic.md says how the committed numbers were made). The folders may
-have been flown over several sessions (``make encounters`` resumes the committed ones in ``bench/campaigns/``):
+(the same files; without the warn-only folder, no ``_warn`` keys and no ratios, and merging drops those from the
+file: they would compare another set), printing the tables (docs/traffic.md says how the committed numbers were
+made). The folders may have been flown over several sessions (``make encounters`` resumes the committed ones in
+``bench/campaigns/``):
 every row names the git commit that flew it, and the keys are merged only when each of those commits has the same
 flight code (``FLIGHT_CODE``) as the checkout's HEAD: a committed number is a claim about the code at main.
 """
@@ -184,11 +186,16 @@ def run(quick: bool, cases: int | None = None, workers: int | None = None) -> li
     return results(avoid, warn, quick)
 
 
+#: The keys of the warn-only comparison (``_warn`` and the two ratios): dropped from a results file merged without it.
+WARN_KEY = re.compile(r"^traffic_\w+_warn$|^traffic_(risk|los)_ratio")
+
+
 def results(
-    avoid_rows: list[dict[str, Any]], warn_rows: list[dict[str, Any]], quick: bool = False
+    avoid_rows: list[dict[str, Any]], warn_rows: list[dict[str, Any]] | None, quick: bool = False
 ) -> list[BenchResult]:
-    """The bench rows of the two campaigns (``quick``: no target judged on the counts)."""
-    avoid, warn = totals(avoid_rows), totals(warn_rows)
+    """The bench rows of the two campaigns (``quick``: no target judged on the counts); ``warn_rows`` None: the
+    warn-only campaign not flown yet (no ``_warn`` keys, no ratios)."""
+    avoid = totals(avoid_rows)
 
     def count(key: str, value: float, low: float, note: str) -> BenchResult:
         return BenchResult(key, value, target=f">= {low:g}", met=None if quick else value >= low, note=note)
@@ -240,6 +247,12 @@ def results(
         zero("traffic_fence_breaches", avoid["fence_breaches"], ""),
         BenchResult("traffic_stuck", avoid["stuck"], note="cases ended STUCK"),
     ]
+    for group, levels in pass_rates(avoid_rows).items():
+        for level, s in levels.items():
+            slug = group.split()[-1]
+            out.append(BenchResult(f"traffic_pass_rate_{slug}_{level}", s["pass_rate"], note=f"{s['cases']:g} cases"))
+    if warn_rows is None:
+        return out
     for key, column, what in (
         ("traffic_risk_ratio", "traffic_nmac", "NMAC pair-events"),
         ("traffic_los_ratio", "traffic_volume_entries", "UAV-volume pair-events"),
@@ -251,13 +264,10 @@ def results(
             BenchResult(f"{key}_ci95_low", low),
             BenchResult(f"{key}_ci95_high", high),
         ]
+    warn = totals(warn_rows)
     warn_keys = ("contacts", "volume_entries", "volume_vehicles", "nmac", "nmac_vehicles", "ground_excluded")
     for name, key in [*((k, k) for k in (*warn_keys, "min_sep_m", "completion")), ("encounters", "judged")]:
         out.append(BenchResult(f"traffic_{name}_warn", warn[key], note="the same encounters, NAV_TRAFF_AVOID 1"))
-    for group, levels in pass_rates(avoid_rows).items():
-        for level, s in levels.items():
-            slug = group.split()[-1]
-            out.append(BenchResult(f"traffic_pass_rate_{slug}_{level}", s["pass_rate"], note=f"{s['cases']:g} cases"))
     return out
 
 
@@ -282,31 +292,42 @@ def main(argv: list[str] | None = None) -> int:
 
     parser = argparse.ArgumentParser(prog="python -m tools.benchmarks.encounters", description=main.__doc__)
     parser.add_argument("--avoid-dir", type=Path, required=True, help="a flown encounters.yaml campaign folder")
-    parser.add_argument("--warn-dir", type=Path, required=True, help="a flown encounters_warn_only.yaml folder")
+    warn_help = "a flown encounters_warn_only.yaml folder (without it: no _warn keys, no ratios)"
+    parser.add_argument("--warn-dir", type=Path, default=None, help=warn_help)
     parser.add_argument("--merge-into", type=Path, default=None, help="merge the keys into this results JSON")
     args = parser.parse_args(argv)
-    rows = []
+    rows: list[list[dict[str, Any]] | None] = []
     for folder, spec in ((args.avoid_dir, AVOID), (args.warn_dir, WARN)):
+        if folder is None:
+            print("warn-only: no folder given (no _warn keys, no risk or loss-of-separation ratio)")
+            rows.append(None)
+            continue
         copy = folder / "campaign.yaml"
         if not copy.is_file() or copy.read_text() != spec.read_text():
             parser.error(
                 f"{folder}: not a campaign flown from {spec.relative_to(REPO_ROOT)} (its campaign.yaml differs)"
             )
-        rows.append(read_rows(folder))
-        commits = flown_at(rows[-1])
+        flown = read_rows(folder)
+        rows.append(flown)
+        commits = flown_at(flown)
         stale = not_head_flight_code(list(commits))
         said = ", ".join(f"{c} ({n} rows)" for c, n in commits.items())
         print(f"{folder}: flown at {said}; flight code as at HEAD: {'no: ' + ', '.join(stale) if stale else 'yes'}")
         if stale and args.merge_into is not None:
             why = f"{', '.join(stale)}: {' '.join(FLIGHT_CODE)} differ"
             parser.error(f"{folder}: rows flown by other flight code than HEAD's ({why}); fly them again first")
-    _print_groups(rows[0], rows[1])
-    bench = results(rows[0], rows[1])
+    avoid, warn = rows
+    assert avoid is not None
+    _print_groups(avoid, warn or [])
+    bench = results(avoid, warn)
     for r in bench:
         met = "" if r.met is None else ("yes" if r.met else "NO")
         print(f"{r.key:<40} {r.value:>12.6g}  {r.target:<8} {met:<4} {r.note}")
     if args.merge_into is not None:
         merged = json.loads(args.merge_into.read_text()) if args.merge_into.is_file() else {}
+        # the keys of this set only: pass rates of groups it has not, and a comparison it was not flown with, go
+        for key in [k for k in merged if k.startswith("traffic_pass_rate_") or (warn is None and WARN_KEY.match(k))]:
+            del merged[key]
         merged.update({r.key: r.value for r in bench})
         args.merge_into.write_text(json.dumps(merged, indent=2, sort_keys=True) + "\n")
         print(f"merged into {args.merge_into}")
