@@ -296,28 +296,28 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--warn-dir", type=Path, default=None, help=warn_help)
     parser.add_argument("--merge-into", type=Path, default=None, help="merge the keys into this results JSON")
     args = parser.parse_args(argv)
-    rows: list[list[dict[str, Any]] | None] = []
-    for folder, spec in ((args.avoid_dir, AVOID), (args.warn_dir, WARN)):
-        if folder is None:
-            print("warn-only: no folder given (no _warn keys, no risk or loss-of-separation ratio)")
-            rows.append(None)
-            continue
+
+    def flown(folder: Path, spec: Path) -> list[dict[str, Any]]:
+        """The folder's rows, after checking it flew ``spec`` and saying which commits flew them."""
         copy = folder / "campaign.yaml"
         if not copy.is_file() or copy.read_text() != spec.read_text():
             parser.error(
                 f"{folder}: not a campaign flown from {spec.relative_to(REPO_ROOT)} (its campaign.yaml differs)"
             )
-        flown = read_rows(folder)
-        rows.append(flown)
-        commits = flown_at(flown)
+        rows = read_rows(folder)
+        commits = flown_at(rows)
         stale = not_head_flight_code(list(commits))
         said = ", ".join(f"{c} ({n} rows)" for c, n in commits.items())
         print(f"{folder}: flown at {said}; flight code as at HEAD: {'no: ' + ', '.join(stale) if stale else 'yes'}")
         if stale and args.merge_into is not None:
             why = f"{', '.join(stale)}: {' '.join(FLIGHT_CODE)} differ"
             parser.error(f"{folder}: rows flown by other flight code than HEAD's ({why}); fly them again first")
-    avoid, warn = rows
-    assert avoid is not None
+        return rows
+
+    avoid = flown(args.avoid_dir, AVOID)
+    warn = flown(args.warn_dir, WARN) if args.warn_dir is not None else None
+    if warn is None:
+        print("warn-only: no folder given (no _warn keys, no risk or loss-of-separation ratio)")
     _print_groups(avoid, warn or [])
     bench = results(avoid, warn)
     for r in bench:
