@@ -9,9 +9,10 @@ control: the position error is zero, the velocity is the command). When the pref
 column above the pad:
 
 - the departure hold: on the pad (below ``GROUND_LOCK_AGL_M``) in a take-off, no climb (and no other motion)
-  while a UAV is predicted through the climb-out column before the vehicle would be up, or a manned aircraft
-  within the look-ahead (``NAV_TRAFF_COLL_T``): once up, a multirotor cannot leave an NMAC volume 150 m wide in
-  the warning a pass gives, so it waits on the pad, where it is no hazard, for the aircraft to pass;
+  while a UAV is predicted through the climb-out column before the vehicle would be up (at ``MPC_TKO_SPEED``), or
+  a manned aircraft within the look-ahead (``NAV_TRAFF_COLL_T``): once up, a multirotor cannot leave an NMAC volume
+  150 m wide in the warning a pass gives, so it waits on the pad, where it is no hazard, for the aircraft to pass;
+  it ends once the column has been clear ``DEPARTURE_CLEAR_US``;
 - the landing clearance: in a landing, no touchdown on a UAV: while one stands on the spot or hovers over it
   lower down (taking off, holding), the vehicle waits level beside the pad, outside the occupant's climb-out
   column, and goes back over the spot once it has left; and no descent while a track is predicted through the
@@ -19,8 +20,8 @@ column above the pad:
   the layer lets it touch down (a vehicle landing has right of way; holding or moving a metre above the pad only
   delays the touchdown and skids across the pads); pushed farther aside it is held in the air, above the floor;
 - the altitude-change corridor: in a mission, hold or return, no climb or descent while a track passing by is
-  predicted through the levels the change enters (the band it would cross in ``CORRIDOR_S``, beyond the vehicle's
-  own volume, moving with it) before it would be through: two vehicles changing levels through each other pass
+  predicted through the levels the change enters (:func:`autopilot.traffic.columns.corridor_threat`) before it
+  would be through: two vehicles changing levels through each other pass
   level, apart by the difference, and change once clear.
 
 Texts: one when avoidance starts (naming the track and the phase), one when the fallback starts, one when it ends.
@@ -33,7 +34,7 @@ import math
 from autopilot.navigation.home_frame import HomeFrame
 from autopilot.navigation.outputs import ReferenceOverride
 from autopilot.parameters.store import ParamStore
-from autopilot.traffic.columns import column_conflict
+from autopilot.traffic.columns import COLUMN_MARGIN_S, CORRIDOR_MIN_M_S, column_conflict, corridor_threat
 from autopilot.traffic.param_decls import TrafficAction, TrafficParams
 from autopilot.traffic.reactive import (
     GROUND_LOCK_AGL_M,
@@ -65,16 +66,10 @@ SAY_KIND_US = 1_000_000
 #: The preferred velocity pulls toward the reference position with this gain (1/s), at most this fast (m/s).
 PULL_GAIN_1_S = 1.0
 PULL_MAX_M_S = 3.0
-#: The column checks look this far past the time to climb or descend through the column (s).
-COLUMN_MARGIN_S = 5.0
 #: A landing waits while a track is predicted through the column below within this time (s): one that would cross
 #: it later meets a vehicle descending, which the reactive layers of both keep apart.
 LANDING_WINDOW_S = 5.0
-#: The altitude-change corridor: a climb or descent faster than CORRIDOR_MIN_M_S is checked over the band it would
-#: cross in CORRIDOR_S (s), within CORRIDOR_S + COLUMN_MARGIN_S, against tracks passing by (relative horizontal
-#: speed at least COLUMN_SPEED_M_S: one that keeps station over or under the vehicle is the reactive layer's).
-CORRIDOR_S = 5.0
-CORRIDOR_MIN_M_S = 0.5
+#: The altitude-change corridor (:func:`corridor_threat`) is checked in these phases.
 CORRIDOR_PHASES = (Phase.MISSION, Phase.HOLD, Phase.RETURN)
 #: A landing whose spot has a UAV on it or hovering over it (on the ground, taking off, holding: slower than
 #: COLUMN_SPEED_M_S within PAD_RADIUS_VOLUMES of the grown volume of the spot, its report's accuracy added: a pad
@@ -93,6 +88,10 @@ PAD_HELD = "landing held beside the pad"
 DEPARTURE_COLUMN_M = 30.0
 #: The command's ``escape`` while the departure hold is in force.
 TAKEOFF_HELD = "take-off held"
+#: The departure hold ends once the column has been clear this long (µs): released at the first clear check, a
+#: hold that a track's noise brings back a moment later steps the motors between idle and hover a few centimetres
+#: over the pad (encounter case 625: held and released every 0.25-0.5 s, the vehicle tipped 19 degrees onto it).
+DEPARTURE_CLEAR_US = 2_000_000
 #: A held take-off that had left the pad goes back down at this speed (m/s): onto the pad while the commander's
 #: take-off has not left it (no land detection then), else to this height (m) over it (a touchdown in the air
 #: would be a landing, and disarm).
@@ -132,6 +131,11 @@ def _pull_m_s(error_m: float) -> float:
     return min(max(PULL_GAIN_1_S * error_m, -PULL_MAX_M_S), PULL_MAX_M_S)
 
 
+def _within(pos_ned_m: Vec3, spot_ned_m: tuple[float, ...], radius_m: float) -> bool:
+    """``pos_ned_m`` is horizontally within ``radius_m`` of ``spot_ned_m`` (same frame)."""
+    return math.hypot(pos_ned_m[0] - spot_ned_m[0], pos_ned_m[1] - spot_ned_m[1]) < radius_m
+
+
 def phase_of(mode: FlightMode, landing: bool, pos_home_ned_m: Vec3, pref_ned_m_s: Vec3, held: bool = False,
              departing: bool = True) -> Phase:  # fmt: skip
     """The reactive layer's phase: from the mode; a LAND target is a landing; a climb from the pad a take-off, and
@@ -167,6 +171,8 @@ class TrafficGuard:
         self._said_us = 0
         self._settling_us = -1  # since when a held take-off has been low and still on its pad (on_pad)
         self._departure_ne_m: tuple[float, float] | None = None  # where the last take-off left the ground, about home
+        self._departure_threat: str | None = None  # the departure hold's track, kept until DEPARTURE_CLEAR_US clear
+        self._departure_clear_us = -1  # since when the climb-out column has been clear of it
 
     @property
     def engaged(self) -> bool:
@@ -194,17 +200,13 @@ class TrafficGuard:
         left the ground."""
         if self.taking_off or self.holding_takeoff:
             return True
-        spot = self._departure_ne_m
-        if spot is None:
-            return False
-        return math.hypot(pos_home_ned_m[0] - spot[0], pos_home_ned_m[1] - spot[1]) < DEPARTURE_RADIUS_M
+        return self._departure_ne_m is not None and _within(pos_home_ned_m, self._departure_ne_m, DEPARTURE_RADIUS_M)
 
     def over_spot(self, frame: HomeFrame, pos_home_ned_m: Vec3) -> bool:
         """Within ``LANDING_RADIUS_M`` of the landing's touchdown point (a landing without one: where it is)."""
         if self.land_spot_ned_m is None:
             return True
-        spot = frame.home_from_origin(self.land_spot_ned_m)
-        return math.hypot(pos_home_ned_m[0] - spot[0], pos_home_ned_m[1] - spot[1]) < LANDING_RADIUS_M
+        return _within(pos_home_ned_m, frame.home_from_origin(self.land_spot_ned_m), LANDING_RADIUS_M)
 
     def limits(self) -> ReactiveLimits:
         """What the vehicle may fly: MPC_* speeds and acceleration, CA_MIN_AGL_M, CA_CEILING_M / GF_MAX_VER_DIST,
@@ -286,6 +288,8 @@ class TrafficGuard:
         limits = self.limits()
         if held is None:
             held = self._column_threat(t_us, pos, pref, phase, tracks, params)
+            if phase is Phase.TAKEOFF or self._departure_threat is not None:
+                held = self._latched_departure(t_us, held if phase is Phase.TAKEOFF else None)
             if held is not None:
                 pref[2] = 0.0  # hold the height: no climb out of the pad, no descent into the column, no level change
         over_pad = departing or pad_held or landing_here  # (a take-off phase is a departing one)
@@ -343,11 +347,11 @@ class TrafficGuard:
         the column the vehicle is about to climb out of (from the pad), descend into, or change levels through,
         before it would be through (a manned aircraft: within the look-ahead, from the pad); None when clear."""
         if phase in CORRIDOR_PHASES and abs(pref[2]) >= CORRIDOR_MIN_M_S and -pos[2] >= GROUND_LOCK_AGL_M:
-            return self._corridor_threat(t_us, pos, pref, tracks, params)
+            return corridor_threat(t_us, pos, pref, tracks, params)
         manned_window = 0.0
         if phase is Phase.TAKEOFF and (pref[2] < 0.0 or self.holding_takeoff) and -pos[2] < GROUND_LOCK_AGL_M:
-            top, speed = -DEPARTURE_COLUMN_M, max(-pref[2], 0.3)  # held, the reference stops: the longest window
-            window = DEPARTURE_COLUMN_M / speed + COLUMN_MARGIN_S
+            top = -DEPARTURE_COLUMN_M  # up at the take-off's climb rate (held, the reference stops; it says nothing)
+            window = DEPARTURE_COLUMN_M / self.params.get("MPC_TKO_SPEED") + COLUMN_MARGIN_S
             manned_window = max(window, params.horizon_s)
         elif phase is Phase.LAND and pref[2] > 0.0 and -pos[2] >= GROUND_LOCK_AGL_M:
             top, window = pos[2], LANDING_WINDOW_S  # the descent itself is the reactive layer's (others avoid it)
@@ -362,6 +366,18 @@ class TrafficGuard:
                 return track.name
         return None
 
+    def _latched_departure(self, t_us: int, threat: str | None) -> str | None:
+        """The departure hold's track: ``threat`` (this solve's, None: clear or no take-off), or the last one until
+        the column has been clear ``DEPARTURE_CLEAR_US`` (only while the hold is still in force)."""
+        if threat is not None or not self.holding_takeoff:
+            self._departure_threat, self._departure_clear_us = threat, -1
+            return threat
+        if self._departure_clear_us < 0:
+            self._departure_clear_us = t_us
+        if t_us - self._departure_clear_us >= DEPARTURE_CLEAR_US:
+            self._departure_threat = None
+        return self._departure_threat
+
     def _pad_occupant(self, t_us: int, pos: Vec3, spot: Vec3, tracks: tuple[TrafficTrack, ...],
                       params: TrafficParams) -> TrafficTrack | None:  # fmt: skip
         """The landing clearance's first half: the UAV on the touchdown ``spot`` (about home) or hovering over it
@@ -369,7 +385,7 @@ class TrafficGuard:
         its report's accuracy added); None when the pad is free."""
         reach_m = PAD_RADIUS_VOLUMES * params.uav.grown(params.margin).hor_m
         for track in tracks:
-            if track.source is not TrafficSource.UAV or math.hypot(*track.vel_ned_m_s[:2]) >= COLUMN_SPEED_M_S:
+            if track.source is not TrafficSource.UAV or math.hypot(*track.steady_vel_ned_m_s[:2]) >= COLUMN_SPEED_M_S:
                 continue
             p = track.position_at(t_us)
             on_spot = math.hypot(p[0] - spot[0], p[1] - spot[1]) < reach_m + uncertainty_m(track)[0]
@@ -390,25 +406,3 @@ class TrafficGuard:
         pref[0] = _pull_m_s(p[0] + an / away * aside - pos[0])
         pref[1] = _pull_m_s(p[1] + ae / away * aside - pos[1])
         pref[2] = -max(_pull_m_s(PAD_HOLD_AGL_M + pos[2]), 0.0)  # level, and back up if pushed low
-
-    def _corridor_threat(self, t_us: int, pos: Vec3, pref: list[float], tracks: tuple[TrafficTrack, ...],
-                         params: TrafficParams) -> str | None:  # fmt: skip
-        """The altitude-change corridor: the track passing by that is predicted through the band of levels the
-        climb or descent ``pref[2]`` enters within ``CORRIDOR_S`` (from the edge of the vehicle's own volume on,
-        moving with its horizontal velocity); None when clear or the change is within its own volume."""
-        own_ver_m = params.uav.grown(params.margin).ver_m
-        sense = 1.0 if pref[2] > 0.0 else -1.0
-        change_m = pref[2] * CORRIDOR_S
-        if abs(change_m) <= own_ver_m:
-            return None
-        near, far = pos[2] + sense * own_ver_m, pos[2] + change_m
-        window = CORRIDOR_S + COLUMN_MARGIN_S
-        for track in tracks:
-            if parked(track, t_us):
-                continue
-            v = track.vel_ned_m_s
-            if math.hypot(v[0] - pref[0], v[1] - pref[1]) < COLUMN_SPEED_M_S:
-                continue  # keeps station over or under the vehicle: holding would wait for ever (the layer's)
-            if column_conflict(track, t_us, pos, far, window, params, False, near, (pref[0], pref[1], 0.0)) is not None:
-                return track.name
-        return None

@@ -64,13 +64,13 @@ def head_on(own_vel_ned_m_s: Vec3, track_vel_ned_m_s: Vec3, rel_pos_ned_m: Vec3)
 def owns_column(track: TrafficTrack) -> bool:
     """A UAV hovering, stopping or landing (horizontal speed below ``COLUMN_SPEED_M_S``): it may descend to land
     at any moment, so its separation volume reaches down to the ground and it has right of way over moving UAVs."""
-    return track.source is TrafficSource.UAV and math.hypot(*track.vel_ned_m_s[:2]) < COLUMN_SPEED_M_S
+    return track.source is TrafficSource.UAV and math.hypot(*track.steady_vel_ned_m_s[:2]) < COLUMN_SPEED_M_S
 
 
 def parked(track: TrafficTrack, t_us: int) -> bool:
     """Standing still at home level (a vehicle on its pad): surface traffic, not avoided in the air and never a
     conflict (the operator's business; it still counts for the simulator's contacts)."""
-    n, e, d = track.vel_ned_m_s
+    n, e, d = track.steady_vel_ned_m_s
     return -track.position_at(t_us)[2] < PARKED_AGL_M and math.hypot(n, e) < PARKED_SPEED_M_S and abs(d) < 0.5
 
 
@@ -88,7 +88,7 @@ def role(own_system_id: int, track: TrafficTrack, own_vel_ned_m_s: Vec3, rel_pos
         return Role.GIVE_WAY
     if owns_column(track) and math.hypot(*own_vel_ned_m_s[:2]) >= COLUMN_SPEED_M_S:
         return Role.GIVE_WAY
-    if head_on(own_vel_ned_m_s, track.vel_ned_m_s, rel_pos_ned_m):
+    if head_on(own_vel_ned_m_s, track.steady_vel_ned_m_s, rel_pos_ned_m):
         return Role.GIVE_WAY
     return Role.STAND_ON
 

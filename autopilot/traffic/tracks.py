@@ -53,7 +53,9 @@ FIX_HOLD_US = 1_000_000
 class TrafficTrack:
     """One target: its last report, its position about home at that time, its velocity (NED) and, from a UTM report,
     its intent and accuracy: ``next_pos_home_ned_m`` (its next waypoint about home, None: none announced),
-    ``flight_state``, ``h_acc_m``/``v_acc_m`` (1-sigma, NaN: unknown, as every ADS-B report)."""
+    ``flight_state``, ``h_acc_m``/``v_acc_m`` (1-sigma, NaN: unknown, as every ADS-B report).
+    ``reported_vel_ned_m_s``: on a track flown on its camera fixes, the velocity its own report gave (None: the
+    track is the report); see :attr:`steady_vel_ned_m_s`."""
 
     source: TrafficSource
     target_id: int
@@ -65,6 +67,16 @@ class TrafficTrack:
     flight_state: UtmFlightState = UtmFlightState.UNKNOWN
     h_acc_m: float = math.nan
     v_acc_m: float = math.nan
+    reported_vel_ned_m_s: Vec3 | None = None
+
+    @property
+    def steady_vel_ned_m_s(self) -> Vec3:
+        """The velocity that says what the target is doing: its report's (its own estimator's, a second or two
+        old), not the fixes' (differentiated at the camera's 10 Hz, it swings by a metre a second about a UAV
+        standing on its pad 24 m off: encounter case 625). The rules' classifications (on the ground, owning its
+        column, head-on) and the column checks' predictions over tens of seconds read it; the reactive layer's
+        velocity obstacles, over seconds, read :attr:`vel_ned_m_s`."""
+        return self.vel_ned_m_s if self.reported_vel_ned_m_s is None else self.reported_vel_ned_m_s
 
     @property
     def key(self) -> TrackKey:
@@ -204,7 +216,7 @@ class TrackTable:
             return track
         p, v, s = fix.pos, fix.vel, fix.sigma_m
         return replace(track, pos_home_ned_m=(p[0], p[1], p[2]), vel_ned_m_s=(v[0], v[1], v[2]), t_us=fix.t_us,
-                       h_acc_m=s, v_acc_m=s)  # fmt: skip
+                       h_acc_m=s, v_acc_m=s, reported_vel_ned_m_s=track.vel_ned_m_s)  # fmt: skip
 
     def update(self, now_us: int, reports: Iterable[object], max_age_s: float) -> tuple[list[str], list[TrafficTrack]]:
         """Take new reports and drop stale tracks; returns (rejections, dropped tracks)."""

@@ -71,10 +71,12 @@ def test_a_fleet_world_keeps_its_per_vehicle_digests(tmp_path: Path) -> None:
     # each other: the tracks are fresher, and the other is no longer an obstacle to the planner); and again when a
     # take-off held on its pad began to wait at idle once settled on it (it had pushed against the ground near hover
     # thrust); and again when the plane inside a grown sphere began to ask to move apart along the line of centres
-    # (it had let a fast pair fly on through each other: the pads 8 m apart start inside it)
+    # (it had let a fast pair fly on through each other: the pads 8 m apart start inside it); and again when a
+    # departure hold began to end only after its column had been clear 2 s and the rules and column checks began to
+    # read the reports' velocity, not the camera fixes' (alpha leaves its pad 2 s later and lands at 67 s)
     assert [v["truth_sha256"] for v in out["sim"]["vehicles"]] == [
-        "99ac65254281586f2a9f562423667587d375197f4992e02321c249ddb889fec4",
-        "88efd42be8a5054b9386b2ef331e8505cecc19867f1dd94296bc44b9b89bd9d2",
+        "aedfe6e8317e27354c90a6e884d2144beee23fd96bed2d99389d53c576b3bd1e",
+        "8650929be6cfb5d83f52cdb247b370fab1163700108d32f5e5267ea1ce1eff6d",
     ]
     # each hears the other's own reports (1 Hz, 1 s late) and the helicopter's ADS-B (1 Hz, 0.6 s late, 95 %)
     assert [v["traffic_reports"] for v in out["sim"]["vehicles"]] == [56, 57]

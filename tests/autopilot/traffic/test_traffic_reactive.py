@@ -13,6 +13,7 @@ from scipy.optimize import minimize
 from autopilot.geofence.fence import CircleZone
 from autopilot.navigation.home_frame import HomeFrame
 from autopilot.navigation.traffic_guard import (
+    DEPARTURE_CLEAR_US,
     HELD_AGL_M,
     HELD_DESCENT_M_S,
     PAD_ASIDE_VOLUMES,
@@ -477,6 +478,32 @@ def _landing_guard() -> tuple[TrafficGuard, HomeFrame]:
     guard = TrafficGuard(ParamStore(all_param_specs()), 1)
     guard.land_spot_ned_m = (0.0, 0.0, 0.0)
     return guard, HomeFrame(GeoPoint(47.3977, 8.5456, 488.0))
+
+
+def test_a_departure_hold_ends_only_after_the_column_has_been_clear_a_while() -> None:
+    """Encounter case 625: a track at the edge of the climb-out column, its prediction flipping in and out of it
+    with its noise every few solves: the hold stays (the motors stay at idle on the pad) until the column has
+    been clear DEPARTURE_CLEAR_US, then the take-off goes (it used to be released and held again every 0.25-0.5 s,
+    the motors stepping between idle and hover a few centimetres up, and the vehicle tipped 19 degrees)."""
+    params = ParamStore(all_param_specs())
+    frame = HomeFrame(GeoPoint(47.3977, 8.5456, 488.0))
+    crossing = uav(2, (-60.0, 0.0, -15.0), (4.0, 0.0, 0.0))  # through the column in 15 s
+    aside = uav(2, (-60.0, 40.0, -15.0), (4.0, 0.0, 0.0))  # the same, 40 m east: clear
+    guard = _departed_here(params, frame)
+    pad, climb = (0.0, 0.0, -0.05), (0.0, 0.0, -1.5)
+    released_us = None
+    for k in range(200):  # 4 s of solves: 1 s with the track flipping, then clear
+        t_us = k * 20_000
+        track = crossing if t_us < 1_000_000 and k % 12 < 4 else aside
+        guard.step(t_us, 0.004, frame, pad, (0.0, 0.0, 0.0), pad, climb, FlightMode.AUTO_MISSION, False,
+                   _Table([track]), PARAMS)  # type: ignore[arg-type]  # fmt: skip
+        if released_us is None and not guard.holding_takeoff:
+            released_us = t_us
+            assert k > 0  # held at once
+    last_seen_us = max(k * 20_000 for k in range(50) if k % 12 < 4)
+    assert released_us is not None and released_us >= last_seen_us + DEPARTURE_CLEAR_US
+    assert released_us <= last_seen_us + DEPARTURE_CLEAR_US + 40_000
+    assert [t.text for t in guard.texts] == ["Traffic: take-off held for UAV 2"]
 
 
 def test_a_landing_waits_beside_a_pad_with_a_vehicle_on_it() -> None:

@@ -13,6 +13,7 @@ from traffic_kinematic import HOME, report
 from autopilot.navigation.home_frame import HomeFrame
 from autopilot.navigation.traffic_link import TrafficLink
 from autopilot.param_schema import make_param_store
+from autopilot.traffic.rules import PARKED_SPEED_M_S, owns_column, parked
 from autopilot.traffic.sensor_fusion import GATE_M, associate, gate_m
 from autopilot.traffic.tracks import FIX_HOLD_US, TrackTable, TrafficTrack
 from mavlink_bridge.contract.traffic import TrafficSource
@@ -61,9 +62,28 @@ def test_fixes_give_the_track_a_fresh_position_and_the_velocity_it_flies() -> No
     assert track.pos_home_ned_m == pytest.approx((30.0, 4.0, -10.0), abs=0.2)
     assert track.vel_ned_m_s == pytest.approx((0.0, 4.0, 0.0), abs=0.5)
     assert track.flight_state is table.tracks[0].flight_state  # the report still says who and what it is
+    assert track.steady_vel_ned_m_s == (0.0, 0.0, 0.0)  # what it says it does: the report's, for the rules
     table.update(2_000_000 + FIX_HOLD_US + 1, [], 5.0)
     (track,) = table.tracks
-    assert track.t_us == 0 and track.vel_ned_m_s == (0.0, 0.0, 0.0)
+    assert track.t_us == 0 and track.vel_ned_m_s == (0.0, 0.0, 0.0) and track.reported_vel_ned_m_s is None
+
+
+def test_a_vehicle_on_its_pad_seen_by_a_noisy_camera_stays_parked() -> None:
+    """Encounter case 625: a UAV standing on its pad 24 m off, its fixes 0.85 m (1-sigma) noisy at 10 Hz: the
+    filter's velocity swings by about a metre a second, yet it stays parked (its report says it stands still) and
+    never holds a neighbour's take-off."""
+    rng = np.random.default_rng(625)
+    table = TrackTable(own_system_id=1)
+    table.set_home(HOME)
+    table.update(0, [report(TrafficSource.UAV, 2, np.array((24.0, 0.0, 0.0)), np.zeros(3), 0)], 5.0)
+    swings = []
+    for k in range(1, 51):
+        t_us = k * 100_000
+        table.observe(UAV2, t_us, tuple(np.array((24.0, 0.0, 0.0)) + rng.normal(0.0, 0.85, 3) * (1, 1, 0.05)), 0.85)
+        (track,) = table.tracks
+        swings.append(math.hypot(*track.vel_ned_m_s[:2]))
+        assert parked(track, t_us) and owns_column(track)
+    assert max(swings) > PARKED_SPEED_M_S  # the filter's velocity alone would call it moving
 
 
 def _seen(other_ned: tuple[float, float, float]) -> tuple[ObstacleDetection, ...]:
