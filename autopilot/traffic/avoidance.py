@@ -50,6 +50,9 @@ _FAILSAFE = {TrafficAction.RETURN: FailsafeAction.RTL, TrafficAction.LAND: Fails
              TrafficAction.HOLD: FailsafeAction.HOLD}  # fmt: skip
 #: Shortest interval between two replans of a detour that stopped keeping separation (µs).
 REPLAN_US = 500_000
+#: The same detour (track, role, manoeuvre) planned again is said again only after this long (µs): replanned at
+#: every report in a crowd, it was said 30 times in 5 s (encounter case 682).
+RESAY_US = 10_000_000
 #: Offsets are sized this much beyond the planning volume they are checked against (tracking slack).
 OFFSET_SLACK = 1.15
 #: How far the conflict window of the most urgent conflict is followed past the horizon (s).
@@ -113,6 +116,7 @@ class TrafficAvoidance:
         self._said_reject: dict[str, int] = {}
         self._last_plan_us = -REPLAN_US
         self._last_report_us: dict[TrackKey, int] = {}
+        self._said_plan: tuple[tuple[str, str, str], int] = (("", "", ""), -RESAY_US)  # (what, when) last said
         self.decision = TrafficDecision(0, params.action)
 
     def set_params(self, params: TrafficParams) -> None:
@@ -249,7 +253,10 @@ class TrafficAvoidance:
         severity = Severity.NOTICE if res.safe else Severity.WARNING
         kept = "" if res.safe else f" (keeps only {res.min_ratio:.0%} of the planned separation)"
         refused = f" ({'; '.join(res.refused)})" if res.refused else ""
-        texts.append(StatusText(severity, f"Traffic: {verb} to {primary.track.name}: {res.describe()}{kept}{refused}"))
+        plan = (primary.track.name, verb, res.describe())
+        if plan != self._said_plan[0] or t_us - self._said_plan[1] >= RESAY_US:
+            self._said_plan = (plan, t_us)
+            texts.append(StatusText(severity, f"Traffic: {verb} to {plan[0]}: {plan[2]}{kept}{refused}"))
 
     def _conflict(self, own: OwnShip, track: TrafficTrack) -> Conflict | None:
         """``track`` as a conflict of ``own`` flying straight on (the detection volume), or None."""

@@ -12,6 +12,7 @@ from autopilot.param_schema import make_param_store
 from autopilot.planner.geometry import CircleZone
 from autopilot.safety.failsafe import FailsafeAction, FailsafeKind
 from autopilot.traffic import AvoidLimits, Maneuver, OwnShip, TrafficAction, TrafficAvoidance, TrafficParams
+from autopilot.traffic.avoidance import RESAY_US
 from mavlink_bridge.contract.traffic import TrafficSource
 
 LIMITS = AvoidLimits(down_min_m=-120.0, down_max_m=-2.0)
@@ -199,3 +200,18 @@ def test_low_under_a_manned_aircraft_a_descent_to_the_floor_keeps_the_nmac_volum
     rel = plane_pos + np.outer(times_s, plane_vel) - pos
     inside = (np.hypot(rel[:, 0], rel[:, 1]) < 150.0) & (np.abs(rel[:, 2]) < 30.0)
     assert not inside.any()
+
+
+def test_the_same_detour_planned_again_is_said_again_only_after_a_while() -> None:
+    """In a crowd the detour is replanned at every report; the same one (track, role, manoeuvre) is said once per
+    RESAY_US (encounter case 682 said "giving way to UAV 7: stop" 30 times in 5 s)."""
+    avoidance = _avoidance(TrafficAction.AVOID)
+    said = []
+    for k in range(30):  # 15 s of reports at 2 Hz, the detour dropped and planned anew after each
+        t_us = 1_000_000 + k * 500_000
+        hovering = report(TrafficSource.UAV, 1, np.array((60.0, 1.0, -20.0)), np.zeros(3), t_us)
+        decision = avoidance.update(_own(t_us), [hovering], LIMITS)
+        said += [(t_us, t.text) for t in decision.texts if t.text.startswith("Traffic: giving way")]
+        avoidance.resolution = None
+    assert [t for t, _ in said] == [1_000_000, 1_000_000 + RESAY_US]
+    assert all(text.startswith("Traffic: giving way to UAV 1: turn right") for _, text in said)
