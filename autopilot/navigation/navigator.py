@@ -41,13 +41,14 @@ from autopilot.mission.executor import (
 from autopilot.mission.feasibility import FeasibilityLimits
 from autopilot.mission.uploads import UploadStore
 from autopilot.mission.validation import MissionLimits
-from autopilot.navigation.bypass import REJOINED_PAST, bypass_reason
+from autopilot.navigation.bypass import REJOINED_PAST, bypass_reason, first_clear_item
 from autopilot.navigation.home_frame import HomeFrame
 from autopilot.navigation.leg_routing import LegRouting, RoutePlanner
 from autopilot.navigation.outputs import NOTHING as _NOTHING
 from autopilot.navigation.outputs import NavOutput, ReferenceOverride
 from autopilot.navigation.return_routing import ReturnRouting
 from autopilot.navigation.targets import face_along_path, mission_nav_target
+from autopilot.navigation.traffic_bypass import BlockedWaypoint
 from autopilot.navigation.traffic_link import TrafficLink
 from autopilot.parameters.store import ParamStore
 from autopilot.planner.param_decls import PlannerParams
@@ -97,6 +98,7 @@ class Navigator:
         self._texts: list[StatusText] = []
         self._last_output: ExecutorOutput | None = None
         self._route_checked: tuple[object, object] | None = None  # (route, obstacles) last safety-checked
+        self._blocked = BlockedWaypoint()  # traffic keeping the vehicle off its waypoint
         self._nav_key: tuple[object, ...] = ()
         self._nav: NavTarget | None = None
         self._nav_faces = False  # the cached mission target's yaw is the per-step heading along the path
@@ -271,7 +273,7 @@ class Navigator:
         pos = frame.home_from_origin(state.pos_ned_m)
         sample = VehicleSample(state.time_us, pos, state.vel_ned_m_s, landed)
         out = self._last_output = executor.step(sample)
-        if self._skip_covered_target(state.time_us):  # never fly toward a waypoint inside an obstacle
+        if self._skip_covered_target(state.time_us) or self._skip_blocked_target(state.time_us, pos):
             then = executor.step(sample)
             out = self._last_output = replace(
                 then,
@@ -387,6 +389,16 @@ class Navigator:
         route = executor.route_ahead(ROUTE_AHEAD_LOOKAHEADS * self.params.get("CA_LOOKAHEAD_M"), ROUTE_MAX_POINTS)
         return route if route.seqs and route.seqs[0] == out.target.seq else None
 
+    def _skip_blocked_target(self, time_us: int, pos_home_ned_m: Vec3) -> bool:
+        """Bypass the route's head when traffic keeps the vehicle off it (:class:`BlockedWaypoint`)."""
+        avoid = self.traffic.avoidance
+        route = self._mission_route() if avoid.table.has_tracks else None
+        blocked = self._blocked.check(time_us, pos_home_ned_m, route, avoid.table.tracks, avoid.params)
+        if blocked is None or self.executor is None or not self.executor.skip_to(blocked[1], time_us):
+            return False
+        self.bypass_reasons[blocked[0]] = blocked[2]
+        return True
+
     def _skip_covered_target(self, time_us: int) -> bool:
         """Skip the route's head while it lies inside a tracked obstacle's safety volume (CA_RSAFE_M; obstacles
         of the planner's latest output) to the first route point outside, or the item the route stops at."""
@@ -398,16 +410,9 @@ class Navigator:
         if checked is not None and checked[0] is route and checked[1] is obstacles:
             return False  # both unchanged since the last check (the executor and the map cache them)
         self._route_checked = (route, obstacles)
-        r_safe = self.params.get("CA_RSAFE_M")
-        clear = np.full(len(route.seqs), np.inf)
-        for obstacle in obstacles:
-            np.minimum(clear, obstacle.signed_distance(route.pos_ned_m), out=clear)
-        if clear[0] >= r_safe:
-            return False
-        outside = np.flatnonzero(clear >= r_safe)
-        seq = route.seqs[int(outside[0])] if len(outside) else route.next_seq
+        seq = first_clear_item(route, obstacles, self.params.get("CA_RSAFE_M"))
         assert self.executor is not None
-        if seq < 0 or not self.executor.skip_to(seq, time_us):
+        if seq is None or seq < 0 or not self.executor.skip_to(seq, time_us):
             return False
         head = route.seqs[0]
         self.bypass_reasons[head] = bypass_reason(self.params, self.geofence, self.planner_output, route.pos_ned_m[0])
