@@ -45,10 +45,11 @@ test: venv
 bench: venv
 	$(BIN)/python -m tools.benchmarks
 
-# The encounter Monte Carlo (issue 28, docs/traffic.md): both campaigns about 3 h on 2 cores when the VM is fast, up
-# to 9 h when it is slow, so they are flown over several sittings into the folders committed in bench/campaigns/: each run flies only the cases
-# they have no row for yet (Ctrl-C loses only the cases in flight), then prints the keys and whether every row was
-# flown by the flight code at HEAD (after a change to it: rm -r bench/campaigns/encounters*, and fly them again).
+# The encounter Monte Carlo (issue 28, docs/traffic.md): both campaigns about 3 h on 2 cores when the VM is fast,
+# up to 10 h when it is slow, so they are flown over several sittings into the folders committed in
+# bench/campaigns/: each run flies only the cases they have no row for yet (Ctrl-C loses only the cases in flight),
+# then prints the keys and whether every row was flown by the flight code at HEAD (after a change to it:
+# rm -r bench/campaigns/encounters*, and fly them again).
 ENCOUNTERS := bench/campaigns
 encounters: venv
 	@for c in encounters encounters_warn_only; do \
