@@ -78,3 +78,25 @@ def test_the_report_of_a_fleet_campaign_has_its_groups_totals_and_separation_ecd
     for name in ("ecdf_sep.png", "ecdf_dist.png", "ecdf_manned.png"):
         assert (tmp_path / "out" / name).stat().st_size > 1000 and f"]({name})" in report
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["traffic"] == summary["traffic"]
+
+
+def test_the_report_of_a_campaign_with_choice_inputs_has_a_pass_rate_per_level(tmp_path: Path) -> None:
+    path = tmp_path / "wind.yaml"
+    path.write_text(
+        f"name: wind\nbase: {Path(__file__).resolve().parents[2] / 'missions' / 'delivery.yaml'}\ncases: 3\n"
+        "seed: 1\nvary:\n  world.payload_kg: {choice: [0.0, 0.8]}\n  world.wind.seed: {randint: [0, 10]}\n"
+    )
+    writer = ShardWriter(tmp_path / "out")
+    for case_id, payload, passed in ((0, 0.0, True), (1, 0.8, False), (2, 0.8, True)):
+        writer.add({"case_id": case_id, "status": "ok" if passed else "fail", "passed": passed,
+                    "reason": "" if passed else "landed False", "tracking_pos_rms_m": 0.5,
+                    "vary.world.payload_kg": payload, "vary.world.wind.seed": 3.0})  # fmt: skip
+    writer.flush()
+    summary = write_report(load_campaign(path), tmp_path / "out")
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert list(summary["per_level"]) == ["world.payload_kg"]  # a randint input is not a level
+    assert "## Pass rate per input level" in report
+    assert "| input | level | cases | pass rate | 95 % interval |" in report
+    assert "| world.payload_kg | `0.0` | 1 | 100.0% |" in report
+    assert "| world.payload_kg | `0.8` | 2 | 50.0% |" in report
+    assert "## Pass rate per encounter kind" not in report  # not a fleet campaign

@@ -245,18 +245,7 @@ def write_report(spec: CampaignSpec, out_dir: Path) -> dict[str, Any]:
         + ".",
         "",
     ]
-    if summary["per_level"]:
-        lines += [
-            "## Pass rate per input level",
-            "",
-            "| input | level | cases | pass rate | 95 % interval |",
-            "|---|---|---|---|---|",
-        ]
-        for key, levels in summary["per_level"].items():
-            for level, s in levels.items():
-                lines.append(f"| {key} | `{level}` | {s['cases']} | {s['pass_rate']:.1%} | "
-                             f"[{s['ci95_low']:.1%}, {s['ci95_high']:.1%}] |")  # fmt: skip
-        lines.append("")
+    lines += _pass_rate_table("Pass rate per input level", "input", summary["per_level"])
     lines += _fleet_lines(summary)
     lines += ["## Failures by reason", ""]
     lines += [f"- {count} x {reason}" for reason, count in summary["failures_by_reason"].items()] or ["- none"]
@@ -301,19 +290,22 @@ def _fleet_lines(summary: dict[str, Any]) -> list[str]:
     ]
     lines += [f"| {label} (`{column}`) | {traffic[column]:g} |" for column, label in TRAFFIC_TOTALS]
     lines += [f"| missions completed (`traffic_completion`, over the vehicles) | {traffic['completion']:.1%} |", ""]
-    if summary["fleet_groups"]:
-        lines += [
-            "## Pass rate per encounter kind, vehicle count and traffic class",
-            "",
-            "| group | level | cases | pass rate | 95 % interval |",
-            "|---|---|---|---|---|",
-        ]
-        for group, levels in summary["fleet_groups"].items():
-            for level, s in levels.items():
-                lines.append(f"| {group} | `{level}` | {s['cases']} | {s['pass_rate']:.1%} | "
-                             f"[{s['ci95_low']:.1%}, {s['ci95_high']:.1%}] |")  # fmt: skip
-        lines.append("")
-    return lines
+    return lines + _pass_rate_table(
+        "Pass rate per encounter kind, vehicle count and traffic class", "group", summary["fleet_groups"]
+    )
+
+
+def _pass_rate_table(title: str, key_header: str, groups: dict[str, dict[str, dict[str, Any]]]) -> list[str]:
+    """A report section of pass rates per level of each key, with their exact 95 % intervals (none if no groups)."""
+    if not groups:
+        return []
+    header = f"| {key_header} | level | cases | pass rate | 95 % interval |"
+    lines = [f"## {title}", "", header, "|---|---|---|---|---|"]
+    for key, levels in groups.items():
+        for level, s in levels.items():
+            lines.append(f"| {key} | `{level}` | {s['cases']} | {s['pass_rate']:.1%} | "
+                         f"[{s['ci95_low']:.1%}, {s['ci95_high']:.1%}] |")  # fmt: skip
+    return [*lines, ""]
 
 
 def _rule_text(rule: Any) -> str:
