@@ -47,3 +47,16 @@ def test_full_run_writes_the_committed_file(one_fake_suite: Path) -> None:
     assert bench.main(["--only", "fake"]) == 0
     assert json.loads(one_fake_suite.read_text())["fake_rtf"] == 3.0
     assert json.loads(one_fake_suite.read_text())["quick"] is False
+
+
+def test_some_suites_into_the_committed_file_keep_the_other_suites_keys(
+    one_fake_suite: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    one_fake_suite.write_text('{"fake_rtf": 1.0, "other_suite_key": 7.0}\n')
+    assert bench.main(["--only", "fake"]) == 0
+    assert json.loads(one_fake_suite.read_text())["other_suite_key"] == 7.0  # not dropped by a subset run
+    assert json.loads(one_fake_suite.read_text())["fake_rtf"] == 3.0 and "merged into" in capsys.readouterr().out
+    assert bench.main(["--only", "fake", "--replace"]) == 0
+    assert "other_suite_key" not in json.loads(one_fake_suite.read_text())
+    with pytest.raises(SystemExit):
+        bench.main(["--only", "fake", "--merge", "--replace"])

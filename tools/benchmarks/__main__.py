@@ -58,7 +58,12 @@ def main(argv: list[str] | None = None) -> int:
         help=f"where to write the flat JSON results (default {FULL_RESULTS}; with --quick, nowhere unless given)",
     )
     parser.add_argument(
-        "--merge", action="store_true", help="keep the keys of suites not run now from an existing --out file"
+        "--merge",
+        action="store_true",
+        help=f"keep the keys of suites not run now from the --out file (default for --only into {FULL_RESULTS})",
+    )
+    parser.add_argument(
+        "--replace", action="store_true", help="write only this run's keys, even for --only into the default file"
     )
     parser.add_argument(
         "--workers", type=int, default=None, help="Monte Carlo suites: engine worker processes (default: the cores)"
@@ -69,6 +74,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.workers is not None and args.workers < 1:
         parser.error(f"--workers must be >= 1, got {args.workers}")
+    if args.merge and args.replace:
+        parser.error("--merge and --replace contradict each other: choose one")
     names = args.only or _suites()
     engine = {"workers": args.workers, "scheduler": args.scheduler}
     rows: list[tuple[str, BenchResult]] = []
@@ -93,14 +100,16 @@ def main(argv: list[str] | None = None) -> int:
         print(note, file=sys.stderr)
         return 2
     out.parent.mkdir(parents=True, exist_ok=True)
-    results: dict[str, object] = {}
-    if args.merge and out.is_file():
-        results.update(json.loads(out.read_text()))
+    # Some suites only, into the committed file: keep the other suites' keys unless told to replace them.
+    subset = set(names) != set(_suites())
+    merge = args.merge or (subset and not args.replace and out.resolve() == FULL_RESULTS.resolve())
+    merge = merge and out.is_file()
+    results: dict[str, object] = json.loads(out.read_text()) if merge else {}
     results.update({r.key: r.value for _, r in rows})
     results["machine"] = f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}"
     results["quick"] = args.quick
     out.write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
-    print(f"\nwrote {out}")
+    print(f"\n{'merged into' if merge else 'wrote'} {out}")
     return 0
 
 
