@@ -110,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
     what = f"{len(fleet)} vehicles" if fleet else "mission"
     print(f"[run] {world}: {what} -> {out_dir} (instance {block}, speed {args.speed})", flush=True)
     t0 = time.monotonic()
-    outcome = fly(up_cmd, gcs_cmd, out_dir, timeout_s + _STARTUP_MARGIN_S)
+    outcome = fly(up_cmd, gcs_cmd, out_dir, timeout_s + _STARTUP_MARGIN_S, out_dir / "gcs_summary.json")
     wall_s = round(time.monotonic() - t0, 2)
 
     sim, gcs = read_json(out_dir / "sim_summary.json"), read_json(out_dir / "gcs_summary.json")

@@ -95,16 +95,24 @@ class FlightOutcome:
     interrupted: bool
 
 
-def fly(up_cmd: list[str], gcs_cmd: list[str], out_dir: Path, wall_limit_s: float) -> FlightOutcome:
+def fly(
+    up_cmd: list[str], gcs_cmd: list[str], out_dir: Path, wall_limit_s: float, gcs_summary: Path | None = None
+) -> FlightOutcome:
     """Run ``quadsitl up`` (its output to ``out_dir/up.log``) and the ground station side by side until the ground
     station is done.
 
-    The ground station ending stops ``up`` (SIGTERM: every summary is written); ``up`` ending first gives the ground
-    station ``_GCS_GRACE_S`` and then stops it; ``wall_limit_s`` or Ctrl-C stops both.
+    The ground station being done stops ``up`` (SIGTERM: every summary is written): its exit, or ``gcs_summary``
+    (its ``--summary`` file, written as its last act; removed first if an earlier run left one) appearing, whichever
+    comes first, so that a ground-station process slow to exit never leaves the flight running at full speed
+    (the 2-core VM's kernel has held exiting processes for minutes, dmesg: ``exit_mmap`` behind ``kdamond``,
+    while two such flights kept both CPUs busy). ``up`` ending first gives the ground station ``_GCS_GRACE_S`` and
+    then stops it; ``wall_limit_s`` or Ctrl-C stops both.
     """
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     deadline = time.monotonic() + wall_limit_s
     up_died_first = timed_out = interrupted = False
+    if gcs_summary is not None:
+        gcs_summary.unlink(missing_ok=True)
     with open(out_dir / "up.log", "wb") as up_log:
         up = subprocess.Popen(up_cmd, stdout=up_log, stderr=subprocess.STDOUT, env=env)
         gcs = subprocess.Popen(gcs_cmd, env=env)  # its progress bars and result line go to the terminal
@@ -117,6 +125,11 @@ def fly(up_cmd: list[str], gcs_cmd: list[str], out_dir: Path, wall_limit_s: floa
                     up_died_first = True
                     with contextlib.suppress(subprocess.TimeoutExpired):
                         gcs.wait(timeout=_GCS_GRACE_S)
+                    break
+                if gcs_summary is not None and gcs_summary.is_file():
+                    stop_process(up)  # the flight is over: stop it now, then let the ground station finish
+                    with contextlib.suppress(subprocess.TimeoutExpired):
+                        gcs.wait(timeout=max(deadline - time.monotonic(), _GCS_GRACE_S))
                     break
                 time.sleep(_POLL_S)
         except KeyboardInterrupt:
