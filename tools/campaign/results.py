@@ -90,11 +90,15 @@ def done_case_ids(out_dir: Path) -> set[int]:
 
 
 def merge(out_dir: Path, metadata: dict[str, str]) -> Path:
-    """Write ``results.parquet`` from every shard (one row per case id, sorted), then remove the shards."""
+    """Write ``results.parquet`` from every shard (one row per case id, sorted), then remove the shards. With no
+    shard (a ``--resume`` that flew nothing) an existing ``results.parquet`` is left as it is, byte for byte: its
+    metadata keeps the versions of the run that wrote its rows, and a committed campaign folder stays clean."""
+    path = out_dir / RESULTS_FILE
+    if path.is_file() and not any((out_dir / SHARD_DIR).glob("part-*.parquet")):
+        return path
     rows = read_rows(out_dir)
     table = pa.Table.from_pylist(rows)
     table = table.replace_schema_metadata({k.encode(): v.encode() for k, v in metadata.items()})
-    path = out_dir / RESULTS_FILE
     tmp = out_dir / f".{RESULTS_FILE}.tmp"
     pq.write_table(table, tmp)
     os.replace(tmp, path)
