@@ -49,12 +49,14 @@ bench: venv
 # up to 10 h when it is slow, so they are flown over several sittings into the folders committed in
 # bench/campaigns/: each run flies only the cases they have no row for yet (Ctrl-C loses only the cases in flight),
 # then prints the keys and whether every row was flown by the flight code at HEAD (after a change to it:
-# rm -r bench/campaigns/encounters*, and fly them again).
+# rm -r bench/campaigns/encounters*, and fly them again). A campaign's exit status 1 (some cases failed: most
+# warn-only ones lose separation) is what they measure; any other failure (usage, Ctrl-C) stops here.
 ENCOUNTERS := bench/campaigns
 encounters: venv
 	@for c in encounters encounters_warn_only; do \
 	  resume=; [ -f $(ENCOUNTERS)/$$c/campaign.yaml ] && resume=--resume; \
-	  $(BIN)/python -m tools.campaign.cli missions/campaigns/$$c.yaml --out $(ENCOUNTERS)/$$c $$resume || exit 1; \
+	  $(BIN)/python -m tools.campaign.cli missions/campaigns/$$c.yaml --out $(ENCOUNTERS)/$$c $$resume; \
+	  rc=$$?; [ $$rc -eq 0 ] || [ $$rc -eq 1 ] || exit $$rc; \
 	done
 	$(BIN)/python -m tools.benchmarks.encounters --avoid-dir $(ENCOUNTERS)/encounters \
 	  --warn-dir $(ENCOUNTERS)/encounters_warn_only
