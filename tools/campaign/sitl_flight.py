@@ -58,6 +58,12 @@ def _watch_parent(parent: int) -> None:
     threading.Thread(target=watch, daemon=True, name="parent-watchdog").start()
 
 
+#: How often a single-vehicle case is started on new ports when one was taken before it was bound; the words of
+#: both errors that say so (the link's "UDP port N on HOST is already in use", the OS's "Address already in use").
+PORT_TRIES = 3
+PORT_TAKEN = "already in use"
+
+
 def _free_port() -> int:
     import socket
 
@@ -141,6 +147,18 @@ def _fly_fleet(case_dir: Path, case: dict[str, Any]) -> dict[str, Any]:
 
 
 def _fly_one(case_dir: Path, case: dict[str, Any], rerun: str | None) -> dict[str, Any]:
+    """One vehicle on free loopback ports, flown again on new ones (up to ``PORT_TRIES`` times) when a port was taken
+    between choosing it and binding it: the simulator binds its port seconds after it is chosen (after the autopilot
+    has started and taken the mission), and any socket on the machine may get it meanwhile as its ephemeral port.
+    The flight is a function of the case's files, so flying it again gives the same one."""
+    for _ in range(PORT_TRIES):
+        flight = _fly_one_on_free_ports(case_dir, case, rerun)
+        if PORT_TAKEN not in flight["error"]:
+            break
+    return flight
+
+
+def _fly_one_on_free_ports(case_dir: Path, case: dict[str, Any], rerun: str | None) -> dict[str, Any]:
     """One vehicle: autopilot, mission upload, then the simulator (see the module docstring)."""
     from autopilot.mission.files import load_mission_file
     from mavlink_bridge.contract.vehicle_api import MissionType
