@@ -25,6 +25,7 @@ from mavlink_bridge.contract.frames import LocalNedFrame
 from mavlink_bridge.contract.vehicle_api import MissionItem
 from mavlink_bridge.gcs_client.fleet_link import FleetLink
 from tools.gcs.fly import FlyOptions, fly
+from tools.run.processes import ground_station_done
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
 
@@ -100,10 +101,10 @@ def test_one_gcs_port_flies_every_vehicle_and_one_killed_mid_flight_fails_alone(
                 time.sleep(3.0)  # wall: several sim seconds at --speed max, airborne
                 os.kill(_autopilot_pid(up.pid, 3), signal.SIGKILL)
                 break
-        # the ground station writes its summary last: stop the flight then, not at its exit (as tools.run does:
-        # the VM's kernel has held exiting processes for minutes while the flight ran on at full speed)
+        # stop the flight once the ground station is done, not at its exit, as tools.run does (the VM's kernel has
+        # held exiting processes for minutes while their flight ran on at full speed)
         deadline = time.monotonic() + 300.0
-        while gcs.poll() is None and not (tmp_path / "gcs.json").is_file() and time.monotonic() < deadline:
+        while not ground_station_done(gcs, tmp_path / "gcs.json") and time.monotonic() < deadline:
             time.sleep(0.2)
         _stop(up)
         rest, _ = gcs.communicate(timeout=300)

@@ -16,6 +16,7 @@ import subprocess
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from autopilot.launch_plan import API_LOCAL_PORT, API_PORT, GCS_LOCAL_PORT, GCS_PORT, SIM_PORT
 from autopilot.launch_processes import stop_process
@@ -95,6 +96,12 @@ class FlightOutcome:
     interrupted: bool
 
 
+def ground_station_done(gcs: subprocess.Popen[Any], summary: Path | None) -> bool:
+    """The ground station has exited, or has written its ``--summary`` (its last act before it exits): the flight
+    it flew may be stopped now."""
+    return gcs.poll() is not None or (summary is not None and summary.is_file())
+
+
 def fly(
     up_cmd: list[str], gcs_cmd: list[str], out_dir: Path, wall_limit_s: float, gcs_summary: Path | None = None
 ) -> FlightOutcome:
@@ -117,7 +124,7 @@ def fly(
         up = subprocess.Popen(up_cmd, stdout=up_log, stderr=subprocess.STDOUT, env=env)
         gcs = subprocess.Popen(gcs_cmd, env=env)  # its progress bars and result line go to the terminal
         try:
-            while gcs.poll() is None:
+            while not (done := ground_station_done(gcs, gcs_summary)):
                 if time.monotonic() > deadline:
                     timed_out = True
                     break
@@ -126,12 +133,11 @@ def fly(
                     with contextlib.suppress(subprocess.TimeoutExpired):
                         gcs.wait(timeout=_GCS_GRACE_S)
                     break
-                if gcs_summary is not None and gcs_summary.is_file():
-                    stop_process(up)  # the flight is over: stop it now, then let the ground station finish
-                    with contextlib.suppress(subprocess.TimeoutExpired):
-                        gcs.wait(timeout=max(deadline - time.monotonic(), _GCS_GRACE_S))
-                    break
                 time.sleep(_POLL_S)
+            if done:  # the flight is over: stop it now, then let the ground station finish its exit
+                stop_process(up)
+                with contextlib.suppress(subprocess.TimeoutExpired):
+                    gcs.wait(timeout=max(deadline - time.monotonic(), _GCS_GRACE_S))
         except KeyboardInterrupt:
             interrupted = True
         finally:
