@@ -101,9 +101,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     out.parent.mkdir(parents=True, exist_ok=True)
     # Some suites only, into the committed file: keep the other suites' keys unless told to replace them.
-    subset = set(names) != set(_suites())
-    merge = args.merge or (subset and not args.replace and out.resolve() == FULL_RESULTS.resolve())
-    merge = merge and out.is_file()
+    subset_into_full = set(names) != set(_suites()) and out.resolve() == FULL_RESULTS.resolve()
+    merge = out.is_file() and (args.merge or (subset_into_full and not args.replace))
     results: dict[str, object] = json.loads(out.read_text()) if merge else {}
     results.update({r.key: r.value for _, r in rows})
     results["machine"] = f"{platform.machine()} {platform.processor() or ''} python {platform.python_version()}"

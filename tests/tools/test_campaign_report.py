@@ -1,6 +1,7 @@
-"""The campaign report of fleet cases (tools.campaign.report) on rows built here, no flying: pass rate per
-encounter kind, vehicle count and traffic class, the traffic totals (pair-events, ground exclusions, completion
-over the vehicles) and the separation ECDFs and distributions."""
+"""The campaign report (tools.campaign.report) on rows built here, no flying: for fleet cases the pass rate per
+encounter kind, vehicle count and traffic class, the traffic totals (pair-events, ground exclusions, completion over
+the vehicles) and the separation ECDFs and distributions; for any campaign the pass rate per level of its choice
+inputs."""
 
 from __future__ import annotations
 
